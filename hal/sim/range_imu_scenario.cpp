@@ -1,0 +1,99 @@
+#include "hal/sim/range_imu_scenario.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+namespace rilo::sim {
+
+std::vector<Eigen::Vector3d> defaultOfficeAnchors() {
+  return {{-6.0, -5.0, 2.6}, {6.0, -5.0, 0.8}, {6.0, 5.0, 2.5}, {-6.0, 5.0, 0.9},
+          {0.0, -5.5, 1.9},  {7.0, 0.0, 2.8},  {0.0, 5.5, 0.6}, {-7.0, 0.0, 2.2}};
+}
+
+Scenario simulateScenario(const ScenarioParams& p) {
+  Scenario s;
+  s.params = p;
+  s.p_w_anchors = defaultOfficeAnchors();
+  s.p_b_tag = Eigen::Vector3d(0.05, 0.0, 0.08);
+  s.truth = std::make_shared<LissajousWalk>();
+  s.t0_ns = 1'000'000'000;  // recordings rarely start at zero
+
+  std::mt19937_64 rng(p.seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  auto randn3 = [&] { return Eigen::Vector3d(n01(rng), n01(rng), n01(rng)); };
+
+  // IMU: white noise + random-walk biases, held constant over a sample.
+  Eigen::Vector3d b_g = p.gyro_bias_init_sigma * randn3();
+  Eigen::Vector3d b_a = p.accel_bias_init_sigma * randn3();
+  s.gyro_bias0 = b_g;
+  s.accel_bias0 = b_a;
+  const double dt_imu = 1.0 / p.imu_rate_hz;
+  const auto n_imu = static_cast<std::int64_t>(std::floor(p.duration_s * p.imu_rate_hz)) + 1;
+  s.imu.reserve(static_cast<std::size_t>(n_imu));
+  for (std::int64_t k = 0; k < n_imu; ++k) {
+    const double t = static_cast<double>(k) * dt_imu;
+    const ImuReading m = idealImu(s.truth->at(t), p.gravity_m_s2);
+    ImuSample smp;
+    smp.t_ns = s.t0_ns + static_cast<std::int64_t>(std::llround(t * 1e9));
+    smp.gyro_rad_s = m.gyro + b_g + p.gyro_noise_density / std::sqrt(dt_imu) * randn3();
+    smp.accel_m_s2 = m.accel + b_a + p.accel_noise_density / std::sqrt(dt_imu) * randn3();
+    s.imu.push_back(smp);
+    b_g += p.gyro_bias_walk * std::sqrt(dt_imu) * randn3();
+    b_a += p.accel_bias_walk * std::sqrt(dt_imu) * randn3();
+  }
+
+  // Ranging: a two-state Markov chain per anchor gives persistent NLOS.
+  const std::size_t n_anchors = s.p_w_anchors.size();
+  std::vector<bool> nlos(n_anchors, false);
+  std::vector<double> nlos_bias(n_anchors, 0.0);
+  const double dt_range = 1.0 / p.range_rate_hz;
+  const double p_exit = std::min(1.0, dt_range * static_cast<double>(p.ranges_per_cycle) / p.nlos_mean_duration_s);
+  const double p_enter = p_exit * p.nlos_fraction / std::max(1e-9, 1.0 - p.nlos_fraction);
+  auto halfCauchy = [&](double scale) { return scale * std::abs(std::tan(M_PI * (u01(rng) - 0.5))); };
+
+  const double cycle_s = dt_range * static_cast<double>(p.ranges_per_cycle);
+  for (double t_cycle = 0.0; t_cycle + cycle_s <= p.duration_s; t_cycle += cycle_s) {
+    // Markov step once per cycle; an NLOS episode keeps one excess (slowly varying).
+    for (std::size_t a = 0; a < n_anchors; ++a) {
+      if (nlos[a]) {
+        if (u01(rng) < p_exit) nlos[a] = false;
+        nlos_bias[a] = std::min(p.nlos_max_excess_m, std::max(0.0, nlos_bias[a] + 0.05 * n01(rng)));
+      } else if (u01(rng) < p_enter) {
+        nlos[a] = true;
+        nlos_bias[a] = std::min(p.nlos_max_excess_m, halfCauchy(p.nlos_scale_m));
+      }
+    }
+    // Strongest anchors: nearest, NLOS ones attenuated (counted as 3 m farther).
+    const Eigen::Vector3d p_now = s.truth->at(t_cycle).T_w_b.p;
+    std::vector<std::size_t> order(n_anchors);
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) {
+      const double di = (s.p_w_anchors[i] - p_now).norm() + (nlos[i] ? 3.0 : 0.0);
+      const double dj = (s.p_w_anchors[j] - p_now).norm() + (nlos[j] ? 3.0 : 0.0);
+      return di < dj;
+    });
+    for (int k = 0; k < p.ranges_per_cycle && static_cast<std::size_t>(k) < n_anchors; ++k) {
+      const double t = t_cycle + static_cast<double>(k) * dt_range;
+      if (u01(rng) < p.range_dropout) continue;
+      const std::size_t a = order[static_cast<std::size_t>(k)];
+      const KinematicState st = s.truth->at(t);
+      const double true_range = (st.T_w_b.transformFrom(s.p_b_tag) - s.p_w_anchors[a]).norm();
+      double excess = p.range_sigma_m * n01(rng);
+      if (nlos[a]) excess += nlos_bias[a];
+      if (u01(rng) < p.outlier_probability) excess += std::min(p.nlos_max_excess_m, halfCauchy(1.5));
+      RangeSample r;
+      r.t_ns = s.t0_ns + static_cast<std::int64_t>(std::llround(t * 1e9));
+      r.anchor_id = static_cast<std::uint32_t>(a);
+      r.range_m = std::max(0.0, true_range + excess);
+      r.rssi_dbm = std::nan("");
+      r.los = nlos[a] ? 0 : 1;
+      s.ranges.push_back(r);
+    }
+  }
+  return s;
+}
+
+}  // namespace rilo::sim

@@ -1,0 +1,43 @@
+#include "estimation/noise/noise_model_factory.h"
+
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+
+#include "estimation/noise/asymmetric_loss.h"
+#include "estimation/noise/cauchy_loss.h"
+#include "estimation/noise/gaussian_loss.h"
+#include "estimation/noise/huber_loss.h"
+
+namespace rilo {
+
+const std::vector<std::string>& rangeLossNames() {
+  static const std::vector<std::string> kNames = {"gaussian", "huber", "cauchy", "asymmetric",
+                                                  "asymmetric-half-cauchy"};
+  return kNames;
+}
+
+RobustLossPtr makeRangeLoss(const std::string& name, const RangeNoiseParams& params) {
+  if (name == "gaussian") return std::make_shared<GaussianLoss>();
+  if (name == "huber") return std::make_shared<HuberLoss>(params.huber_k);
+  if (name == "cauchy") return std::make_shared<CauchyLoss>(params.cauchy_c);
+  if (name == "asymmetric" || name == "asymmetric-half-cauchy") {
+    if (!std::isfinite(params.sigma_m) || params.sigma_m <= 0.0) {
+      throw std::invalid_argument("makeRangeLoss: sigma_m must be finite and > 0 (got " +
+                                  std::to_string(params.sigma_m) + ")");
+    }
+    const double gamma_m = params.nlosScaleM();
+    if (!std::isfinite(gamma_m) || gamma_m <= 0.0) {
+      throw std::invalid_argument("makeRangeLoss: nlos_scale_m must be finite and > 0 (got " +
+                                  std::to_string(gamma_m) + ")");
+    }
+    const auto component = name == "asymmetric" ? AsymmetricLoss::Component::kConvolved
+                                                : AsymmetricLoss::Component::kHalfCauchy;
+    return std::make_shared<AsymmetricLoss>(gamma_m / params.sigma_m, params.nlos_weight, component);
+  }
+  std::string valid;
+  for (const std::string& n : rangeLossNames()) valid += (valid.empty() ? "" : ", ") + n;
+  throw std::invalid_argument("makeRangeLoss: unknown range noise model '" + name + "' (valid: " + valid + ")");
+}
+
+}  // namespace rilo

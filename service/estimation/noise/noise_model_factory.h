@@ -1,0 +1,39 @@
+#pragma once
+// Builds the robust loss of range-like factors from a configuration name.
+// The losses act on the whitened residual r = (measured - predicted) / sigma_m,
+// so every parameter below is given in sigmas except the metric NLOS scale.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "estimation/noise/robust_loss.h"
+
+namespace rilo {
+
+struct RangeNoiseParams {
+  /// IQR of N(0, 1): 2 * 0.6744897501960817. The seed (000, Sec. III-B)
+  /// derives the half-Cauchy scale from the IQR of the Gaussian ranging noise.
+  static constexpr double kGaussianIqrPerSigma = 1.3489795003921634;
+
+  double sigma_m = 0.15;      ///< LOS range std-dev [m] (seed 000: 0.1-0.2 m for UWB first-path noise)
+  double huber_k = 1.345;     ///< Huber threshold [sigmas]
+  double cauchy_c = 2.3849;   ///< Cauchy scale [sigmas]
+  /// Half-Cauchy scale gamma of the NLOS excess [m]; unset: IQR heuristic
+  /// kGaussianIqrPerSigma * sigma_m (about 0.20 m for sigma_m = 0.15 m).
+  std::optional<double> nlos_scale_m;
+  double nlos_weight = 0.2;   ///< prior NLOS probability w, in (0, 0.5)
+
+  /// gamma in metres after applying the default.
+  double nlosScaleM() const { return nlos_scale_m.value_or(kGaussianIqrPerSigma * sigma_m); }
+};
+
+/// Names accepted by makeRangeLoss, in documentation order.
+const std::vector<std::string>& rangeLossNames();
+
+/// "gaussian" | "huber" | "cauchy" | "asymmetric" (convolved NLOS component,
+/// seed 000 eq. 7) | "asymmetric-half-cauchy" (seed 000 Fig. 2b). Never returns
+/// null. Throws std::invalid_argument for an unknown name (the message lists the
+/// valid ones) or an invalid parameter (the message names it).
+RobustLossPtr makeRangeLoss(const std::string& name, const RangeNoiseParams& params = {});
+
+}  // namespace rilo

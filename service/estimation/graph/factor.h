@@ -23,7 +23,8 @@ using Jacobians = std::array<JacobianBlock, kMaxFactorKeys>;
 
 class Factor {
  public:
-  /// Throws std::invalid_argument on too many keys or an asymmetric loss on a vector residual.
+  /// Throws std::invalid_argument on 0 or too many keys. (dim() is virtual, so subclasses with
+  /// vector residuals reject asymmetric losses in their own constructors.)
   Factor(std::vector<Key> keys, RobustLossPtr loss = nullptr);
   virtual ~Factor() = default;
   Factor(const Factor&) = delete;

@@ -1,0 +1,216 @@
+#include "estimation/factors/tdoa_factor.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+
+#include "estimation/math/so3.h"
+#include "support/numerical_jacobian.h"
+
+namespace rilo {
+namespace {
+
+using sym::L;
+using sym::X;
+
+class TestHuber final : public RobustLoss {
+ public:
+  explicit TestHuber(double k) : k_(k) {}
+  double loss(double r) const override {
+    const double a = std::abs(r);
+    return a <= k_ ? 0.5 * r * r : k_ * (a - 0.5 * k_);
+  }
+  double derivative(double r) const override { return std::abs(r) <= k_ ? r : k_ * (r > 0 ? 1.0 : -1.0); }
+  std::string name() const override { return "test_huber"; }
+
+ private:
+  double k_;
+};
+
+class TestAsymmetric final : public RobustLoss {
+ public:
+  double loss(double r) const override { return r > 0 ? 0.125 * r * r : 0.5 * r * r; }
+  double derivative(double r) const override { return r > 0 ? 0.25 * r : r; }
+  bool isSymmetric() const override { return false; }
+  std::string name() const override { return "test_asymmetric"; }
+};
+
+Vec3 randomVec(std::mt19937& rng, double scale) {
+  std::normal_distribution<double> n(0.0, scale);
+  return Vec3(n(rng), n(rng), n(rng));
+}
+
+Mat3 randomRotation(std::mt19937& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  return Quat(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
+}
+
+Values poseAndAnchors(const Pose3& T_w_b, const Vec3& p_w_a, const Vec3& p_w_b) {
+  Values v;
+  v.insert(X(0), T_w_b);
+  v.insert(L(1), p_w_a);
+  v.insert(L(2), p_w_b);
+  return v;
+}
+
+TEST(TdoaFactor, ResidualAtKnownConfiguration) {
+  // Tag at the origin: |A_a| = 5, |A_b| = 10, h = 10 - 5 = 5.
+  const Vec3 p_w_a(3, 4, 0), p_w_b(6, 8, 0);
+  const Pose3 T_w_b(so3::exp(Vec3(0.4, 0.2, -1.0)), Vec3(0, 0, 0));
+  const TdoaFactor fc(X(0), p_w_a, p_w_b, 5.3, 0.15, Vec3::Zero());
+  Values x;
+  x.insert(X(0), T_w_b);
+  EXPECT_NEAR(fc.predictedDifference(x), 5.0, 1e-12);
+  Residual r;
+  fc.evaluate(x, r, nullptr);
+  ASSERT_EQ(r.size(), 1);
+  EXPECT_NEAR(r(0), 2.0, 1e-10);
+
+  const TdoaFactor fv(X(0), L(1), L(2), 5.3, 0.15, Vec3::Zero());
+  fv.evaluate(poseAndAnchors(T_w_b, p_w_a, p_w_b), r, nullptr);
+  EXPECT_NEAR(r(0), 2.0, 1e-10);
+
+  // Lever arm: body at (0,0,-1), identity rotation, tag 1 m above = origin again.
+  const Pose3 T_low(Mat3::Identity(), Vec3(0, 0, -1));
+  Values xl;
+  xl.insert(X(0), T_low);
+  EXPECT_NEAR(TdoaFactor(X(0), p_w_a, p_w_b, 5.0, 0.1, Vec3(0, 0, 1)).predictedDifference(xl), 5.0, 1e-12);
+}
+
+TEST(TdoaFactor, SignMeansLateSignalFromB) {
+  const Vec3 p_w_a(3, 4, 0), p_w_b(6, 8, 0);  // h = 5 at the origin
+  Values x;
+  x.insert(X(0), Pose3());
+  Residual r;
+  // NLOS on b: b's path reads longer, diff larger than predicted => r > 0.
+  TdoaFactor(X(0), p_w_a, p_w_b, 5.0 + 0.4, 0.1, Vec3::Zero()).evaluate(x, r, nullptr);
+  EXPECT_NEAR(r(0), 4.0, 1e-10);
+  // NLOS on a: a's path reads longer, diff smaller => r < 0.
+  TdoaFactor(X(0), p_w_a, p_w_b, 5.0 - 0.4, 0.1, Vec3::Zero()).evaluate(x, r, nullptr);
+  EXPECT_NEAR(r(0), -4.0, 1e-10);
+}
+
+TEST(TdoaFactor, Accessors) {
+  const TdoaFactor fv(X(4), L(1), L(2), 0.7, 0.05, Vec3(0, 0, 0.1));
+  EXPECT_TRUE(fv.anchorsAreVariables());
+  EXPECT_EQ(fv.poseKey(), X(4));
+  EXPECT_EQ(fv.anchorAKey(), L(1));
+  EXPECT_EQ(fv.anchorBKey(), L(2));
+  EXPECT_DOUBLE_EQ(fv.measuredDifference(), 0.7);
+  EXPECT_DOUBLE_EQ(fv.sigma(), 0.05);
+  EXPECT_EQ(fv.leverArm(), Vec3(0, 0, 0.1));
+  ASSERT_EQ(fv.keys().size(), 3u);
+
+  const TdoaFactor fc(X(4), Vec3(1, 0, 0), Vec3(0, 1, 0), 0.7, 0.05, Vec3::Zero());
+  EXPECT_FALSE(fc.anchorsAreVariables());
+  EXPECT_THROW(static_cast<void>(fc.anchorAKey()), std::logic_error);
+  EXPECT_THROW(static_cast<void>(fc.anchorBKey()), std::logic_error);
+  Values x;
+  EXPECT_EQ(fc.anchorAPosition(x), Vec3(1, 0, 0));
+  EXPECT_EQ(fc.anchorBPosition(x), Vec3(0, 1, 0));
+  ASSERT_EQ(fc.keys().size(), 1u);
+}
+
+TEST(TdoaFactor, JacobiansMatchAtRandomStates) {
+  std::mt19937 rng(21);
+  for (int i = 0; i < 200; ++i) {
+    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 5.0));
+    const Vec3 p_b_tag = randomVec(rng, 0.3);
+    const Vec3 p_w_a = randomVec(rng, 6.0), p_w_b = randomVec(rng, 6.0);
+    const Vec3 p_w_tag = T_w_b.transformFrom(p_b_tag);
+    const double z = (p_w_tag - p_w_b).norm() - (p_w_tag - p_w_a).norm() + randomVec(rng, 0.3).x();
+    const TdoaFactor fv(X(0), L(1), L(2), z, 0.1, p_b_tag);
+    EXPECT_TRUE(testing::jacobiansMatch(fv, poseAndAnchors(T_w_b, p_w_a, p_w_b), 1e-6)) << "sample " << i;
+    const TdoaFactor fc(X(0), p_w_a, p_w_b, z, 0.1, p_b_tag);
+    Values x;
+    x.insert(X(0), T_w_b);
+    EXPECT_TRUE(testing::jacobiansMatch(fc, x, 1e-6)) << "sample " << i;
+  }
+}
+
+TEST(TdoaFactor, JacobiansMatchAtZeroRotation) {
+  std::mt19937 rng(22);
+  for (int i = 0; i < 20; ++i) {
+    const Pose3 T_w_b(Mat3::Identity(), randomVec(rng, 3.0));
+    const TdoaFactor fv(X(0), L(1), L(2), 0.5, 0.1, randomVec(rng, 0.3));
+    EXPECT_TRUE(testing::jacobiansMatch(fv, poseAndAnchors(T_w_b, randomVec(rng, 5.0), randomVec(rng, 5.0)), 1e-6));
+  }
+}
+
+TEST(TdoaFactor, JacobiansMatchNearEitherAnchor) {
+  std::mt19937 rng(23);
+  for (int i = 0; i < 50; ++i) {
+    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 2.0));
+    const Vec3 p_b_tag = randomVec(rng, 0.3);
+    const Vec3 near = T_w_b.transformFrom(p_b_tag) + 1e-4 * randomVec(rng, 1.0).normalized();
+    const Vec3 far = randomVec(rng, 5.0);
+    for (bool near_is_a : {true, false}) {
+      const Vec3& p_w_a = near_is_a ? near : far;
+      const Vec3& p_w_b = near_is_a ? far : near;
+      // sigma 1: the far range's rounding (~1e-15 m over a 2e-8 step) stays well below the tolerance.
+      const TdoaFactor fv(X(0), L(1), L(2), 1.0, 1.0, p_b_tag);
+      const Values x = poseAndAnchors(T_w_b, p_w_a, p_w_b);
+      EXPECT_TRUE(testing::jacobiansMatch(fv, x, 1e-6, 1e-8)) << "sample " << i << " near a " << near_is_a;
+      const TdoaFactor fc(X(0), p_w_a, p_w_b, 1.0, 1.0, p_b_tag);
+      EXPECT_TRUE(testing::jacobiansMatch(fc, x, 1e-6, 1e-8)) << "sample " << i << " near a " << near_is_a;
+    }
+  }
+}
+
+TEST(TdoaFactor, ExactlyAtAnchorIsFinite) {
+  const Pose3 T_w_b(so3::exp(Vec3(2.0, -0.5, 1.0)), Vec3(1, 1, 1));
+  const Vec3 p_b_tag(0.1, 0.2, 0.3);
+  const Vec3 on_tag = T_w_b.transformFrom(p_b_tag);
+  const Vec3 far(4, -3, 2);
+  for (bool on_a : {true, false}) {
+    const TdoaFactor fv(X(0), L(1), L(2), 0.0, 0.1, p_b_tag);
+    const Values x = on_a ? poseAndAnchors(T_w_b, on_tag, far) : poseAndAnchors(T_w_b, far, on_tag);
+    Residual r;
+    Jacobians H;
+    fv.evaluate(x, r, &H);
+    EXPECT_TRUE(r.allFinite());
+    for (int k = 0; k < 3; ++k) EXPECT_TRUE(H[static_cast<std::size_t>(k)].allFinite()) << k;
+    // The on-tag anchor's block uses the fixed direction (0, 0, -1).
+    const Eigen::RowVector3d expected = on_a ? Eigen::RowVector3d(0, 0, 10) : Eigen::RowVector3d(0, 0, -10);
+    EXPECT_NEAR((H[on_a ? 1 : 2] - expected).norm(), 0.0, 1e-12);
+  }
+}
+
+TEST(TdoaFactor, RobustLossPropagates) {
+  const Vec3 p_w_a(3, 4, 0), p_w_b(6, 8, 0);
+  Values x;
+  x.insert(X(0), Pose3());
+  const TdoaFactor plain(X(0), p_w_a, p_w_b, 5.4, 0.1, Vec3::Zero());
+  const TdoaFactor huber(X(0), p_w_a, p_w_b, 5.4, 0.1, Vec3::Zero(), std::make_shared<TestHuber>(1.0));
+  EXPECT_NEAR(plain.error(x), 8.0, 1e-9);
+  EXPECT_NEAR(huber.error(x), 3.5, 1e-9);
+  Residual r;
+  Jacobians H;
+  EXPECT_NEAR(huber.linearize(x, r, H), 0.25, 1e-12);
+  EXPECT_NEAR(r(0), 2.0, 1e-10);
+
+  // Asymmetric losses are accepted and see the sign (NLOS on b vs on a).
+  auto asym = std::make_shared<TestAsymmetric>();
+  EXPECT_NEAR(TdoaFactor(X(0), p_w_a, p_w_b, 5.2, 0.1, Vec3::Zero(), asym).error(x), 0.5, 1e-9);
+  EXPECT_NEAR(TdoaFactor(X(0), p_w_a, p_w_b, 4.8, 0.1, Vec3::Zero(), asym).error(x), 2.0, 1e-9);
+}
+
+TEST(TdoaFactor, InvalidArgumentsThrow) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Vec3 z = Vec3::Zero();
+  EXPECT_THROW(TdoaFactor(X(0), L(1), L(2), 0.5, 0.0, z), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), L(1), L(2), 0.5, -1.0, z), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), L(1), L(2), nan, 0.1, z), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), L(1), L(2), 0.5, 0.1, Vec3(0, nan, 0)), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), L(1), L(1), 0.5, 0.1, z), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(L(1), L(1), L(2), 0.5, 0.1, z), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), Vec3(1, 2, 3), Vec3(1, 2, 3), 0.5, 0.1, z), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), Vec3(1, 2, 3), Vec3(1, 2, nan), 0.5, 0.1, z), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), Vec3(1, 2, 3), Vec3(0, 0, 0), 0.5, 0.0, z), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace rilo

@@ -1,0 +1,208 @@
+#include "estimation/factors/ultrasonic_factor.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+
+#include "estimation/math/so3.h"
+#include "support/numerical_jacobian.h"
+
+namespace rilo {
+namespace {
+
+using sym::L;
+using sym::X;
+
+class TestHuber final : public RobustLoss {
+ public:
+  explicit TestHuber(double k) : k_(k) {}
+  double loss(double r) const override {
+    const double a = std::abs(r);
+    return a <= k_ ? 0.5 * r * r : k_ * (a - 0.5 * k_);
+  }
+  double derivative(double r) const override { return std::abs(r) <= k_ ? r : k_ * (r > 0 ? 1.0 : -1.0); }
+  std::string name() const override { return "test_huber"; }
+
+ private:
+  double k_;
+};
+
+class TestAsymmetric final : public RobustLoss {
+ public:
+  double loss(double r) const override { return r > 0 ? 0.125 * r * r : 0.5 * r * r; }
+  double derivative(double r) const override { return r > 0 ? 0.25 * r : r; }
+  bool isSymmetric() const override { return false; }
+  std::string name() const override { return "test_asymmetric"; }
+};
+
+Vec3 randomVec(std::mt19937& rng, double scale) {
+  std::normal_distribution<double> n(0.0, scale);
+  return Vec3(n(rng), n(rng), n(rng));
+}
+
+Mat3 randomRotation(std::mt19937& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  return Quat(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
+}
+
+Values poseAndAnchor(const Pose3& T_w_b, const Vec3& p_w_anchor) {
+  Values v;
+  v.insert(X(0), T_w_b);
+  v.insert(L(7), p_w_anchor);
+  return v;
+}
+
+TEST(UltrasonicFactor, ResidualAtKnownConfiguration) {
+  // Receiver at (0,0,1), anchor at (0,3,5): d = (0,-3,-4), range 5, height diff -4.
+  const Pose3 T_w_b(Mat3::Identity(), Vec3(0, 0, 1));
+  const Vec3 p_w_anchor(0, 3, 5);
+  const UltrasonicElevation elev{-3.9, 0.05};
+  const UltrasonicFactor f2(X(0), p_w_anchor, 4.9, 0.1, Vec3::Zero(), elev);
+  Values x;
+  x.insert(X(0), T_w_b);
+  EXPECT_EQ(f2.dim(), 2);
+  EXPECT_NEAR(f2.predictedRange(x), 5.0, 1e-12);
+  EXPECT_NEAR(f2.predictedHeightDifference(x), -4.0, 1e-12);
+  Residual r;
+  f2.evaluate(x, r, nullptr);
+  ASSERT_EQ(r.size(), 2);
+  EXPECT_NEAR(r(0), -1.0, 1e-10);  // measured shorter
+  EXPECT_NEAR(r(1), -2.0, 1e-10);  // (-4 - (-3.9)) / 0.05
+  EXPECT_NEAR(f2.error(x), 0.5 * (1.0 + 4.0), 1e-9);
+
+  const UltrasonicFactor f1(X(0), p_w_anchor, 5.2, 0.1, Vec3::Zero());
+  EXPECT_EQ(f1.dim(), 1);
+  f1.evaluate(x, r, nullptr);
+  ASSERT_EQ(r.size(), 1);
+  EXPECT_NEAR(r(0), 2.0, 1e-10);  // measured longer => positive
+
+  // Lever arm through a 180 deg yaw: (0.5,0,0) in body is (-0.5,0,0) in world.
+  const Pose3 T_yaw(so3::exp(Vec3(0, 0, M_PI)), Vec3(0.5, 0, 1));
+  Values xy;
+  xy.insert(X(0), T_yaw);
+  EXPECT_NEAR(UltrasonicFactor(X(0), p_w_anchor, 5.0, 0.1, Vec3(0.5, 0, 0)).predictedRange(xy), 5.0, 1e-12);
+}
+
+TEST(UltrasonicFactor, AnchorVariableMatchesConstant) {
+  std::mt19937 rng(30);
+  const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 3.0));
+  const Vec3 p_w_anchor = randomVec(rng, 4.0);
+  const Vec3 lever(0.05, -0.1, 0.2);
+  const UltrasonicElevation elev{-1.5, 0.1};
+  const UltrasonicFactor fv(X(0), L(7), 3.0, 0.02, lever, elev);
+  const UltrasonicFactor fc(X(0), p_w_anchor, 3.0, 0.02, lever, elev);
+  const Values x = poseAndAnchor(T_w_b, p_w_anchor);
+  Residual rv, rc;
+  fv.evaluate(x, rv, nullptr);
+  fc.evaluate(x, rc, nullptr);
+  EXPECT_NEAR((rv - rc).norm(), 0.0, 1e-12);
+  EXPECT_TRUE(fv.anchorIsVariable());
+  EXPECT_EQ(fv.anchorKey(), L(7));
+  EXPECT_FALSE(fc.anchorIsVariable());
+  EXPECT_THROW(static_cast<void>(fc.anchorKey()), std::logic_error);
+  EXPECT_EQ(fc.anchorPosition(x), p_w_anchor);
+  ASSERT_TRUE(fv.elevation().has_value());
+  EXPECT_DOUBLE_EQ(fv.elevation()->delta_h_m, -1.5);
+  EXPECT_DOUBLE_EQ(fv.sigmaRange(), 0.02);
+  EXPECT_DOUBLE_EQ(fv.measuredRange(), 3.0);
+  EXPECT_EQ(fv.leverArm(), lever);
+}
+
+TEST(UltrasonicFactor, JacobiansMatchAtRandomStates) {
+  std::mt19937 rng(31);
+  for (int i = 0; i < 200; ++i) {
+    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 5.0));
+    const Vec3 lever = randomVec(rng, 0.3);
+    const Vec3 p_w_anchor = randomVec(rng, 6.0);
+    const double z = (T_w_b.transformFrom(lever) - p_w_anchor).norm() + randomVec(rng, 0.1).x();
+    const UltrasonicElevation elev{randomVec(rng, 2.0).x(), 0.05};
+    const Values x = poseAndAnchor(T_w_b, p_w_anchor);
+    for (bool with_elevation : {false, true}) {
+      const std::optional<UltrasonicElevation> e = with_elevation ? std::optional(elev) : std::nullopt;
+      EXPECT_TRUE(testing::jacobiansMatch(UltrasonicFactor(X(0), L(7), z, 0.03, lever, e), x, 1e-6)) << i;
+      EXPECT_TRUE(testing::jacobiansMatch(UltrasonicFactor(X(0), p_w_anchor, z, 0.03, lever, e), x, 1e-6)) << i;
+    }
+  }
+}
+
+TEST(UltrasonicFactor, JacobiansMatchAtZeroRotation) {
+  std::mt19937 rng(32);
+  for (int i = 0; i < 20; ++i) {
+    const Pose3 T_w_b(Mat3::Identity(), randomVec(rng, 3.0));
+    const Values x = poseAndAnchor(T_w_b, randomVec(rng, 5.0));
+    const UltrasonicFactor f(X(0), L(7), 2.0, 0.03, randomVec(rng, 0.3), UltrasonicElevation{-1.0, 0.1});
+    EXPECT_TRUE(testing::jacobiansMatch(f, x, 1e-6));
+  }
+}
+
+TEST(UltrasonicFactor, JacobiansMatchNearAnchorAndFiniteAtIt) {
+  std::mt19937 rng(33);
+  for (int i = 0; i < 50; ++i) {
+    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 2.0));
+    const Vec3 lever = randomVec(rng, 0.3);
+    const Vec3 p_w_anchor = T_w_b.transformFrom(lever) + 1e-4 * randomVec(rng, 1.0).normalized();
+    const UltrasonicFactor f(X(0), L(7), 0.1, 0.03, lever, UltrasonicElevation{0.0, 0.1});
+    EXPECT_TRUE(testing::jacobiansMatch(f, poseAndAnchor(T_w_b, p_w_anchor), 1e-6, 1e-8)) << i;
+  }
+  const Pose3 T_w_b(so3::exp(Vec3(-2.5, 0.3, 0.7)), Vec3(1, 2, 0.5));
+  const Vec3 lever(0.1, 0.0, -0.2);
+  const UltrasonicFactor f(X(0), L(7), 0.1, 0.03, lever, UltrasonicElevation{0.0, 0.1});
+  Residual r;
+  Jacobians H;
+  f.evaluate(poseAndAnchor(T_w_b, T_w_b.transformFrom(lever)), r, &H);
+  EXPECT_TRUE(r.allFinite());
+  EXPECT_TRUE(H[0].allFinite());
+  EXPECT_TRUE(H[1].allFinite());
+  EXPECT_NEAR(r(1), 0.0, 1e-12);
+}
+
+TEST(UltrasonicFactor, RobustLossRules) {
+  const Pose3 T_w_b(Mat3::Identity(), Vec3(0, 0, 1));
+  const Vec3 p_w_anchor(0, 3, 5);
+  Values x;
+  x.insert(X(0), T_w_b);
+  const UltrasonicElevation elev{-3.9, 0.05};
+  auto huber = std::make_shared<TestHuber>(1.0);
+  auto asym = std::make_shared<TestAsymmetric>();
+
+  // 1-dim: any loss, signed residual.
+  EXPECT_NEAR(UltrasonicFactor(X(0), p_w_anchor, 5.4, 0.1, Vec3::Zero(), std::nullopt, huber).error(x), 3.5, 1e-9);
+  EXPECT_NEAR(UltrasonicFactor(X(0), p_w_anchor, 5.2, 0.1, Vec3::Zero(), std::nullopt, asym).error(x), 0.5, 1e-9);
+  EXPECT_NEAR(UltrasonicFactor(X(0), p_w_anchor, 4.8, 0.1, Vec3::Zero(), std::nullopt, asym).error(x), 2.0, 1e-9);
+
+  // 2-dim: symmetric loss on |r| (r = (-1, -2), |r| = sqrt 5).
+  const UltrasonicFactor plain(X(0), p_w_anchor, 4.9, 0.1, Vec3::Zero(), elev);
+  const UltrasonicFactor robust(X(0), p_w_anchor, 4.9, 0.1, Vec3::Zero(), elev, huber);
+  EXPECT_NEAR(plain.error(x), 2.5, 1e-9);
+  EXPECT_NEAR(robust.error(x), std::sqrt(5.0) - 0.5, 1e-9);
+
+  // 2-dim with an asymmetric loss: rejected, naming the loss.
+  EXPECT_THROW(UltrasonicFactor(X(0), p_w_anchor, 4.9, 0.1, Vec3::Zero(), elev, asym), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), L(7), 4.9, 0.1, Vec3::Zero(), elev, asym), std::invalid_argument);
+  try {
+    UltrasonicFactor(X(0), L(7), 4.9, 0.1, Vec3::Zero(), elev, asym);
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("test_asymmetric"), std::string::npos) << e.what();
+  }
+}
+
+TEST(UltrasonicFactor, InvalidArgumentsThrow) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Vec3 z = Vec3::Zero();
+  EXPECT_THROW(UltrasonicFactor(X(0), L(1), 1.0, 0.0, z), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), L(1), 1.0, -0.1, z), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), L(1), nan, 0.1, z), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), L(1), 1.0, 0.1, Vec3(nan, 0, 0)), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), X(0), 1.0, 0.1, z), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), L(1), 1.0, 0.1, z, UltrasonicElevation{0.0, 0.0}), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), L(1), 1.0, 0.1, z, UltrasonicElevation{nan, 0.1}), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), Vec3(0, 0, nan), 1.0, 0.1, z), std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), Vec3(0, 0, 0), 1.0, 0.1, z, UltrasonicElevation{1.0, -1.0}),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace rilo

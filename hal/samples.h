@@ -3,6 +3,7 @@
 // recording, the simulator). One clock: t_ns on CLOCK_MONOTONIC on the device,
 // the recording's clock in replay. Plain values, fixed size, no heap.
 #include <cstdint>
+#include <limits>
 
 #include <Eigen/Core>
 
@@ -17,10 +18,29 @@ struct ImuSample {
 struct RangeSample {
   std::int64_t t_ns = 0;     ///< time of the range (ns)
   std::uint32_t anchor_id = 0;
-  std::uint32_t tag_id = 0;  ///< antenna on the body (index into the tag lever arms)
+  std::uint32_t tag_id = 0;  ///< antenna on the body: an `id` of tags.csv (0 = the single antenna at uwb.lever_arm)
   double range_m = 0.0;      ///< measured distance (m)
-  double rssi_dbm = 0.0;     ///< received power, if known (NaN otherwise)
+  double rssi_dbm = std::numeric_limits<double>::quiet_NaN();  ///< received power, if known (NaN otherwise)
   int los = -1;              ///< ground truth from a simulator: 1 LOS, 0 NLOS, -1 unknown. Estimators never read it.
+  double fp_power_dbm = std::numeric_limits<double>::quiet_NaN();  ///< first-path power, if known (NaN otherwise)
+};
+
+/// Time difference of arrival between two UWB anchors:
+/// diff_m = |p - A_b| - |p - A_a| (m), p the tag antenna in world.
+struct TdoaSample {
+  std::int64_t t_ns = 0;       ///< time of the measurement (ns)
+  std::uint32_t anchor_a = 0;  ///< reference anchor
+  std::uint32_t anchor_b = 0;
+  double diff_m = 0.0;         ///< range difference (m)
+  int los = -1;                ///< ground truth: 1 LOS, 0 NLOS, -1 unknown. Estimators never read it.
+};
+
+/// Ultrasonic range from the body's ultrasonic receiver to an ultrasonic beacon.
+struct UltrasonicSample {
+  std::int64_t t_ns = 0;      ///< time of the range (ns)
+  std::uint32_t anchor_id = 0;
+  double range_m = 0.0;       ///< measured distance (m)
+  int los = -1;               ///< ground truth: 1 LOS, 0 NLOS, -1 unknown. Estimators never read it.
 };
 
 }  // namespace rilo

@@ -12,6 +12,13 @@ std::vector<Eigen::Vector3d> defaultOfficeAnchors() {
           {0.0, -5.5, 1.9},  {7.0, 0.0, 2.8},  {0.0, 5.5, 0.6}, {-7.0, 0.0, 2.2}};
 }
 
+Eigen::Matrix<double, 6, 1> Scenario::biasAt(std::int64_t t_ns) const {
+  auto it = std::upper_bound(imu.begin(), imu.end(), t_ns,
+                             [](std::int64_t t, const ImuSample& m) { return t < m.t_ns; });
+  const std::size_t k = it == imu.begin() ? 0 : static_cast<std::size_t>(it - imu.begin()) - 1;
+  return imu_bias_truth.at(k);
+}
+
 Scenario simulateScenario(const ScenarioParams& p) {
   Scenario s;
   s.params = p;
@@ -33,6 +40,7 @@ Scenario simulateScenario(const ScenarioParams& p) {
   const double dt_imu = 1.0 / p.imu_rate_hz;
   const auto n_imu = static_cast<std::int64_t>(std::floor(p.duration_s * p.imu_rate_hz)) + 1;
   s.imu.reserve(static_cast<std::size_t>(n_imu));
+  s.imu_bias_truth.reserve(static_cast<std::size_t>(n_imu));
   for (std::int64_t k = 0; k < n_imu; ++k) {
     const double t = static_cast<double>(k) * dt_imu;
     const ImuReading m = idealImu(s.truth->at(t), p.gravity_m_s2);
@@ -41,6 +49,9 @@ Scenario simulateScenario(const ScenarioParams& p) {
     smp.gyro_rad_s = m.gyro + b_g + p.gyro_noise_density / std::sqrt(dt_imu) * randn3();
     smp.accel_m_s2 = m.accel + b_a + p.accel_noise_density / std::sqrt(dt_imu) * randn3();
     s.imu.push_back(smp);
+    Eigen::Matrix<double, 6, 1> b;
+    b << b_a, b_g;
+    s.imu_bias_truth.push_back(b);
     b_g += p.gyro_bias_walk * std::sqrt(dt_imu) * randn3();
     b_a += p.accel_bias_walk * std::sqrt(dt_imu) * randn3();
   }

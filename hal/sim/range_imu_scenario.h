@@ -41,11 +41,14 @@ struct Scenario {
   std::vector<Eigen::Vector3d> p_w_anchors;  ///< anchor positions, index = anchor_id
   Eigen::Vector3d p_b_tag = Eigen::Vector3d::Zero();  ///< UWB antenna lever arm
   std::vector<ImuSample> imu;
+  std::vector<Eigen::Matrix<double, 6, 1>> imu_bias_truth;  ///< [accel; gyro] bias in effect for imu[k]
   std::vector<RangeSample> ranges;
   std::shared_ptr<const Trajectory> truth;
   Eigen::Vector3d gyro_bias0, accel_bias0;   ///< true initial biases
   std::int64_t t0_ns = 0;
 
+  /// True [accel; gyro] bias at t_ns (the one in effect for the IMU sample at or before t_ns).
+  Eigen::Matrix<double, 6, 1> biasAt(std::int64_t t_ns) const;
   KinematicState truthAt(std::int64_t t_ns) const { return truth->at(1e-9 * static_cast<double>(t_ns - t0_ns)); }
 };
 

@@ -1,0 +1,51 @@
+#pragma once
+// Builds the seed's factor graph (000, Fig. 4) from raw samples: one state
+// (pose, velocity, bias) per ranging time, ranges within a short window
+// sharing a state; combined IMU preintegration factors between consecutive
+// states; range factors with the configured robust loss; anchors as
+// variables with survey priors (or constants); priors on the first state.
+// Initial values are the caller's business (the pipeline's initializer, or a
+// perturbed ground truth in tests and the demo).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "estimation/graph/factor.h"
+#include "estimation/imu/imu_params.h"
+#include "estimation/noise/noise_model_factory.h"
+#include "hal/samples.h"
+
+namespace rilo {
+
+struct RangeImuGraphParams {
+  ImuParams imu;
+  std::string range_loss = "asymmetric";  ///< see makeRangeLoss
+  RangeNoiseParams range_noise;
+  std::int64_t same_state_window_ns = 5'000'000;  ///< ranges closer than this share one state
+  bool anchors_as_variables = true;               ///< seed 000: anchors are variables with survey priors
+  double anchor_sigma_m = 0.02;                   ///< survey std-dev of anchor positions (m)
+  Vec3 p_b_tag = Vec3::Zero();                    ///< UWB antenna lever arm, body frame (m)
+  // Priors on the first state (around the initial guess).
+  Vec6 first_pose_sigmas = (Vec6() << 0.1, 0.1, 0.5, 1.0, 1.0, 1.0).finished();  ///< [rad x3, m x3]
+  double first_velocity_sigma_m_s = 1.0;
+  double first_accel_bias_sigma = 0.1;   ///< m/s^2
+  double first_gyro_bias_sigma = 0.01;   ///< rad/s
+};
+
+struct RangeImuGraph {
+  FactorGraph graph;
+  std::vector<std::int64_t> state_t_ns;  ///< time of state i (keys X(i), V(i), B(i))
+  std::vector<Key> anchor_keys;          ///< L(anchor_id) for anchors used as variables
+  std::size_t range_factors = 0;
+  std::size_t imu_factors = 0;
+};
+
+/// Builds the graph. `p_w_anchors[id]` is the surveyed position of anchor id;
+/// `first_state` is the initial guess of state 0 (the priors' mean).
+/// Throws std::invalid_argument when samples are unsorted, an anchor id is
+/// unknown, or no IMU sample covers the ranging interval.
+RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::vector<RangeSample>& ranges,
+                                 const std::vector<Vec3>& p_w_anchors, const Pose3& T_w_b0_guess,
+                                 const Vec3& v_w0_guess, const RangeImuGraphParams& params);
+
+}  // namespace rilo

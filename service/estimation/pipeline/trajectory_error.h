@@ -1,0 +1,25 @@
+#pragma once
+// Absolute position error statistics (no alignment: the anchors fix the frame),
+// split into 3D, horizontal and vertical as the architecture asks.
+#include <vector>
+
+#include "estimation/math/types.h"
+
+namespace rilo {
+
+struct ErrorStats {
+  double mean = 0.0, median = 0.0, rmse = 0.0, max = 0.0;
+  std::size_t count = 0;
+};
+
+struct PositionErrorStats {
+  ErrorStats ape_3d;          ///< |p_est - p_true| (m)
+  ErrorStats ape_horizontal;  ///< |(p_est - p_true)_xy| (m)
+  ErrorStats ape_vertical;    ///< |(p_est - p_true)_z| (m)
+};
+
+ErrorStats errorStats(std::vector<double> errors);
+/// Element-wise statistics; throws std::invalid_argument on size mismatch.
+PositionErrorStats positionErrorStats(const std::vector<Vec3>& p_est, const std::vector<Vec3>& p_true);
+
+}  // namespace rilo

@@ -50,7 +50,7 @@ DeltaErrors errorsAgainstExact(const PreintegratedImu& pim, const sim::Trajector
 
 ImuParams mcParams() {
   ImuParams p;
-  p.integration_noise_density = 0.0;  // not simulated below
+  p.integration_noise_density = 1e-9;  // negligible (must be > 0); not simulated below
   return p;
 }
 
@@ -105,7 +105,7 @@ TEST(ImuParams, ValidateNamesTheBadField) {
       {"accel_bias_random_walk", &ImuParams::accel_bias_random_walk, {-1e-3, nan}},
       {"gyro_bias_tau_s", &ImuParams::gyro_bias_tau_s, {-10.0, 0.0, nan, -HUGE_VAL}},
       {"accel_bias_tau_s", &ImuParams::accel_bias_tau_s, {-10.0, 0.0, nan}},
-      {"integration_noise_density", &ImuParams::integration_noise_density, {-1e-4, nan}},
+      {"integration_noise_density", &ImuParams::integration_noise_density, {-1e-4, 0.0, nan}},
       {"gravity_m_s2", &ImuParams::gravity_m_s2, {-9.81, nan, HUGE_VAL}},
   };
   for (const Case& c : cases) {
@@ -123,7 +123,6 @@ TEST(ImuParams, ValidateNamesTheBadField) {
   }
   ImuParams rw;
   rw.gyro_bias_tau_s = rw.accel_bias_tau_s = ImuParams::kRandomWalk;
-  rw.integration_noise_density = 0.0;
   EXPECT_NO_THROW(rw.validate());
 }
 
@@ -389,6 +388,18 @@ TEST(Preintegration, CovariancesSymmetricPositiveDefiniteAndBiasBlockExact) {
       EXPECT_EQ((P_bb - Mat6(P_bb.diagonal().asDiagonal())).norm(), 0.0);  // diagonal
     }
   }
+}
+
+TEST(Preintegration, RefusesWindowsRotatingTowardTheTangentSingularity) {
+  PreintegratedImu pim{ImuParams()};
+  const Vec3 spin(0.0, 0.0, 2.0);  // rad/s
+  const Vec3 f(0.0, 0.0, 9.81);
+  // 2.5 s at 2 rad/s = 5 rad < 0.9 * 2 pi: fine.
+  for (int k = 0; k < 2000; ++k) pim.integrate(f, spin, 1.25e-3);
+  EXPECT_NEAR(pim.theta().norm(), 5.0, 1e-9);
+  // Another 0.5 s passes 0.9 * 2 pi = 5.65 rad: refused with a clear error.
+  EXPECT_THROW(
+      for (int k = 0; k < 400; ++k) pim.integrate(f, spin, 1.25e-3), std::domain_error);
 }
 
 }  // namespace

@@ -66,5 +66,28 @@ TEST(Pose3, LocalIsInverseOfRetract) {
   }
 }
 
+TEST(Pose3, ExpmapLogmapRoundTripAndMatchConstantTwistIntegration) {
+  std::mt19937 rng(4);
+  for (double scale : {0.0, 1e-8, 0.3, 1.5}) {
+    Vec6 xi;
+    xi << randomVec(rng, scale), randomVec(rng, 2.0);
+    if (xi.head<3>().norm() > 3.0) xi.head<3>() *= 3.0 / xi.head<3>().norm();
+    const Pose3 T = Pose3::expmap(xi);
+    EXPECT_LE((Pose3::logmap(T) - xi).norm(), 1e-9 * std::max(1.0, xi.norm()));
+    // exp of a twist = integrating body velocity [omega; v] for unit time.
+    Pose3 Tn;
+    const int n = 20000;
+    for (int k = 0; k < n; ++k) {
+      Tn = Tn.compose(Pose3(so3::exp(xi.head<3>() / n), xi.tail<3>() / n));
+    }
+    EXPECT_LE((Tn.p - T.p).norm(), 1e-3) << "scale " << scale;
+    EXPECT_LE(so3::log(Tn.R.transpose() * T.R).norm(), 1e-9);
+  }
+  const Pose3 A(so3::exp(Vec3(0.3, -0.2, 1.0)), Vec3(1, 2, 3));
+  const Pose3 I = A.compose(A.inverse());
+  EXPECT_LE((I.R - Mat3::Identity()).norm(), 1e-12);
+  EXPECT_LE(I.p.norm(), 1e-12);
+}
+
 }  // namespace
 }  // namespace rilo

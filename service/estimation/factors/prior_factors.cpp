@@ -25,7 +25,7 @@ void requireSymmetricLoss(const RobustLoss* loss, const char* who) {
 
 // Relative tolerances of the covariance checks.
 constexpr double kSymmetryRelTol = 1e-9;
-constexpr double kMinRelativePivot = 1e-12;  // condition number bound ~1e12
+constexpr double kMinRelativePivot = 1e-12;  // pivot^2 / own diagonal entry
 
 }  // namespace
 
@@ -39,11 +39,12 @@ SqrtInformation<N> SqrtInformation<N>::fromCovariance(const Matrix& cov, std::st
   }
   const Matrix cov_sym = 0.5 * (cov + cov.transpose());
   const Eigen::LLT<Matrix> llt_cov(cov_sym);
-  const double max_diag = cov_sym.diagonal().maxCoeff();
   if (llt_cov.info() != Eigen::Success) throwBadNoise(what, "covariance must be positive definite");
   for (int i = 0; i < N; ++i) {
+    // Scale-invariant: each pivot against its own diagonal entry, so sigmas of
+    // very different units (1e-7 rad beside 1 m) are accepted.
     const double pivot = llt_cov.matrixLLT()(i, i);  // diagonal of the Cholesky factor
-    if (!(pivot * pivot > kMinRelativePivot * max_diag)) {
+    if (!(pivot * pivot > kMinRelativePivot * cov_sym(i, i))) {
       throwBadNoise(what, "covariance must be positive definite (it is singular or nearly so)");
     }
   }

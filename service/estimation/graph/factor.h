@@ -34,7 +34,9 @@ class Factor {
   /// Residual dimension.
   virtual int dim() const = 0;
 
-  /// Whitened residual r = sqrt_info * e(x) and, when H is not null, the
+  /// Whitened residual r = sqrt_info * e(x) (sqrt_info is any square root of
+  /// the information: the IMU factors use a lower-triangular L^-1, the priors an
+  /// upper-triangular U; only r and H are contractual) and, when H is not null, the
   /// whitened Jacobians H[k] = d r / d delta_k (dim() x dim(key k)).
   virtual void evaluate(const Values& x, Residual& r, Jacobians* H) const = 0;
 

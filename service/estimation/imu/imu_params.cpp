@@ -66,8 +66,9 @@ void ImuParams::validate() const {
   requirePositiveFinite(accel_bias_random_walk, "accel_bias_random_walk");
   requireTau(gyro_bias_tau_s, "gyro_bias_tau_s");
   requireTau(accel_bias_tau_s, "accel_bias_tau_s");
-  if (!(std::isfinite(integration_noise_density) && integration_noise_density >= 0.0)) {
-    fail("integration_noise_density", "finite and >= 0", integration_noise_density);
+  // > 0: with a single sample the p/v covariance block is otherwise exactly rank 3.
+  if (!(std::isfinite(integration_noise_density) && integration_noise_density > 0.0)) {
+    fail("integration_noise_density", "finite and > 0", integration_noise_density);
   }
   if (!(std::isfinite(gravity_m_s2) && gravity_m_s2 >= 0.0)) fail("gravity_m_s2", "finite and >= 0", gravity_m_s2);
 }

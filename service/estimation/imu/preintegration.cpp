@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace rilo {
 namespace {
@@ -237,6 +238,12 @@ void PreintegratedImu::integrate(const Vec3& accel_m_s2, const Vec3& gyro_rad_s,
   // Mean.
   const Vec3 a_i = f.R * a;  // specific force in frame i
   theta_ += J.Jd * w;
+  // The tangent-space form (Jr^-1 of theta) is singular at |theta| = 2 pi: a
+  // window must be cut into shorter intervals long before (the pipeline does).
+  if (theta_.norm() > kMaxWindowRotationRad) {
+    throw std::domain_error("PreintegratedImu::integrate: rotation within one window exceeds " +
+                            std::to_string(kMaxWindowRotationRad) + " rad; use shorter state intervals");
+  }
   p_ += dt_s * v_ + (0.5 * dt_s * dt_s) * a_i;
   v_ += dt_s * a_i;
   dt_s_ += dt_s;

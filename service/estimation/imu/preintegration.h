@@ -49,6 +49,10 @@
 
 namespace rilo {
 
+/// Largest rotation one preintegration window may accumulate (rad): well below
+/// the 2 pi singularity of the tangent-space form.
+constexpr double kMaxWindowRotationRad = 0.9 * 2.0 * 3.14159265358979323846;
+
 class PreintegratedImu {
  public:
   /// Relative motion from i to j in frame i: deltaR = R_i^T R_j,
@@ -80,6 +84,8 @@ class PreintegratedImu {
   void reset(const ImuBias& bias_hat);
   /// Adds one sample held over dt_s. Throws std::invalid_argument if dt_s is
   /// not finite and > 0 or a sample is not finite.
+  /// Throws std::invalid_argument for non-finite input or dt_s <= 0, and
+  /// std::domain_error once the window's rotation exceeds kMaxWindowRotationRad.
   void integrate(const Vec3& accel_m_s2, const Vec3& gyro_rad_s, double dt_s);
 
   const ImuParams& params() const { return params_; }

@@ -28,6 +28,24 @@ struct Pose3 {
     xi.tail<3>() = R.transpose() * (other.p - p);
     return xi;
   }
+  /// SE(3) group exponential of xi = [phi; rho]: (Exp(phi), Jl(phi) rho) with the
+  /// left Jacobian Jl(phi) = Jr(-phi). (The retraction above is the cheaper
+  /// SO(3) x R^3 chart; expmap/logmap serve interpolation and extrapolation
+  /// along constant body twists.)
+  static Pose3 expmap(const Vec6& xi) {
+    const Vec3 phi = xi.head<3>();
+    return Pose3(so3::exp(phi), so3::rightJacobian(-phi) * xi.tail<3>());
+  }
+  /// Inverse of expmap: [Log(R); Jl(phi)^-1 p].
+  static Vec6 logmap(const Pose3& T) {
+    Vec6 xi;
+    xi.head<3>() = so3::log(T.R);
+    xi.tail<3>() = so3::rightJacobianInverse(-xi.head<3>().eval()) * T.p;
+    return xi;
+  }
+  Pose3 compose(const Pose3& other) const { return Pose3(R * other.R, R * other.p + p); }
+  Pose3 inverse() const { return Pose3(R.transpose(), -(R.transpose() * p)); }
+
   /// Point in body frame -> world frame.
   Vec3 transformFrom(const Vec3& p_b) const { return R * p_b + p; }
   Quat quaternion() const { return Quat(R).normalized(); }

@@ -23,8 +23,9 @@ Mat3 exp(const Vec3& phi) {
     a = 1.0 - theta2 / 6.0;
     b = 0.5 - theta2 / 24.0;
   } else {
+    const double s_half = std::sin(0.5 * theta);
     a = std::sin(theta) / theta;
-    b = (1.0 - std::cos(theta)) / theta2;
+    b = 2.0 * s_half * s_half / theta2;  // (1 - cos) / theta^2 without cancellation
   }
   return Mat3::Identity() + a * W + b * W * W;
 }
@@ -54,7 +55,8 @@ Mat3 rightJacobian(const Vec3& phi) {
     a = 0.5 - theta2 / 24.0;
     b = 1.0 / 6.0 - theta2 / 120.0;
   } else {
-    a = (1.0 - std::cos(theta)) / theta2;
+    const double s_half = std::sin(0.5 * theta);
+    a = 2.0 * s_half * s_half / theta2;  // (1 - cos) / theta^2 without cancellation
     b = (theta - std::sin(theta)) / (theta2 * theta);
   }
   return Mat3::Identity() - a * W + b * W * W;

@@ -49,10 +49,21 @@ RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::v
   const RobustLossPtr loss = makeRangeLoss(params.range_loss, params.range_noise);
   std::vector<bool> anchor_used(p_w_anchors.size(), false);
 
-  // States: a new one whenever a range is farther than the window from the last state.
+  if (params.same_state_window_ns < 0) throw std::invalid_argument("buildRangeImuGraph: same_state_window_ns must be >= 0");
+  if (params.max_state_interval_ns <= params.same_state_window_ns) {
+    throw std::invalid_argument("buildRangeImuGraph: max_state_interval_ns must exceed same_state_window_ns");
+  }
+  // States: a new one whenever a range is farther than the window from the
+  // last state; evenly spaced IMU-only states fill longer ranging gaps.
   std::vector<std::size_t> state_of_range(ranges.size());
   for (std::size_t k = 0; k < ranges.size(); ++k) {
     if (out.state_t_ns.empty() || ranges[k].t_ns - out.state_t_ns.back() > params.same_state_window_ns) {
+      if (!out.state_t_ns.empty()) {
+        const std::int64_t t_last = out.state_t_ns.back();
+        const std::int64_t gap = ranges[k].t_ns - t_last;
+        const std::int64_t pieces = (gap + params.max_state_interval_ns - 1) / params.max_state_interval_ns;
+        for (std::int64_t j = 1; j < pieces; ++j) out.state_t_ns.push_back(t_last + gap * j / pieces);
+      }
       out.state_t_ns.push_back(ranges[k].t_ns);
     }
     state_of_range[k] = out.state_t_ns.size() - 1;

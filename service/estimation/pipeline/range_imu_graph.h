@@ -21,7 +21,10 @@ struct RangeImuGraphParams {
   ImuParams imu;
   std::string range_loss = "asymmetric";  ///< see makeRangeLoss
   RangeNoiseParams range_noise;
-  std::int64_t same_state_window_ns = 5'000'000;  ///< ranges closer than this share one state
+  std::int64_t same_state_window_ns = 5'000'000;  ///< ranges closer than this share one state (>= 0)
+  /// Longest interval between consecutive states: ranging gaps get IMU-only
+  /// states, so preintegration windows stay short (rotation, first-order bias).
+  std::int64_t max_state_interval_ns = 500'000'000;
   bool anchors_as_variables = true;               ///< seed 000: anchors are variables with survey priors
   double anchor_sigma_m = 0.02;                   ///< survey std-dev of anchor positions (m)
   Vec3 p_b_tag = Vec3::Zero();                    ///< UWB antenna lever arm, body frame (m)
@@ -34,7 +37,7 @@ struct RangeImuGraphParams {
 
 struct RangeImuGraph {
   FactorGraph graph;
-  std::vector<std::int64_t> state_t_ns;  ///< time of state i (keys X(i), V(i), B(i))
+  std::vector<std::int64_t> state_t_ns;  ///< time of state i (keys X(i), V(i), B(i)); includes IMU-only states
   std::vector<Key> anchor_keys;          ///< L(anchor_id) for anchors used as variables
   std::size_t range_factors = 0;
   std::size_t imu_factors = 0;

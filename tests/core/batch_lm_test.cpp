@@ -10,9 +10,12 @@
 #include "estimation/math/so3.h"
 #include "estimation/solver/normal_equations.h"
 #include "support/numerical_jacobian.h"
+#include "support/random_states.h"
 
 namespace rilo {
 namespace {
+
+using testing::randomVec;
 
 // ----------------------------------------------------------------------------
 // Test-local factors (the real range and IMU factors live elsewhere).
@@ -156,14 +159,9 @@ class TestCauchyLoss : public RobustLoss {
 // ----------------------------------------------------------------------------
 // Dense references.
 
-Vec3 gaussian3(std::mt19937& rng, double sigma) {
-  std::normal_distribution<double> n(0.0, sigma);
-  return Vec3(n(rng), n(rng), n(rng));
-}
-
 Pose3 perturb(const Pose3& T, std::mt19937& rng, double rot, double pos) {
   Vec6 xi;
-  xi << gaussian3(rng, rot), gaussian3(rng, pos);
+  xi << randomVec(rng, rot), randomVec(rng, pos);
   return T.retract(xi);
 }
 
@@ -283,7 +281,7 @@ Problem trilaterationChain(int n_poses, double init_rot, double init_pos, unsign
     if (const Pose3* T = std::get_if<Pose3>(&v)) {
       p.initial.insert(k, perturb(*T, rng, init_rot, init_pos));
     } else {
-      p.initial.insert(k, Vec3(std::get<Vec3>(v) + gaussian3(rng, init_pos)));
+      p.initial.insert(k, Vec3(std::get<Vec3>(v) + randomVec(rng, init_pos)));
     }
   }
   return p;
@@ -293,18 +291,18 @@ Problem trilaterationChain(int n_poses, double init_rot, double init_pos, unsign
 Problem linearNetwork(int n, unsigned seed) {
   std::mt19937 rng(seed);
   Problem p;
-  for (int i = 0; i < n; ++i) p.truth.insert(sym::L(static_cast<std::uint64_t>(i)), gaussian3(rng, 5.0));
-  p.graph.emplace<Vec3PriorFactor>(sym::L(0), Vec3(p.truth.vec3(sym::L(0)) + gaussian3(rng, 0.1)), 0.1);
-  p.graph.emplace<Vec3PriorFactor>(sym::L(3), Vec3(p.truth.vec3(sym::L(3)) + gaussian3(rng, 0.1)), 0.2);
+  for (int i = 0; i < n; ++i) p.truth.insert(sym::L(static_cast<std::uint64_t>(i)), randomVec(rng, 5.0));
+  p.graph.emplace<Vec3PriorFactor>(sym::L(0), Vec3(p.truth.vec3(sym::L(0)) + randomVec(rng, 0.1)), 0.1);
+  p.graph.emplace<Vec3PriorFactor>(sym::L(3), Vec3(p.truth.vec3(sym::L(3)) + randomVec(rng, 0.1)), 0.2);
   for (int i = 0; i < n; ++i) {
     for (int j : {i + 1, i + 4}) {
       if (j >= n) continue;
       const Key ki = sym::L(static_cast<std::uint64_t>(i)), kj = sym::L(static_cast<std::uint64_t>(j));
-      const Vec3 z = p.truth.vec3(kj) - p.truth.vec3(ki) + gaussian3(rng, 0.05);
+      const Vec3 z = p.truth.vec3(kj) - p.truth.vec3(ki) + randomVec(rng, 0.05);
       p.graph.emplace<Vec3BetweenFactor>(ki, kj, z, 0.05 + 0.01 * (i % 3));
     }
   }
-  for (const auto& [k, v] : p.truth) p.initial.insert(k, Vec3(std::get<Vec3>(v) + gaussian3(rng, 3.0)));
+  for (const auto& [k, v] : p.truth) p.initial.insert(k, Vec3(std::get<Vec3>(v) + randomVec(rng, 3.0)));
   return p;
 }
 
@@ -317,12 +315,12 @@ TEST(BatchLmTestFactors, JacobiansMatchNumerical) {
     // Random states, including rotations near pi and tiny differences.
     const double rot_scale = trial < 10 ? 1.0 : 1e-7;
     Values x;
-    const Pose3 Ta(so3::exp(gaussian3(rng, trial == 5 ? 3.0 : 1.0)), gaussian3(rng, 3.0));
-    const Pose3 Tb = Ta.retract((Vec6() << gaussian3(rng, rot_scale), gaussian3(rng, 1.0)).finished());
+    const Pose3 Ta(so3::exp(randomVec(rng, trial == 5 ? 3.0 : 1.0)), randomVec(rng, 3.0));
+    const Pose3 Tb = Ta.retract((Vec6() << randomVec(rng, rot_scale), randomVec(rng, 1.0)).finished());
     x.insert(sym::X(0), Ta);
     x.insert(sym::X(1), Tb);
-    x.insert(sym::L(0), gaussian3(rng, 2.0));
-    x.insert(sym::L(1), gaussian3(rng, 2.0));
+    x.insert(sym::L(0), randomVec(rng, 2.0));
+    x.insert(sym::L(1), randomVec(rng, 2.0));
     const Pose3 z = perturb(Pose3(Ta.R.transpose() * Tb.R, Ta.R.transpose() * (Tb.p - Ta.p)), rng, 0.1, 0.1);
     EXPECT_TRUE(testing::jacobiansMatch(Pose3BetweenFactor(sym::X(0), sym::X(1), z, 0.1, 0.2), x, 1e-6));
     EXPECT_TRUE(testing::jacobiansMatch(Pose3PriorFactor(sym::X(1), perturb(Tb, rng, 0.2, 0.5), 0.1, 0.2), x, 1e-6));

@@ -8,7 +8,10 @@
 #include <stdexcept>
 
 #include "estimation/math/so3.h"
+#include "estimation/noise/huber_loss.h"
 #include "support/numerical_jacobian.h"
+#include "support/random_states.h"
+#include "support/test_losses.h"
 
 namespace rilo {
 namespace {
@@ -17,38 +20,10 @@ using sym::B;
 using sym::L;
 using sym::V;
 using sym::X;
-
-class TestHuber final : public RobustLoss {
- public:
-  explicit TestHuber(double k) : k_(k) {}
-  double loss(double r) const override {
-    const double a = std::abs(r);
-    return a <= k_ ? 0.5 * r * r : k_ * (a - 0.5 * k_);
-  }
-  double derivative(double r) const override { return std::abs(r) <= k_ ? r : k_ * (r > 0 ? 1.0 : -1.0); }
-  std::string name() const override { return "test_huber"; }
-
- private:
-  double k_;
-};
-
-class TestAsymmetric final : public RobustLoss {
- public:
-  double loss(double r) const override { return r > 0 ? 0.125 * r * r : 0.5 * r * r; }
-  double derivative(double r) const override { return r > 0 ? 0.25 * r : r; }
-  bool isSymmetric() const override { return false; }
-  std::string name() const override { return "test_asymmetric"; }
-};
-
-Vec3 randomVec(std::mt19937& rng, double scale) {
-  std::normal_distribution<double> n(0.0, scale);
-  return Vec3(n(rng), n(rng), n(rng));
-}
-
-Mat3 randomRotation(std::mt19937& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  return Quat(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
-}
+using testing::TestAsymmetric;
+using testing::randomPose;
+using testing::randomRotation;
+using testing::randomVec;
 
 template <int N>
 Eigen::Matrix<double, N, N> randomSpd(std::mt19937& rng, double scale) {
@@ -130,9 +105,9 @@ TEST(PriorPose3Factor, ResidualAtKnownConfiguration) {
 TEST(PriorPose3Factor, ErrorIsHalfMahalanobis) {
   std::mt19937 rng(41);
   const Mat6 cov = randomSpd<6>(rng, 0.02);
-  const Pose3 T_prior(randomRotation(rng), randomVec(rng, 3.0));
+  const Pose3 T_prior = randomPose(rng, 3.0);
   const PriorPose3Factor f(X(0), T_prior, cov);
-  const Pose3 T(randomRotation(rng), randomVec(rng, 3.0));
+  const Pose3 T = randomPose(rng, 3.0);
   Values x;
   x.insert(X(0), T);
   const Vec6 e = T_prior.local(T);
@@ -142,10 +117,10 @@ TEST(PriorPose3Factor, ErrorIsHalfMahalanobis) {
 TEST(PriorPose3Factor, JacobiansMatch) {
   std::mt19937 rng(42);
   for (int i = 0; i < 200; ++i) {
-    const Pose3 T_prior(randomRotation(rng), randomVec(rng, 3.0));
+    const Pose3 T_prior = randomPose(rng, 3.0);
     // Mix of states near the prior and arbitrary ones (rotation error up to ~pi).
     const Pose3 T = (i % 2 == 0) ? T_prior.retract((Vec6() << randomVec(rng, 0.2), randomVec(rng, 0.5)).finished())
-                                 : Pose3(randomRotation(rng), randomVec(rng, 3.0));
+                                 : randomPose(rng, 3.0);
     if (so3::log(T_prior.R.transpose() * T.R).norm() > 3.0) continue;  // Log is not smooth at pi
     Values x;
     x.insert(X(0), T);
@@ -210,7 +185,7 @@ TEST(PriorVec3Factor, ResidualJacobianAndErrors) {
 
 TEST(PriorVec3Factor, RobustLossAndInvalidArguments) {
   const PriorVec3Factor plain(L(0), Vec3::Zero(), Vec3::Constant(0.1).eval());
-  const PriorVec3Factor robust(L(0), Vec3::Zero(), Vec3::Constant(0.1).eval(), std::make_shared<TestHuber>(1.0));
+  const PriorVec3Factor robust(L(0), Vec3::Zero(), Vec3::Constant(0.1).eval(), std::make_shared<HuberLoss>(1.0));
   Values x;
   x.insert(L(0), Vec3(0.3, 0.4, 0.0));  // |r| = 5
   EXPECT_NEAR(plain.error(x), 12.5, 1e-9);
@@ -230,7 +205,7 @@ TEST(PriorFactors, VectorPriorsRejectAsymmetricLoss) {
   EXPECT_THROW(PriorVec3Factor(V(0), Vec3::Zero(), Vec3::Ones().eval(), asym), std::invalid_argument);
   EXPECT_THROW(PriorBiasFactor(B(0), ImuBias(), Vec6::Ones().eval(), asym), std::invalid_argument);
   // Symmetric losses are fine on vector priors; any loss on the scalar height band.
-  EXPECT_NO_THROW(PriorPose3Factor(X(0), Pose3(), Vec6::Ones().eval(), std::make_shared<TestHuber>(1.0)));
+  EXPECT_NO_THROW(PriorPose3Factor(X(0), Pose3(), Vec6::Ones().eval(), std::make_shared<HuberLoss>(1.0)));
   EXPECT_NO_THROW(HeightBandFactor(X(0), 0.0, 1.0, 0.1, asym));
 }
 
@@ -329,7 +304,7 @@ TEST(HeightBandFactor, RobustLossPropagates) {
   Values x;
   x.insert(X(0), Pose3(Mat3::Identity(), Vec3(0, 0, 2.2)));  // r = 4
   EXPECT_NEAR(HeightBandFactor(X(0), 1.0, 1.8, 0.1).error(x), 8.0, 1e-9);
-  EXPECT_NEAR(HeightBandFactor(X(0), 1.0, 1.8, 0.1, std::make_shared<TestHuber>(1.0)).error(x), 3.5, 1e-9);
+  EXPECT_NEAR(HeightBandFactor(X(0), 1.0, 1.8, 0.1, std::make_shared<HuberLoss>(1.0)).error(x), 3.5, 1e-9);
 }
 
 }  // namespace

@@ -7,49 +7,19 @@
 #include <stdexcept>
 
 #include "estimation/math/so3.h"
+#include "estimation/noise/huber_loss.h"
 #include "support/numerical_jacobian.h"
+#include "support/random_states.h"
+#include "support/test_losses.h"
 
 namespace rilo {
 namespace {
 
 using sym::L;
 using sym::X;
-
-// Test-local losses so this test does not depend on estimation/noise implementations.
-class TestHuber final : public RobustLoss {
- public:
-  explicit TestHuber(double k) : k_(k) {}
-  double loss(double r) const override {
-    const double a = std::abs(r);
-    return a <= k_ ? 0.5 * r * r : k_ * (a - 0.5 * k_);
-  }
-  double derivative(double r) const override { return std::abs(r) <= k_ ? r : k_ * (r > 0 ? 1.0 : -1.0); }
-  std::string name() const override { return "test_huber"; }
-
- private:
-  double k_;
-};
-
-// Quadratic on both sides with a flatter positive (NLOS) side: sees the sign.
-class TestAsymmetric final : public RobustLoss {
- public:
-  double loss(double r) const override { return r > 0 ? 0.125 * r * r : 0.5 * r * r; }
-  double derivative(double r) const override { return r > 0 ? 0.25 * r : r; }
-  bool isSymmetric() const override { return false; }
-  std::string name() const override { return "test_asymmetric"; }
-};
-
-Vec3 randomVec(std::mt19937& rng, double scale) {
-  std::normal_distribution<double> n(0.0, scale);
-  return Vec3(n(rng), n(rng), n(rng));
-}
-
-// Uniformly random rotation (any magnitude, including near pi).
-Mat3 randomRotation(std::mt19937& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  Quat q(n(rng), n(rng), n(rng), n(rng));
-  return q.normalized().toRotationMatrix();
-}
+using testing::TestAsymmetric;
+using testing::randomPose;
+using testing::randomVec;
 
 Values poseAndAnchor(const Pose3& T_w_b, const Vec3& p_w_anchor) {
   Values v;
@@ -121,7 +91,7 @@ TEST(RangeFactor, JacobiansMatchAtRandomStates) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> sigma_dist(0.02, 0.5);
   for (int i = 0; i < 200; ++i) {
-    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 5.0));
+    const Pose3 T_w_b = randomPose(rng, 5.0);
     const Vec3 p_b_tag = randomVec(rng, 0.3);
     const Vec3 p_w_anchor = randomVec(rng, 6.0);
     const double z = (T_w_b.transformFrom(p_b_tag) - p_w_anchor).norm() + randomVec(rng, 0.3).x();
@@ -158,7 +128,7 @@ TEST(RangeFactor, JacobiansMatchNearAnchor) {
   // scale of 1e-4 m, so the numerical derivative needs a smaller step.
   std::mt19937 rng(13);
   for (int i = 0; i < 50; ++i) {
-    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 2.0));
+    const Pose3 T_w_b = randomPose(rng, 2.0);
     const Vec3 p_b_tag = randomVec(rng, 0.3);
     const Vec3 p_w_anchor = T_w_b.transformFrom(p_b_tag) + 1e-4 * randomVec(rng, 1.0).normalized();
     const RangeFactor fv(X(0), L(3), 0.05, 0.1, p_b_tag);
@@ -204,7 +174,7 @@ TEST(RangeFactor, RobustLossPropagatesWithSign) {
   x.insert(X(0), T_w_b);
 
   const RangeFactor plain(X(0), p_w_anchor, 5.4, 0.1, Vec3::Zero());
-  const RangeFactor huber(X(0), p_w_anchor, 5.4, 0.1, Vec3::Zero(), std::make_shared<TestHuber>(1.0));
+  const RangeFactor huber(X(0), p_w_anchor, 5.4, 0.1, Vec3::Zero(), std::make_shared<HuberLoss>(1.0));
   EXPECT_NEAR(plain.error(x), 8.0, 1e-9);        // r = 4
   EXPECT_NEAR(huber.error(x), 1.0 * (4.0 - 0.5), 1e-9);
   EXPECT_NE(plain.error(x), huber.error(x));

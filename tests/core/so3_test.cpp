@@ -4,14 +4,12 @@
 
 #include "estimation/math/pose3.h"
 #include "estimation/math/so3.h"
+#include "support/random_states.h"
 
 namespace rilo {
 namespace {
 
-Vec3 randomVec(std::mt19937& rng, double scale) {
-  std::normal_distribution<double> n(0.0, scale);
-  return Vec3(n(rng), n(rng), n(rng));
-}
+using testing::randomVec;
 
 TEST(So3, ExpLogRoundTripAcrossAngles) {
   std::mt19937 rng(1);

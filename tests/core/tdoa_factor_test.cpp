@@ -8,45 +8,19 @@
 #include <stdexcept>
 
 #include "estimation/math/so3.h"
+#include "estimation/noise/huber_loss.h"
 #include "support/numerical_jacobian.h"
+#include "support/random_states.h"
+#include "support/test_losses.h"
 
 namespace rilo {
 namespace {
 
 using sym::L;
 using sym::X;
-
-class TestHuber final : public RobustLoss {
- public:
-  explicit TestHuber(double k) : k_(k) {}
-  double loss(double r) const override {
-    const double a = std::abs(r);
-    return a <= k_ ? 0.5 * r * r : k_ * (a - 0.5 * k_);
-  }
-  double derivative(double r) const override { return std::abs(r) <= k_ ? r : k_ * (r > 0 ? 1.0 : -1.0); }
-  std::string name() const override { return "test_huber"; }
-
- private:
-  double k_;
-};
-
-class TestAsymmetric final : public RobustLoss {
- public:
-  double loss(double r) const override { return r > 0 ? 0.125 * r * r : 0.5 * r * r; }
-  double derivative(double r) const override { return r > 0 ? 0.25 * r : r; }
-  bool isSymmetric() const override { return false; }
-  std::string name() const override { return "test_asymmetric"; }
-};
-
-Vec3 randomVec(std::mt19937& rng, double scale) {
-  std::normal_distribution<double> n(0.0, scale);
-  return Vec3(n(rng), n(rng), n(rng));
-}
-
-Mat3 randomRotation(std::mt19937& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  return Quat(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
-}
+using testing::TestAsymmetric;
+using testing::randomPose;
+using testing::randomVec;
 
 Values poseAndAnchors(const Pose3& T_w_b, const Vec3& p_w_a, const Vec3& p_w_b) {
   Values v;
@@ -117,7 +91,7 @@ TEST(TdoaFactor, Accessors) {
 TEST(TdoaFactor, JacobiansMatchAtRandomStates) {
   std::mt19937 rng(21);
   for (int i = 0; i < 200; ++i) {
-    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 5.0));
+    const Pose3 T_w_b = randomPose(rng, 5.0);
     const Vec3 p_b_tag = randomVec(rng, 0.3);
     const Vec3 p_w_a = randomVec(rng, 6.0), p_w_b = randomVec(rng, 6.0);
     const Vec3 p_w_tag = T_w_b.transformFrom(p_b_tag);
@@ -143,7 +117,7 @@ TEST(TdoaFactor, JacobiansMatchAtZeroRotation) {
 TEST(TdoaFactor, JacobiansMatchNearEitherAnchor) {
   std::mt19937 rng(23);
   for (int i = 0; i < 50; ++i) {
-    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 2.0));
+    const Pose3 T_w_b = randomPose(rng, 2.0);
     const Vec3 p_b_tag = randomVec(rng, 0.3);
     const Vec3 near = T_w_b.transformFrom(p_b_tag) + 1e-4 * randomVec(rng, 1.0).normalized();
     const Vec3 far = randomVec(rng, 5.0);
@@ -184,7 +158,7 @@ TEST(TdoaFactor, RobustLossPropagates) {
   Values x;
   x.insert(X(0), Pose3());
   const TdoaFactor plain(X(0), p_w_a, p_w_b, 5.4, 0.1, Vec3::Zero());
-  const TdoaFactor huber(X(0), p_w_a, p_w_b, 5.4, 0.1, Vec3::Zero(), std::make_shared<TestHuber>(1.0));
+  const TdoaFactor huber(X(0), p_w_a, p_w_b, 5.4, 0.1, Vec3::Zero(), std::make_shared<HuberLoss>(1.0));
   EXPECT_NEAR(plain.error(x), 8.0, 1e-9);
   EXPECT_NEAR(huber.error(x), 3.5, 1e-9);
   Residual r;

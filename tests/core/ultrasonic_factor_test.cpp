@@ -8,45 +8,19 @@
 #include <stdexcept>
 
 #include "estimation/math/so3.h"
+#include "estimation/noise/huber_loss.h"
 #include "support/numerical_jacobian.h"
+#include "support/random_states.h"
+#include "support/test_losses.h"
 
 namespace rilo {
 namespace {
 
 using sym::L;
 using sym::X;
-
-class TestHuber final : public RobustLoss {
- public:
-  explicit TestHuber(double k) : k_(k) {}
-  double loss(double r) const override {
-    const double a = std::abs(r);
-    return a <= k_ ? 0.5 * r * r : k_ * (a - 0.5 * k_);
-  }
-  double derivative(double r) const override { return std::abs(r) <= k_ ? r : k_ * (r > 0 ? 1.0 : -1.0); }
-  std::string name() const override { return "test_huber"; }
-
- private:
-  double k_;
-};
-
-class TestAsymmetric final : public RobustLoss {
- public:
-  double loss(double r) const override { return r > 0 ? 0.125 * r * r : 0.5 * r * r; }
-  double derivative(double r) const override { return r > 0 ? 0.25 * r : r; }
-  bool isSymmetric() const override { return false; }
-  std::string name() const override { return "test_asymmetric"; }
-};
-
-Vec3 randomVec(std::mt19937& rng, double scale) {
-  std::normal_distribution<double> n(0.0, scale);
-  return Vec3(n(rng), n(rng), n(rng));
-}
-
-Mat3 randomRotation(std::mt19937& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  return Quat(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
-}
+using testing::TestAsymmetric;
+using testing::randomPose;
+using testing::randomVec;
 
 Values poseAndAnchor(const Pose3& T_w_b, const Vec3& p_w_anchor) {
   Values v;
@@ -88,7 +62,7 @@ TEST(UltrasonicFactor, ResidualAtKnownConfiguration) {
 
 TEST(UltrasonicFactor, AnchorVariableMatchesConstant) {
   std::mt19937 rng(30);
-  const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 3.0));
+  const Pose3 T_w_b = randomPose(rng, 3.0);
   const Vec3 p_w_anchor = randomVec(rng, 4.0);
   const Vec3 lever(0.05, -0.1, 0.2);
   const UltrasonicElevation elev{-1.5, 0.1};
@@ -114,7 +88,7 @@ TEST(UltrasonicFactor, AnchorVariableMatchesConstant) {
 TEST(UltrasonicFactor, JacobiansMatchAtRandomStates) {
   std::mt19937 rng(31);
   for (int i = 0; i < 200; ++i) {
-    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 5.0));
+    const Pose3 T_w_b = randomPose(rng, 5.0);
     const Vec3 lever = randomVec(rng, 0.3);
     const Vec3 p_w_anchor = randomVec(rng, 6.0);
     const double z = (T_w_b.transformFrom(lever) - p_w_anchor).norm() + randomVec(rng, 0.1).x();
@@ -141,7 +115,7 @@ TEST(UltrasonicFactor, JacobiansMatchAtZeroRotation) {
 TEST(UltrasonicFactor, JacobiansMatchNearAnchorAndFiniteAtIt) {
   std::mt19937 rng(33);
   for (int i = 0; i < 50; ++i) {
-    const Pose3 T_w_b(randomRotation(rng), randomVec(rng, 2.0));
+    const Pose3 T_w_b = randomPose(rng, 2.0);
     const Vec3 lever = randomVec(rng, 0.3);
     const Vec3 p_w_anchor = T_w_b.transformFrom(lever) + 1e-4 * randomVec(rng, 1.0).normalized();
     const UltrasonicFactor f(X(0), L(7), 0.1, 0.03, lever, UltrasonicElevation{0.0, 0.1});
@@ -165,7 +139,7 @@ TEST(UltrasonicFactor, RobustLossRules) {
   Values x;
   x.insert(X(0), T_w_b);
   const UltrasonicElevation elev{-3.9, 0.05};
-  auto huber = std::make_shared<TestHuber>(1.0);
+  auto huber = std::make_shared<HuberLoss>(1.0);
   auto asym = std::make_shared<TestAsymmetric>();
 
   // 1-dim: any loss, signed residual.

@@ -470,6 +470,21 @@ INSTANTIATE_TEST_SUITE_P(DampingAndOrdering, BatchLmVariants,
                                            LmVariant{LmParams::Damping::kIdentity, LmParams::Ordering::kColamd},
                                            LmVariant{LmParams::Damping::kMarquardt, LmParams::Ordering::kNatural}));
 
+TEST(BatchLm, HeavyDampingDoesNotPassForConvergence) {
+  // At lambda = 1e11 every step is tiny: stopping on step or error tolerance
+  // there would report the perturbed start as converged.
+  const Problem p = trilaterationChain(30, 0.15, 0.6, 11);
+  const Values dense = denseGaussNewton(p.graph, p.initial);
+  LmParams params;
+  params.lambda_initial = 1e11;
+  params.step_tolerance = 1e-6;
+  BatchLevenbergMarquardt lm(params);
+  const auto [values, result] = lm.optimize(p.graph, p.initial);
+  EXPECT_TRUE(result.converged()) << result.message;
+  EXPECT_LT(maxTangentDistance(values, dense, sortedGraphKeys(p.graph)), 1e-5);
+  EXPECT_GT(result.iterations, 1);
+}
+
 TEST(BatchLm, ErrorNeverIncreasesAcrossAcceptedIterations) {
   for (unsigned seed : {1u, 2u, 3u}) {
     // Far start: rotations off by ~0.6 rad, positions by ~3 m: steps get rejected.

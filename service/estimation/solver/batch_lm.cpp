@@ -10,6 +10,11 @@
 #include "estimation/solver/ordering.h"
 
 namespace rilo {
+namespace {
+/// lambda * max(D) below this fraction of max(diag(J^T J)): the step is Gauss-Newton's.
+constexpr double kNegligibleDamping = 1e-6;
+}  // namespace
+
 
 namespace {
 double secondsSince(std::chrono::steady_clock::time_point t0) {
@@ -220,8 +225,13 @@ BatchLevenbergMarquardt::Output BatchLevenbergMarquardt::optimize(const FactorGr
       const double actual = error - new_error;
       const double rho = (finite && predicted > 0.0) ? actual / predicted : -std::numeric_limits<double>::infinity();
       const double tolerance = std::max(params_.absolute_error_tolerance, params_.relative_error_tolerance * error);
-      const bool small_change = finite && std::abs(actual) <= tolerance && predicted <= tolerance;
-      const bool small_step = step_norm <= params_.step_tolerance;
+      // A small step or change only signals convergence when damping did not
+      // shrink the step: at a large lambda every step is small, optimum or not.
+      const bool damping_negligible =
+          lambda * damping_.maxCoeff() <= kNegligibleDamping * undamped_diagonal_.maxCoeff();
+      const bool trustworthy = damping_negligible;
+      const bool small_change = trustworthy && finite && std::abs(actual) <= tolerance && predicted <= tolerance;
+      const bool small_step = trustworthy && step_norm <= params_.step_tolerance;
       it.gain_ratio = std::isfinite(rho) ? rho : 0.0;
       it.step_norm = step_norm;
 

@@ -107,4 +107,40 @@ Scenario simulateScenario(const ScenarioParams& p) {
   return s;
 }
 
+ImuParams imuParamsOf(const ScenarioParams& p) {
+  ImuParams imu;
+  imu.gravity_m_s2 = p.gravity_m_s2;
+  imu.gyro_noise_density = p.gyro_noise_density;
+  imu.accel_noise_density = p.accel_noise_density;
+  imu.gyro_bias_random_walk = p.gyro_bias_walk;
+  imu.accel_bias_random_walk = p.accel_bias_walk;
+  imu.gyro_bias_tau_s = ImuParams::kRandomWalk;
+  imu.accel_bias_tau_s = ImuParams::kRandomWalk;
+  return imu;
+}
+
+Values truthValues(const Scenario& s, const std::vector<std::int64_t>& state_t_ns, const std::vector<Key>& anchor_keys,
+                   const TruthPerturbation* perturbation) {
+  std::mt19937_64 rng(perturbation ? perturbation->seed : 0);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  auto randn3 = [&] { return Vec3(n01(rng), n01(rng), n01(rng)); };
+  Values v;
+  for (std::size_t i = 0; i < state_t_ns.size(); ++i) {
+    const KinematicState st = s.truthAt(state_t_ns[i]);
+    if (perturbation) {
+      Vec6 xi;
+      xi << perturbation->rotation_rad * randn3(), perturbation->position_m * randn3();
+      v.insert(sym::X(i), st.T_w_b.retract(xi));
+      v.insert(sym::V(i), Vec3(st.v_w + perturbation->velocity_m_s * randn3()));
+      v.insert(sym::B(i), ImuBias());
+    } else {
+      v.insert(sym::X(i), st.T_w_b);
+      v.insert(sym::V(i), st.v_w);
+      v.insert(sym::B(i), ImuBias(s.biasAt(state_t_ns[i])));
+    }
+  }
+  for (Key l : anchor_keys) v.insert(l, s.p_w_anchors.at(keyIndex(l)));
+  return v;
+}
+
 }  // namespace rilo::sim

@@ -7,6 +7,8 @@
 #include <memory>
 #include <vector>
 
+#include "estimation/graph/values.h"
+#include "estimation/imu/imu_params.h"
 #include "hal/samples.h"
 #include "hal/sim/trajectory.h"
 
@@ -56,5 +58,23 @@ struct Scenario {
 std::vector<Eigen::Vector3d> defaultOfficeAnchors();
 
 Scenario simulateScenario(const ScenarioParams& params);
+
+/// The IMU model that matches the simulated IMU (densities, random-walk biases).
+ImuParams imuParamsOf(const ScenarioParams& params);
+
+/// Per-state perturbation of the ground truth: the start of batch solves in
+/// tests, benchmarks and the demo (until initialization from scratch lands).
+struct TruthPerturbation {
+  double rotation_rad = 0.05;
+  double position_m = 0.3;
+  double velocity_m_s = 0.2;
+  std::uint64_t seed = 7;
+};
+
+/// Values for states X/V/B(i) at state_t_ns[i] and the anchors in anchor_keys
+/// (sym::L(id), at their surveyed positions). With `perturbation` the poses and
+/// velocities are perturbed and biases start at zero; without it, the exact truth.
+Values truthValues(const Scenario& s, const std::vector<std::int64_t>& state_t_ns, const std::vector<Key>& anchor_keys,
+                   const TruthPerturbation* perturbation = nullptr);
 
 }  // namespace rilo::sim

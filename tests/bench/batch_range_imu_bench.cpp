@@ -3,7 +3,6 @@
 // perturbed ground truth, per noise model.
 #include <benchmark/benchmark.h>
 
-#include <random>
 
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/solver/batch_lm.h"
@@ -27,18 +26,9 @@ BenchProblem makeBenchProblem(const std::string& loss, double seconds) {
   gp.range_noise.sigma_m = sp.range_sigma_m;
   const sim::KinematicState st0 = s.truthAt(s.ranges.front().t_ns);
   BenchProblem bp{buildRangeImuGraph(s.imu, s.ranges, s.p_w_anchors, st0.T_w_b, st0.v_w, gp), {}};
-  std::mt19937_64 rng(5);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  auto randn3 = [&] { return Vec3(n01(rng), n01(rng), n01(rng)); };
-  for (std::size_t i = 0; i < bp.graph.state_t_ns.size(); ++i) {
-    const sim::KinematicState st = s.truthAt(bp.graph.state_t_ns[i]);
-    Vec6 xi;
-    xi << 0.05 * randn3(), 0.3 * randn3();
-    bp.initial.insert(sym::X(i), st.T_w_b.retract(xi));
-    bp.initial.insert(sym::V(i), Vec3(st.v_w + 0.2 * randn3()));
-    bp.initial.insert(sym::B(i), ImuBias());
-  }
-  for (Key l : bp.graph.anchor_keys) bp.initial.insert(l, s.p_w_anchors.at(keyIndex(l)));
+  sim::TruthPerturbation perturbation;
+  perturbation.seed = 5;
+  bp.initial = sim::truthValues(s, bp.graph.state_t_ns, bp.graph.anchor_keys, &perturbation);
   return bp;
 }
 

@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <random>
 
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/trajectory_error.h"
@@ -33,12 +32,7 @@ Problem makeProblem(double seconds, double nlos_fraction, const std::string& los
   gp.p_b_tag = s.p_b_tag;
   gp.range_loss = loss;
   gp.range_noise.sigma_m = sp.range_sigma_m;
-  gp.imu.gyro_noise_density = sp.gyro_noise_density;
-  gp.imu.accel_noise_density = sp.accel_noise_density;
-  gp.imu.gyro_bias_random_walk = sp.gyro_bias_walk;
-  gp.imu.accel_bias_random_walk = sp.accel_bias_walk;
-  gp.imu.gyro_bias_tau_s = ImuParams::kRandomWalk;
-  gp.imu.accel_bias_tau_s = ImuParams::kRandomWalk;
+  gp.imu = sim::imuParamsOf(sp);
   // The simulator's IMU is exactly zero-order held: no discretization noise to
   // cover, so the statistical check below sees the model's true noise level.
   gp.imu.integration_noise_density = 1e-8;
@@ -47,25 +41,10 @@ Problem makeProblem(double seconds, double nlos_fraction, const std::string& los
   const sim::KinematicState st0 = s.truthAt(s.ranges.front().t_ns);
   pr.graph = buildRangeImuGraph(s.imu, s.ranges, s.p_w_anchors, st0.T_w_b, st0.v_w, gp);
 
-  std::mt19937_64 rng(seed + 7);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  auto randn3 = [&] { return Vec3(n01(rng), n01(rng), n01(rng)); };
-  for (std::size_t i = 0; i < pr.graph.state_t_ns.size(); ++i) {
-    const std::int64_t t = pr.graph.state_t_ns[i];
-    const sim::KinematicState st = s.truthAt(t);
-    pr.truth.insert(sym::X(i), st.T_w_b);
-    pr.truth.insert(sym::V(i), st.v_w);
-    pr.truth.insert(sym::B(i), ImuBias(s.biasAt(t)));
-    Vec6 xi;
-    xi << 0.05 * randn3(), 0.3 * randn3();
-    pr.initial.insert(sym::X(i), st.T_w_b.retract(xi));
-    pr.initial.insert(sym::V(i), Vec3(st.v_w + 0.2 * randn3()));
-    pr.initial.insert(sym::B(i), ImuBias());
-  }
-  for (Key l : pr.graph.anchor_keys) {
-    pr.truth.insert(l, s.p_w_anchors.at(keyIndex(l)));
-    pr.initial.insert(l, s.p_w_anchors.at(keyIndex(l)));
-  }
+  pr.truth = sim::truthValues(s, pr.graph.state_t_ns, pr.graph.anchor_keys);
+  sim::TruthPerturbation perturbation;
+  perturbation.seed = seed + 7;
+  pr.initial = sim::truthValues(s, pr.graph.state_t_ns, pr.graph.anchor_keys, &perturbation);
   return pr;
 }
 
@@ -114,14 +93,7 @@ TEST(BatchRangeImu, RangingGapGetsImuOnlyStatesAndStaysSolvable) {
     ASSERT_LE(g.state_t_ns[i] - g.state_t_ns[i - 1], gp.max_state_interval_ns);
   }
   EXPECT_EQ(g.imu_factors + 1, g.state_t_ns.size());
-  Values truth;
-  for (std::size_t i = 0; i < g.state_t_ns.size(); ++i) {
-    const sim::KinematicState st = s.truthAt(g.state_t_ns[i]);
-    truth.insert(sym::X(i), st.T_w_b);
-    truth.insert(sym::V(i), st.v_w);
-    truth.insert(sym::B(i), ImuBias(s.biasAt(g.state_t_ns[i])));
-  }
-  for (Key l : g.anchor_keys) truth.insert(l, s.p_w_anchors.at(keyIndex(l)));
+  const Values truth = sim::truthValues(s, g.state_t_ns, g.anchor_keys);
   BatchLevenbergMarquardt lm;
   const auto out = lm.optimize(g.graph, truth);
   EXPECT_TRUE(out.result.converged()) << out.result.message;

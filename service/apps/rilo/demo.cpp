@@ -2,7 +2,6 @@
 
 #include <chrono>
 #include <cstdio>
-#include <random>
 
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/trajectory_error.h"
@@ -11,25 +10,6 @@
 
 namespace rilo::tool {
 namespace {
-
-/// Ground truth perturbed by Gaussian noise: the batch solve's starting point
-/// (initialization from scratch comes with the pipeline).
-Values perturbedTruth(const sim::Scenario& s, const RangeImuGraph& g, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  auto randn3 = [&] { return Vec3(n01(rng), n01(rng), n01(rng)); };
-  Values v;
-  for (std::size_t i = 0; i < g.state_t_ns.size(); ++i) {
-    const sim::KinematicState st = s.truthAt(g.state_t_ns[i]);
-    Vec6 xi;
-    xi << 0.05 * randn3(), 0.3 * randn3();
-    v.insert(sym::X(i), st.T_w_b.retract(xi));
-    v.insert(sym::V(i), Vec3(st.v_w + 0.2 * randn3()));
-    v.insert(sym::B(i), ImuBias());
-  }
-  for (Key l : g.anchor_keys) v.insert(l, s.p_w_anchors.at(keyIndex(l)));
-  return v;
-}
 
 std::vector<Vec3> positions(const Values& v, std::size_t n) {
   std::vector<Vec3> p;
@@ -59,10 +39,7 @@ int runDemo(const DemoOptions& o) {
 
   RangeImuGraphParams gp;
   gp.p_b_tag = s.p_b_tag;
-  gp.imu.gyro_noise_density = sp.gyro_noise_density;
-  gp.imu.accel_noise_density = sp.accel_noise_density;
-  gp.imu.gyro_bias_random_walk = sp.gyro_bias_walk;
-  gp.imu.accel_bias_random_walk = sp.accel_bias_walk;
+  gp.imu = sim::imuParamsOf(sp);
   gp.range_noise.sigma_m = sp.range_sigma_m;
 
   const sim::KinematicState st0 = s.truthAt(s.ranges.front().t_ns);
@@ -74,7 +51,9 @@ int runDemo(const DemoOptions& o) {
     if (p_true.empty()) {
       for (std::int64_t t : g.state_t_ns) p_true.push_back(s.truthAt(t).T_w_b.p);
     }
-    const Values initial = perturbedTruth(s, g, o.seed + 1000);
+    sim::TruthPerturbation perturbation;
+    perturbation.seed = o.seed + 1000;
+    const Values initial = sim::truthValues(s, g.state_t_ns, g.anchor_keys, &perturbation);
     BatchLevenbergMarquardt lm;
     const auto t_start = std::chrono::steady_clock::now();
     const auto out = lm.optimize(g.graph, initial);

@@ -1,0 +1,378 @@
+// BayesTreeSmoother: removing the top of the tree, symbolic elimination of
+// the removed part into cliques, and dense QR elimination of one clique.
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "estimation/smoother/bayes_tree_smoother.h"
+#include "estimation/smoother/dense_qr.h"
+#include "estimation/solver/ordering.h"
+
+namespace rilo {
+
+void BayesTreeSmoother::updateTree(const std::vector<VarId>& marked, const std::vector<FactorId>& new_factors,
+                                   const std::vector<VarId>& marginalizable, UpdateStats& stats) {
+  std::vector<VarId> top_vars;
+  std::vector<FactorId> top_factors;
+  const std::vector<CliqueId> orphans = removeTop(marked, top_vars, top_factors);
+  top_factors.insert(top_factors.end(), new_factors.begin(), new_factors.end());
+  if (top_vars.empty()) return;
+
+  // Keys of new factors go last (GTSAM's constrained-last on observed keys):
+  // the newest state and what it observes end up in the root.
+  std::vector<Key> last_keys;
+  for (FactorId f : new_factors) {
+    for (VarId v : factors_[f].vars) {
+      if (!vars_[v].marginalize) last_keys.push_back(vars_[v].key);
+    }
+  }
+  eliminateTop(top_vars, top_factors, orphans, marginalizable, last_keys, stats);
+}
+
+std::vector<BayesTreeSmoother::CliqueId> BayesTreeSmoother::removeTop(const std::vector<VarId>& marked,
+                                                                     std::vector<VarId>& top_vars,
+                                                                     std::vector<FactorId>& top_factors) {
+  const std::uint64_t clique_stamp = newStamp();
+  const std::uint64_t var_stamp = newStamp();
+  std::vector<CliqueId> removed;
+  for (VarId v : marked) {
+    if (vars_[v].mark == var_stamp) continue;
+    if (vars_[v].clique == kNone) {  // new variable
+      vars_[v].mark = var_stamp;
+      top_vars.push_back(v);
+    }
+    for (CliqueId c = vars_[v].clique; c != kNone && cliques_[c].mark != clique_stamp; c = cliques_[c].parent) {
+      cliques_[c].mark = clique_stamp;
+      removed.push_back(c);
+    }
+  }
+  std::vector<CliqueId> orphans;
+  for (CliqueId c : removed) {
+    Clique& q = cliques_[c];
+    for (CliqueId child : q.children) {
+      if (cliques_[child].mark != clique_stamp) {
+        cliques_[child].parent = kNone;
+        orphans.push_back(child);
+      }
+    }
+    for (VarId v : q.frontals) {
+      if (vars_[v].mark != var_stamp) {
+        vars_[v].mark = var_stamp;
+        top_vars.push_back(v);
+      }
+      vars_[v].clique = kNone;
+    }
+    for (FactorId f : q.factors) {
+      factors_[f].clique = kNone;
+      top_factors.push_back(f);
+    }
+    if (q.parent == kNone) roots_.erase(std::find(roots_.begin(), roots_.end(), c));
+    if (params_.method == SmootherParams::Method::kDogleg) addCliqueGradient(c, -1.0);
+    freeClique(c);
+  }
+  return orphans;
+}
+
+void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const std::vector<FactorId>& top_factors,
+                                     const std::vector<CliqueId>& orphans, const std::vector<VarId>& marginalizable,
+                                     const std::vector<Key>& last_keys, UpdateStats& stats) {
+  // 1. Constrained ordering of the top: marginalizable keys first, keys of
+  //    new factors last.
+  std::vector<std::vector<Key>> item_keys;
+  item_keys.reserve(top_factors.size() + orphans.size());
+  for (FactorId f : top_factors) {
+    std::vector<Key> keys;
+    for (VarId v : factors_[f].vars) keys.push_back(vars_[v].key);
+    item_keys.push_back(std::move(keys));
+  }
+  for (CliqueId o : orphans) {
+    std::vector<Key> keys;
+    for (VarId v : cliques_[o].separator) keys.push_back(vars_[v].key);
+    item_keys.push_back(std::move(keys));
+  }
+  OrderingConstraints constraints;
+  constraints.default_group = 1;
+  for (Key k : last_keys) constraints.group[k] = 2;
+  for (VarId v : marginalizable) constraints.group[vars_[v].key] = 0;
+  const std::vector<Key> order = constrainedOrdering(item_keys, constraints);
+  if (order.size() != top_vars.size()) {
+    throw std::logic_error("BayesTreeSmoother: ordering of the top has " + std::to_string(order.size()) +
+                           " keys, the top has " + std::to_string(top_vars.size()));
+  }
+  const int n = static_cast<int>(order.size());
+  std::vector<VarId> var_at(n);
+  for (int i = 0; i < n; ++i) {
+    var_at[i] = key_to_var_.at(order[i]);
+    vars_[var_at[i]].pos = i;
+  }
+
+  // 2. Bucket factors and orphans by their first-eliminated variable.
+  const int n_items = static_cast<int>(item_keys.size());
+  const int n_factors = static_cast<int>(top_factors.size());
+  auto item_vars = [&](int item) -> const std::vector<VarId>& {
+    return item < n_factors ? factors_[top_factors[item]].vars : cliques_[orphans[item - n_factors]].separator;
+  };
+  std::vector<std::vector<int>> items_at(n);
+  for (int item = 0; item < n_items; ++item) {
+    int first = n;
+    for (VarId v : item_vars(item)) first = std::min(first, vars_[v].pos);
+    items_at[first].push_back(item);
+  }
+
+  // 3. Symbolic elimination: separator of every variable, elimination tree.
+  std::vector<std::vector<int>> sep(n);
+  std::vector<std::vector<int>> etree_children(n);
+  std::vector<int> scratch;
+  for (int j = 0; j < n; ++j) {
+    scratch.clear();
+    for (int item : items_at[j]) {
+      for (VarId v : item_vars(item)) {
+        if (vars_[v].pos != j) scratch.push_back(vars_[v].pos);
+      }
+    }
+    for (int child : etree_children[j]) {
+      for (int p : sep[child]) {
+        if (p != j) scratch.push_back(p);
+      }
+    }
+    std::sort(scratch.begin(), scratch.end());
+    scratch.erase(std::unique(scratch.begin(), scratch.end()), scratch.end());
+    sep[j] = scratch;
+    if (!scratch.empty()) etree_children[scratch.front()].push_back(j);
+  }
+
+  // 4. Cliques: a variable joins its elimination-tree child's clique when the
+  //    child's separator is exactly {variable} + the variable's separator.
+  std::vector<CliqueId> clique_at(n, kNone);
+  std::vector<CliqueId> created;
+  for (int j = 0; j < n; ++j) {
+    CliqueId into = kNone;
+    for (int child : etree_children[j]) {
+      if (sep[child].size() == sep[j].size() + 1 && cliques_[clique_at[child]].frontals.back() == var_at[child]) {
+        into = clique_at[child];
+        break;
+      }
+    }
+    if (into == kNone) {
+      into = allocClique();
+      created.push_back(into);
+    }
+    cliques_[into].frontals.push_back(var_at[j]);
+    clique_at[j] = into;
+  }
+  for (CliqueId c : created) {
+    Clique& q = cliques_[c];
+    const int last = vars_[q.frontals.back()].pos;
+    q.frontal_dim = 0;
+    for (VarId v : q.frontals) {
+      q.frontal_dim += vars_[v].dim;
+      vars_[v].clique = c;
+    }
+    q.separator_dim = 0;
+    for (int p : sep[last]) {
+      q.separator.push_back(var_at[p]);
+      q.separator_dim += vars_[var_at[p]].dim;
+    }
+    q.replaced = true;
+    if (sep[last].empty()) {
+      roots_.push_back(c);
+    } else {
+      q.parent = clique_at[sep[last].front()];
+      cliques_[q.parent].children.push_back(c);
+    }
+  }
+  for (int item = 0; item < n_items; ++item) {
+    int first = n;
+    for (VarId v : item_vars(item)) first = std::min(first, vars_[v].pos);
+    const CliqueId c = clique_at[first];
+    if (item < n_factors) {
+      factors_[top_factors[item]].clique = c;
+      cliques_[c].factors.push_back(top_factors[item]);
+    } else {
+      const CliqueId o = orphans[item - n_factors];
+      cliques_[o].parent = c;
+      cliques_[c].children.push_back(o);
+    }
+  }
+
+  // 5. Numeric elimination, children before parents (by last frontal).
+  for (FactorId f : top_factors) {
+    if (factors_[f].needs_linearization) {
+      linearizeFactor(factors_[f]);
+      ++stats.factors_linearized;
+    }
+  }
+  std::sort(created.begin(), created.end(), [&](CliqueId a, CliqueId b) {
+    return vars_[cliques_[a].frontals.back()].pos < vars_[cliques_[b].frontals.back()].pos;
+  });
+  const double lambda = params_.method == SmootherParams::Method::kDamped ? lambda_ : 0.0;
+  for (CliqueId c : created) eliminateClique(c, lambda, stats);
+  stats.cliques_reeliminated += static_cast<int>(created.size());
+  stats.variables_reeliminated += n;
+  for (int i = 0; i < n; ++i) vars_[var_at[i]].pos = -1;
+}
+
+void BayesTreeSmoother::linearizeFactor(FactorSlot& f) {
+  int cols = 1;
+  for (VarId v : f.vars) cols += vars_[v].dim;
+  if (f.nonlinear) {
+    Residual r;
+    Jacobians H;
+    f.nonlinear->linearize(theta_, r, H);
+    f.linear.resize(r.size(), cols);
+    int col = 0;
+    for (std::size_t k = 0; k < f.vars.size(); ++k) {
+      const int dim = vars_[f.vars[k]].dim;
+      f.linear.middleCols(col, dim) = H[k];
+      col += dim;
+    }
+    f.linear.col(col) = -r;
+  } else {
+    // Frozen variables: theta is the marginal's linearization point, so this
+    // is [A | d]; evaluate() keeps it right in general.
+    Eigen::VectorXd r;
+    Eigen::MatrixXd J;
+    f.marginal->evaluate(theta_, r, &J);
+    f.linear.resize(r.size(), cols);
+    f.linear.leftCols(cols - 1) = J;
+    f.linear.col(cols - 1) = -r;
+  }
+  f.needs_linearization = false;
+}
+
+void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& stats) {
+  Clique& q = cliques_[c];
+  int col = 0;
+  for (VarId v : q.frontals) {
+    vars_[v].col = col;
+    col += vars_[v].dim;
+  }
+  for (VarId v : q.separator) {
+    vars_[v].col = col;
+    col += vars_[v].dim;
+  }
+  const int fd = q.frontal_dim;
+  const int n = col;
+
+  bool regularize = false;
+  std::vector<int> suffix_min;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    // Row sources: assigned factors, children's messages, damping rows, and
+    // (second attempt) regularization rows; each row with a lower bound of
+    // its first nonzero column, for the staircase QR.
+    int rows = 0;
+    for (FactorId f : q.factors) rows += static_cast<int>(factors_[f].linear.rows());
+    for (CliqueId ch : q.children) rows += static_cast<int>(cliques_[ch].message.rows());
+    for (VarId v : q.frontals) {
+      if (lambda > 0.0 && vars_[v].damped == damp_stamp_) rows += vars_[v].dim;
+    }
+    if (regularize) rows += fd;
+
+    row_leading_.resize(rows);
+    int r = 0;
+    for (FactorId f : q.factors) {
+      int lead = n;
+      for (VarId v : factors_[f].vars) lead = std::min(lead, vars_[v].col);
+      for (int i = 0; i < factors_[f].linear.rows(); ++i) row_leading_[r++] = lead;
+    }
+    for (CliqueId ch : q.children) {
+      const Clique& child = cliques_[ch];
+      // Row i of an upper-triangular message starts within the separator
+      // variable holding scalar i or a later one.
+      int scalar = 0;
+      suffix_min.assign(child.separator.size() + 1, n);
+      for (int k = static_cast<int>(child.separator.size()) - 1; k >= 0; --k) {
+        suffix_min[k] = std::min(suffix_min[k + 1], vars_[child.separator[k]].col);
+      }
+      int k = 0;
+      for (int i = 0; i < child.message.rows(); ++i) {
+        while (scalar + vars_[child.separator[k]].dim <= i) {
+          scalar += vars_[child.separator[k]].dim;
+          ++k;
+        }
+        row_leading_[r++] = suffix_min[k];
+      }
+    }
+    for (VarId v : q.frontals) {
+      if (lambda > 0.0 && vars_[v].damped == damp_stamp_) {
+        for (int i = 0; i < vars_[v].dim; ++i) row_leading_[r++] = vars_[v].col + i;
+      }
+    }
+    if (regularize) {
+      for (int i = 0; i < fd; ++i) row_leading_[r++] = i;
+    }
+
+    // Counting sort of rows by leading column.
+    std::vector<int>& count = rows_with_leading_le_;
+    count.assign(n + 1, 0);
+    for (int i = 0; i < rows; ++i) ++count[row_leading_[i] + 1];
+    for (int k = 0; k < n; ++k) count[k + 1] += count[k];  // count[k] = rows with leading < k
+    std::vector<int> dest(rows);
+    {
+      std::vector<int> next(count.begin(), count.end() - 1);
+      for (int i = 0; i < rows; ++i) dest[i] = next[row_leading_[i]]++;
+    }
+
+    if (work_.rows() < rows || work_.cols() < n + 1) {
+      work_.resize(std::max<Eigen::Index>(work_.rows(), rows), std::max<Eigen::Index>(work_.cols(), n + 1));
+    }
+    auto W = work_.topLeftCorner(rows, n + 1);
+    W.setZero();
+    r = 0;
+    for (FactorId f : q.factors) {
+      const FactorSlot& fs = factors_[f];
+      for (int i = 0; i < fs.linear.rows(); ++i, ++r) {
+        int src = 0;
+        for (VarId v : fs.vars) {
+          W.row(dest[r]).segment(vars_[v].col, vars_[v].dim) = fs.linear.row(i).segment(src, vars_[v].dim);
+          src += vars_[v].dim;
+        }
+        W(dest[r], n) = fs.linear(i, src);
+      }
+    }
+    for (CliqueId ch : q.children) {
+      const Clique& child = cliques_[ch];
+      for (int i = 0; i < child.message.rows(); ++i, ++r) {
+        int src = 0;
+        for (VarId v : child.separator) {
+          W.row(dest[r]).segment(vars_[v].col, vars_[v].dim) = child.message.row(i).segment(src, vars_[v].dim);
+          src += vars_[v].dim;
+        }
+        W(dest[r], n) = child.message(i, src);
+      }
+    }
+    const double sqrt_lambda = std::sqrt(lambda);
+    for (VarId v : q.frontals) {
+      if (lambda > 0.0 && vars_[v].damped == damp_stamp_) {
+        for (int i = 0; i < vars_[v].dim; ++i, ++r) W(dest[r], vars_[v].col + i) = sqrt_lambda;
+      }
+    }
+    if (regularize) {
+      const double s = std::sqrt(params_.regularization);
+      for (int i = 0; i < fd; ++i, ++r) W(dest[r], i) = s;
+    }
+
+    // rows_with_leading_le[k] = rows with leading <= k = count[k + 1].
+    Eigen::VectorXd column_norms = W.leftCols(fd).colwise().norm().transpose();
+    if (qr_workspace_.size() < n + 1) qr_workspace_.resize(n + 1);
+    staircaseQrInPlace(W, n, count.data() + 1, qr_workspace_.data());
+
+    bool deficient = rows < fd;
+    for (int k = 0; k < fd && !deficient; ++k) {
+      deficient = !(std::abs(W(k, k)) > params_.rank_tolerance * column_norms[k]) || !std::isfinite(W(k, k));
+    }
+    if (deficient && !regularize) {
+      regularize = true;
+      ++stats.indeterminate_cliques;
+      continue;
+    }
+    q.conditional = W.topRows(fd);
+    const int message_rows = std::max(0, std::min(rows, n) - fd);
+    q.message = W.block(fd, fd, message_rows, n - fd + 1);
+    break;
+  }
+  q.replaced = true;
+  if (params_.method == SmootherParams::Method::kDogleg) addCliqueGradient(c, 1.0);
+}
+
+}  // namespace rilo

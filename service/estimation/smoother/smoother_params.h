@@ -1,0 +1,101 @@
+#pragma once
+// Parameters of BayesTreeSmoother. Thresholds are on tangent vectors: rad for
+// rotations, m, m/s, m/s^2 (accelerometer bias), rad/s (gyroscope bias).
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+#include "estimation/math/types.h"
+
+namespace rilo {
+
+struct SmootherParams {
+  enum class Method {
+    kGaussNewton,  ///< iSAM2: Gauss-Newton step from the Bayes tree
+    kDamped,       ///< D-iSAM2 (seed 000, Alg. 1): LM damping on the newest variables
+    kDogleg,       ///< RISE: incremental Powell's dog-leg
+  };
+  Method method = Method::kDamped;
+
+  // --- Fluid relinearization ---------------------------------------------
+  /// Check for relinearization every this many updates (GTSAM's relinearizeSkip).
+  int relinearize_skip = 1;
+  /// Relinearize a variable when |delta|_inf reaches its threshold. Per
+  /// variable kind: a 6-vector for poses ([rot; trans]) and biases ([accel;
+  /// gyro]), a 3-vector for Vec3 variables; keyed by the key's symbol
+  /// character. Symbols not listed use the default of their kind.
+  std::unordered_map<char, Vec6> relinearize_thresholds6;
+  std::unordered_map<char, Vec3> relinearize_thresholds3;
+  Vec6 default_pose_threshold = (Vec6() << 0.005, 0.005, 0.005, 0.01, 0.01, 0.01).finished();
+  Vec6 default_bias_threshold = (Vec6() << 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4).finished();
+  Vec3 default_vec3_threshold = Vec3::Constant(0.01);
+  /// Variables introduced by the last this-many updates are relinearized at
+  /// every update (their delta is rarely below threshold, and the robust
+  /// weights of the range factors on the newest states must stay fresh).
+  int always_relinearize_recent_updates = 1;
+  /// Upper bound on variables relinearized by threshold in one update (largest
+  /// relative delta first; the rest wait for the next update): bounds the
+  /// re-elimination after a large correction. 0 = unbounded.
+  int max_relinearized_variables = 0;
+
+  // --- Partial back-substitution -----------------------------------------
+  /// Re-solve a clique only when a separator delta moved by more than this
+  /// (GTSAM's wildfire threshold). 0 = exact back-substitution.
+  double wildfire_threshold = 1e-3;
+
+  // --- D-iSAM2 ------------------------------------------------------------
+  double lambda_initial = 1e-5;
+  double lambda_min = 1e-10;
+  double lambda_max = 1e8;     ///< give up (keep the previous estimate) beyond this
+  double lambda_increase = 10.0;
+  double lambda_decrease = 0.1;
+
+  // --- Dog-leg (RISE) -----------------------------------------------------
+  double trust_radius_initial = 0.1;  ///< seed 000: initial delta 0.1
+  double trust_radius_min = 1e-8;     ///< stop shrinking (keep the linearization point) below this
+
+  // --- Fixed lag ----------------------------------------------------------
+  /// Variables whose timestamp is older than (newest timestamp - lag) are
+  /// marginalized. 0 = keep everything (full smoother).
+  double lag_s = 0.0;
+
+  // --- Numerics -----------------------------------------------------------
+  /// A frontal pivot |R_ii| below this fraction of its column's norm marks a
+  /// clique rank deficient; it is then re-eliminated with regularization rows
+  /// sqrt(regularization) * I on its frontals (reported as indeterminate).
+  double rank_tolerance = 1e-10;
+  double regularization = 1e-9;
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const {
+    auto fail = [](const char* field, const char* rule) {
+      throw std::invalid_argument(std::string("SmootherParams.") + field + " " + rule);
+    };
+    if (relinearize_skip < 1) fail("relinearize_skip", "must be >= 1");
+    if (always_relinearize_recent_updates < 0) fail("always_relinearize_recent_updates", "must be >= 0");
+    if (max_relinearized_variables < 0) fail("max_relinearized_variables", "must be >= 0");
+    if (!(wildfire_threshold >= 0.0)) fail("wildfire_threshold", "must be >= 0");
+    if (!(lambda_min > 0.0)) fail("lambda_min", "must be > 0");
+    if (!(lambda_max >= lambda_min)) fail("lambda_max", "must be >= lambda_min");
+    if (!(lambda_initial >= lambda_min && lambda_initial <= lambda_max)) fail("lambda_initial", "must be in [lambda_min, lambda_max]");
+    if (!(lambda_increase > 1.0)) fail("lambda_increase", "must be > 1");
+    if (!(lambda_decrease > 0.0 && lambda_decrease < 1.0)) fail("lambda_decrease", "must be in (0, 1)");
+    if (!(trust_radius_initial > 0.0)) fail("trust_radius_initial", "must be > 0");
+    if (!(trust_radius_min > 0.0 && trust_radius_min <= trust_radius_initial)) fail("trust_radius_min", "must be in (0, trust_radius_initial]");
+    if (!(lag_s >= 0.0)) fail("lag_s", "must be >= 0");
+    if (!(rank_tolerance > 0.0 && rank_tolerance < 1.0)) fail("rank_tolerance", "must be in (0, 1)");
+    if (!(regularization > 0.0)) fail("regularization", "must be > 0");
+    auto nonnegative = [](const auto& v) { return (v.array() >= 0.0).all(); };
+    if (!nonnegative(default_pose_threshold) || !nonnegative(default_bias_threshold) || !nonnegative(default_vec3_threshold)) {
+      fail("default_*_threshold", "must be >= 0");
+    }
+    for (const auto& [symbol, t] : relinearize_thresholds6) {
+      if (!nonnegative(t)) fail("relinearize_thresholds6", "must be >= 0");
+    }
+    for (const auto& [symbol, t] : relinearize_thresholds3) {
+      if (!nonnegative(t)) fail("relinearize_thresholds3", "must be >= 0");
+    }
+  }
+};
+
+}  // namespace rilo

@@ -11,7 +11,7 @@
 namespace rilo {
 
 void BayesTreeSmoother::updateTree(const std::vector<VarId>& marked, const std::vector<FactorId>& new_factors,
-                                   const std::vector<VarId>& marginalizable, UpdateStats& stats) {
+                                   UpdateStats& stats) {
   std::vector<VarId> top_vars;
   std::vector<FactorId> top_factors;
   const std::vector<CliqueId> orphans = removeTop(marked, top_vars, top_factors);
@@ -26,7 +26,7 @@ void BayesTreeSmoother::updateTree(const std::vector<VarId>& marked, const std::
       if (!vars_[v].marginalize) last_keys.push_back(vars_[v].key);
     }
   }
-  eliminateTop(top_vars, top_factors, orphans, marginalizable, last_keys, stats);
+  eliminateTop(top_vars, top_factors, orphans, last_keys, stats);
 }
 
 std::vector<BayesTreeSmoother::CliqueId> BayesTreeSmoother::removeTop(const std::vector<VarId>& marked,
@@ -74,8 +74,8 @@ std::vector<BayesTreeSmoother::CliqueId> BayesTreeSmoother::removeTop(const std:
 }
 
 void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const std::vector<FactorId>& top_factors,
-                                     const std::vector<CliqueId>& orphans, const std::vector<VarId>& marginalizable,
-                                     const std::vector<Key>& last_keys, UpdateStats& stats) {
+                                     const std::vector<CliqueId>& orphans, const std::vector<Key>& last_keys,
+                                     UpdateStats& stats) {
   // 1. Constrained ordering of the top: marginalizable keys first, keys of
   //    new factors last.
   std::vector<std::vector<Key>> item_keys;
@@ -90,10 +90,37 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
     for (VarId v : cliques_[o].separator) keys.push_back(vars_[v].key);
     item_keys.push_back(std::move(keys));
   }
+  // Groups: marginalizable keys first (they must become leaves); then timed
+  // states oldest first (a newer state eliminated below an older one would
+  // block the older one's marginalization); then keys without a time
+  // (anchors: observed from every state, so eliminated early they would sink
+  // below old states); the keys of new factors last, timed before static.
+  std::vector<std::int64_t> times;
+  for (VarId v : top_vars) {
+    if (vars_[v].has_time) times.push_back(vars_[v].t_ns);
+  }
+  std::sort(times.begin(), times.end());
+  times.erase(std::unique(times.begin(), times.end()), times.end());
+  const int n_times = static_cast<int>(times.size());
+  auto time_rank = [&](VarId v) {
+    return static_cast<int>(std::lower_bound(times.begin(), times.end(), vars_[v].t_ns) - times.begin());
+  };
+  const std::uint64_t last_stamp = newStamp();
+  for (Key k : last_keys) vars_[key_to_var_.at(k)].mark = last_stamp;
   OrderingConstraints constraints;
-  constraints.default_group = 1;
-  for (Key k : last_keys) constraints.group[k] = 2;
-  for (VarId v : marginalizable) constraints.group[vars_[v].key] = 0;
+  for (VarId v : top_vars) {
+    const VarSlot& slot = vars_[v];
+    const bool last = slot.mark == last_stamp;
+    int group;
+    if (slot.marginalize) {
+      group = 0;
+    } else if (!last) {
+      group = slot.has_time ? 1 + time_rank(v) : 1 + n_times;
+    } else {
+      group = slot.has_time ? 2 + n_times + time_rank(v) : 2 + 2 * n_times;
+    }
+    constraints.group[slot.key] = group;
+  }
   const std::vector<Key> order = constrainedOrdering(item_keys, constraints);
   if (order.size() != top_vars.size()) {
     throw std::logic_error("BayesTreeSmoother: ordering of the top has " + std::to_string(order.size()) +

@@ -168,7 +168,7 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
   if (params_.method == SmootherParams::Method::kDamped) {
     for (const auto& [key, value] : new_values) vars_[key_to_var_.at(key)].damped = damp_stamp_;
   }
-  updateTree(marked, added, marginalizable, stats);
+  updateTree(marked, added, stats);
 
   switch (params_.method) {
     case SmootherParams::Method::kGaussNewton: stepGaussNewton(stats); break;

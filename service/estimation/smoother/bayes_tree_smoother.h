@@ -137,8 +137,7 @@ class BayesTreeSmoother final : public Smoother {
   void relinearize(std::vector<VarId>& marked, const std::vector<VarId>& marginalizable, UpdateStats& stats);
   void markForCleanMarginalization(const std::vector<VarId>& marginalizable, std::vector<VarId>& marked,
                                    UpdateStats& stats);
-  void updateTree(const std::vector<VarId>& marked, const std::vector<FactorId>& new_factors,
-                  const std::vector<VarId>& marginalizable, UpdateStats& stats);
+  void updateTree(const std::vector<VarId>& marked, const std::vector<FactorId>& new_factors, UpdateStats& stats);
   void stepGaussNewton(UpdateStats& stats);
   void stepDamped(const std::vector<VarId>& damped_vars, UpdateStats& stats);
   void stepDogleg(UpdateStats& stats);
@@ -148,8 +147,7 @@ class BayesTreeSmoother final : public Smoother {
   std::vector<CliqueId> removeTop(const std::vector<VarId>& marked, std::vector<VarId>& top_vars,
                                   std::vector<FactorId>& top_factors);
   void eliminateTop(const std::vector<VarId>& top_vars, const std::vector<FactorId>& top_factors,
-                    const std::vector<CliqueId>& orphans, const std::vector<VarId>& marginalizable,
-                    const std::vector<Key>& last_keys, UpdateStats& stats);
+                    const std::vector<CliqueId>& orphans, const std::vector<Key>& last_keys, UpdateStats& stats);
   /// Numeric elimination of one clique from its factors, children's messages
   /// and (when lambda > 0) damping rows on its frontals in `damped_vars`.
   void eliminateClique(CliqueId c, double lambda, UpdateStats& stats);

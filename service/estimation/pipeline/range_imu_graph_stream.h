@@ -1,0 +1,227 @@
+#pragma once
+// The seed's range + IMU factor graph (000, Fig. 4) delivered state by state
+// as samples arrive: what an incremental smoother consumes in real time.
+// buildRangeImuGraph (range_imu_graph.h) is this stream fed with complete
+// sample vectors, so both build the same graph.
+//
+// States (same rules as the batch builder):
+// - state 0 at the start time t0 given to start();
+// - a range farther than same_state_window_ns after the newest state opens a
+//   new state at its own time; closer ones join that state's ranging group;
+// - a ranging gap longer than max_state_interval_ns gets evenly spaced
+//   IMU-only states: pieces = ceil(gap / max), state j at t_prev + floor(gap j / pieces).
+//
+// When a state is emitted (next()): IMU samples cover its time (one at or
+// after it, so the zero-order hold up to it is final) and its ranging group is
+// closed (a later state exists, IMU time is past t + same_state_window_ns, or
+// finish() was called).
+//
+// IMU-only gap states: their times depend on the time of the range that ends
+// the gap, so no amount of IMU data fixes them earlier; the stream waits for
+// that range. To bound the wait (IMU buffer and the smoother's latency during
+// a ranging outage), once IMU time runs more than options.max_range_wait_ns
+// past the newest state without a range, the stream commits an IMU-only state
+// at newest + max_state_interval_ns and keeps waiting from there; the gap left
+// when ranging resumes is split evenly as above. Ranging gaps up to
+// max_range_wait_ns therefore give exactly the batch states; longer ones give
+// states max_state_interval_ns apart, then an even split of the remainder.
+// kWaitForever reproduces the batch states for any gap (the batch builder's
+// setting) at the price of buffering IMU over the whole gap.
+//
+// Ranges of a state arrive after the state itself only for state 0 (start()
+// returns its increment before any range) and for a range that arrives after
+// IMU time already closed its group (a late range). They are delivered, once
+// that group is closed, with the next state's increment if it is ready, or
+// else in a ranges-only increment (new_state == false): the same factors as the
+// batch graph, only in another update.
+//
+// Memory: IMU samples older than the one in effect at the last emitted state
+// are dropped; buffers are growing rings (no allocation once they have grown
+// to the working size: about one state interval of IMU, or max_range_wait_ns
+// during an outage). Samples added before start() are all kept until start()
+// (a bounded warm-up, e.g. the initializer's window), and nothing is emitted
+// unless next() is called: the caller drives it after every add.
+// Single-threaded: the caller serializes all calls.
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "estimation/graph/factor.h"
+#include "estimation/imu/preintegration.h"
+#include "estimation/pipeline/range_imu_graph.h"
+#include "hal/samples.h"
+
+namespace rilo {
+
+namespace detail {
+
+/// FIFO ring over a power-of-two buffer that doubles when full and never
+/// shrinks: once grown to the working size, push/pop never allocate.
+template <class T>
+class GrowingRing {
+ public:
+  explicit GrowingRing(std::size_t initial_capacity = 16) : buf_(roundUpPow2(initial_capacity)) {}
+  std::size_t size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+  std::size_t capacity() const { return buf_.size(); }
+  const T& operator[](std::size_t i) const { return buf_[(head_ + i) & (buf_.size() - 1)]; }
+  T& operator[](std::size_t i) { return buf_[(head_ + i) & (buf_.size() - 1)]; }
+  const T& front() const { return (*this)[0]; }
+  T& back() { return (*this)[size_ - 1]; }
+  const T& back() const { return (*this)[size_ - 1]; }
+  void push_back(const T& v) {
+    if (size_ == buf_.size()) grow();
+    buf_[(head_ + size_) & (buf_.size() - 1)] = v;
+    ++size_;
+  }
+  void pop_front() {
+    head_ = (head_ + 1) & (buf_.size() - 1);
+    --size_;
+  }
+  void pop_front(std::size_t n) {
+    head_ = (head_ + n) & (buf_.size() - 1);
+    size_ -= n;
+  }
+
+ private:
+  static std::size_t roundUpPow2(std::size_t n) {
+    std::size_t c = 1;
+    while (c < n) c <<= 1;
+    return c;
+  }
+  void grow() {
+    std::vector<T> bigger(2 * buf_.size());
+    for (std::size_t i = 0; i < size_; ++i) bigger[i] = (*this)[i];
+    buf_.swap(bigger);
+    head_ = 0;
+  }
+
+  std::vector<T> buf_;
+  std::size_t head_ = 0;
+  std::size_t size_ = 0;
+};
+
+}  // namespace detail
+
+/// The smoother's current estimate of one state (the last one the stream emitted).
+struct StateEstimate {
+  std::uint64_t index = 0;  ///< state index i (keys X(i), V(i), B(i))
+  std::int64_t t_ns = 0;    ///< state time (ns)
+  Pose3 T_w_b;              ///< world-from-body pose
+  Vec3 v_w = Vec3::Zero();  ///< velocity, world frame (m/s)
+  ImuBias bias;             ///< IMU bias (accel m/s^2, gyro rad/s)
+};
+
+/// What one smoother update receives.
+struct GraphIncrement {
+  /// New factors, in this order: the priors on X0, V0, B0 (state 0 only); the
+  /// combined IMU factor into the new state (new states i > 0); `range_factors`
+  /// range factors in arrival order (late ones on the previous state first);
+  /// one survey prior per new_anchor_keys entry (anchors as variables only).
+  FactorGraph factors;
+  Values values;  ///< initial values of every new key (new state's X, V, B; new anchors)
+  std::vector<std::pair<Key, std::int64_t>> key_times_ns;  ///< time of every new state key (X, V, B); anchors have none
+  std::vector<Key> new_anchor_keys;  ///< L(id) first ranged in this increment (value at the survey position)
+  bool new_state = true;        ///< false: a ranges-only increment on the existing state `state_index`
+  std::uint64_t state_index = 0;  ///< the new state (or the state a ranges-only increment ranges)
+  std::int64_t t_ns = 0;          ///< time of state_index (ns)
+  std::size_t range_factors = 0;  ///< number of range factors in `factors`
+};
+
+/// Stream-only settings (the graph itself is configured by RangeImuGraphParams).
+struct RangeImuStreamOptions {
+  static constexpr std::int64_t kWaitForever = std::numeric_limits<std::int64_t>::max();
+  /// How far IMU time may run past the newest state without a range before an
+  /// IMU-only state is committed (see the file comment); >= max_state_interval_ns.
+  std::int64_t max_range_wait_ns = 2'000'000'000;
+  std::size_t initial_imu_capacity = 1024;  ///< IMU ring preallocation (samples)
+};
+
+class RangeImuGraphStream {
+ public:
+  /// `p_w_anchors[id]` is the surveyed position of anchor id (m, world).
+  /// Throws std::invalid_argument naming a bad parameter.
+  RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImuGraphParams params,
+                      RangeImuStreamOptions options = RangeImuStreamOptions());
+
+  /// Opens state 0 at t0_ns and returns its increment: the priors on X0, V0, B0
+  /// around the guess (zero bias) and those values. Samples added before are
+  /// kept from t0 on (ranges before t0 are dropped, see droppedRanges()).
+  /// Throws std::logic_error if already started, std::invalid_argument on a
+  /// non-finite guess.
+  GraphIncrement start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess);
+
+  /// Throws std::invalid_argument if t_ns does not increase or a value is not
+  /// finite; std::logic_error after finish().
+  void addImu(const ImuSample& sample);
+  /// Throws std::invalid_argument on an unknown anchor id, a non-finite range,
+  /// a time before the previous range, or a time before the newest state (before
+  /// t0, or before a committed IMU-only state); std::logic_error after finish().
+  void addRange(const RangeSample& sample);
+  /// No more samples: closes the open ranging group so its state can be emitted.
+  /// Throws std::logic_error before start().
+  void finish();
+
+  /// The next increment, or nullopt when none is ready. `previous` is the
+  /// smoother's estimate of the last emitted state: the new state's IMU factor is
+  /// preintegrated with bias_hat = previous.bias, and its initial values are the
+  /// IMU prediction from `previous` (bias: Phi * previous.bias). Throws
+  /// std::logic_error before start(), std::invalid_argument if `previous` is
+  /// not the last emitted state (index and t_ns) or not finite. If building the
+  /// increment throws (e.g. std::domain_error: the window rotated too far), the
+  /// stream is unchanged.
+  std::optional<GraphIncrement> next(const StateEstimate& previous);
+
+  bool started() const { return started_; }
+  std::uint64_t lastStateIndex() const { return last_index_; }  ///< last emitted state
+  std::int64_t lastStateTime() const { return last_t_ns_; }     ///< ns
+  std::size_t imuBufferSize() const { return imu_.size(); }      ///< buffered IMU samples
+  std::size_t imuBufferCapacity() const { return imu_.capacity(); }
+  std::size_t pendingRanges() const { return ranges_.size(); }   ///< ranges not yet emitted
+  std::size_t pendingStates() const { return plan_.size(); }     ///< planned states not yet emitted
+  std::size_t droppedRanges() const { return dropped_ranges_; }  ///< ranges before t0, dropped by start()
+  const RangeImuGraphParams& params() const { return params_; }
+
+ private:
+  struct PlannedState {
+    std::int64_t t_ns = 0;
+    std::size_t n_ranges = 0;  ///< its ranges, in ranges_ after the earlier states' ones
+  };
+
+  void planRange(const RangeSample& r);
+  void commitImuOnlyStates();
+  bool stateReady(const PlannedState& s) const;
+  bool carryClosed() const;
+  GraphIncrement emitState(const StateEstimate& previous);
+  GraphIncrement emitCarriedRanges();
+  /// Adds ranges_[first, first + n) on state key x, noting anchors new to the graph.
+  void addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const;
+  void addAnchorPriors(GraphIncrement& inc) const;
+  void commitAnchors(const GraphIncrement& inc);
+
+  std::vector<Vec3> p_w_anchors_;
+  RangeImuGraphParams params_;
+  RangeImuStreamOptions options_;
+  RobustLossPtr range_loss_;
+  PreintegratedImu pim_;  ///< scratch, reset per state
+
+  bool started_ = false;
+  bool finished_ = false;
+  std::vector<bool> anchor_in_graph_;  ///< anchor key and prior already emitted
+
+  detail::GrowingRing<ImuSample> imu_;      ///< front: the sample in effect at the last emitted state
+  detail::GrowingRing<RangeSample> ranges_; ///< [carried ranges][plan_[0]'s][plan_[1]'s]...
+  detail::GrowingRing<PlannedState> plan_;  ///< decided states not yet emitted, in time order
+  std::size_t carry_ranges_ = 0;  ///< ranges at the front of ranges_ on the last emitted state
+
+  std::uint64_t last_index_ = 0;       ///< last emitted state
+  std::int64_t last_t_ns_ = 0;
+  std::int64_t newest_state_t_ns_ = 0; ///< newest decided state (emitted or planned): ranges group on it
+  bool have_imu_ = false, have_range_ = false;
+  std::int64_t newest_imu_t_ns_ = 0, newest_range_t_ns_ = 0;
+  std::size_t dropped_ranges_ = 0;
+};
+
+}  // namespace rilo

@@ -234,6 +234,7 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
   });
   const double lambda = params_.method == SmootherParams::Method::kDamped ? lambda_ : 0.0;
   for (CliqueId c : created) eliminateClique(c, lambda, stats);
+  top_cliques_ = created;
   stats.cliques_reeliminated += static_cast<int>(created.size());
   stats.variables_reeliminated += n;
   for (int i = 0; i < n; ++i) vars_[var_at[i]].pos = -1;

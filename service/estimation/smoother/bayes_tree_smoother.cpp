@@ -139,17 +139,6 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
   UpdateStats stats;
   ++update_count_;
 
-  if (full_back_substitution_pending_) {
-    // The last D-iSAM2 update kept the previous estimate instead of the tree's
-    // solution: solve everything once so delta matches the tree again.
-    clearUndo();
-    full_back_substitution_pending_ = false;
-    for (auto& q : cliques_) q.replaced = q.alive;
-    backSubstitute(0.0, stats);
-    refreshErrorsOfChanged(false);
-    for (auto& q : cliques_) q.replaced = false;
-  }
-
   insertVariables(new_values, timestamps, stats);
   const std::vector<FactorId> added = insertFactors(new_factors, stats);
   stats.error_before = error_at_estimate_;
@@ -165,17 +154,32 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
 
   // D-iSAM2 damps the new variables: they are ordered last, into the root.
   damp_stamp_ = newStamp();
+  // D-iSAM2 damps the new variables (ordered last, into the root); an update
+  // without new variables damps the keys of its new factors, and one without
+  // either (an extra iteration) the whole re-eliminated top.
+  std::vector<VarId> damped;
   if (params_.method == SmootherParams::Method::kDamped) {
-    for (const auto& [key, value] : new_values) vars_[key_to_var_.at(key)].damped = damp_stamp_;
+    for (const auto& [key, value] : new_values) damped.push_back(key_to_var_.at(key));
+    if (damped.empty()) {
+      for (FactorId f : added) damped.insert(damped.end(), factors_[f].vars.begin(), factors_[f].vars.end());
+    }
+    for (VarId v : damped) vars_[v].damped = damp_stamp_;
   }
   updateTree(marked, added, stats);
 
   switch (params_.method) {
     case SmootherParams::Method::kGaussNewton: stepGaussNewton(stats); break;
     case SmootherParams::Method::kDamped: {
-      std::vector<VarId> damped;
-      for (const auto& [key, value] : new_values) damped.push_back(key_to_var_.at(key));
-      stepDamped(damped, stats);
+      const bool damp_top = damped.empty();
+      if (damp_top) {
+        for (CliqueId c : top_cliques_) {
+          for (VarId v : cliques_[c].frontals) {
+            vars_[v].damped = damp_stamp_;
+            damped.push_back(v);
+          }
+        }
+      }
+      stepDamped(damped, damp_top, stats);
       break;
     }
     case SmootherParams::Method::kDogleg: stepDogleg(stats); break;
@@ -187,7 +191,7 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
   // The running sums lose ~1e-16 of the largest error they ever held per
   // operation: re-add the cached per-factor errors periodically and whenever
   // the error has fallen far below its recent peak (a converging start).
-  error_peak_ = std::max(error_peak_, std::abs(error_at_estimate_) + std::abs(error_at_theta_));
+  error_peak_ = std::max({error_peak_, std::abs(stats.error_before), std::abs(error_at_estimate_) + std::abs(error_at_theta_)});
   if (++updates_since_error_resum_ >= kErrorResumInterval ||
       std::abs(error_at_estimate_) + std::abs(error_at_theta_) < 1e-3 * error_peak_) {
     updates_since_error_resum_ = 0;
@@ -303,13 +307,22 @@ void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vecto
                                     UpdateStats& stats) {
   const bool threshold_check = update_count_ % static_cast<std::uint64_t>(params_.relinearize_skip) == 0;
   const std::uint64_t skip_stamp = newStamp();
-  for (VarId v : marginalizable) vars_[v].mark = skip_stamp;  // about to go: no point
+  // About to be marginalized: relinearizing them alone would re-eliminate the
+  // path from their leaf to the root for nothing. When everything moves
+  // together (or after a rejected step) they move too: a stale state next to
+  // a fresh one leaves a large IMU residual at theta.
+  if (!relinearize_all_pending_ && !params_.relinearize_together) {
+    for (VarId v : marginalizable) vars_[v].mark = skip_stamp;
+  }
 
   std::vector<VarId> forced;
   std::vector<std::pair<double, VarId>> by_threshold;  // (largest |delta| / threshold, var)
+  bool any_passed = false;
+  const bool relinearize_all = relinearize_all_pending_;
   for (VarId v = 0; v < static_cast<VarId>(vars_.size()); ++v) {
     VarSlot& slot = vars_[v];
-    if (!slot.alive || slot.frozen > 0 || slot.mark == skip_stamp || slot.introduced_at == update_count_) continue;
+    if (!slot.alive || slot.mark == skip_stamp || slot.introduced_at == update_count_) continue;
+    if (slot.frozen > 0 && params_.freeze_marginal_variables) continue;
     const auto step = slot.step.head(slot.dim);
     if (step.isZero(0.0)) continue;
     const std::uint64_t age = update_count_ - slot.introduced_at;
@@ -324,9 +337,12 @@ void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vecto
       const double a = std::abs(step[i]);
       ratio = std::max(ratio, t > 0.0 ? a / t : (a > 0.0 ? std::numeric_limits<double>::infinity() : 0.0));
     }
-    if (ratio >= 1.0) by_threshold.emplace_back(ratio, v);
+    if (ratio >= 1.0 || params_.relinearize_together || relinearize_all_pending_) by_threshold.emplace_back(ratio, v);
+    any_passed |= ratio >= 1.0;
   }
-  if (params_.max_relinearized_variables > 0 &&
+  if (params_.relinearize_together && !any_passed && !relinearize_all_pending_) by_threshold.clear();
+  relinearize_all_pending_ = false;
+  if (params_.max_relinearized_variables > 0 && !relinearize_all &&
       by_threshold.size() > static_cast<std::size_t>(params_.max_relinearized_variables)) {
     const auto keep = by_threshold.begin() + params_.max_relinearized_variables;
     std::nth_element(by_threshold.begin(), keep, by_threshold.end(),
@@ -387,6 +403,14 @@ double BayesTreeSmoother::errorFromScratch() const {
     if (f.alive) sum += factorError(f, estimate_);
   }
   return sum;
+}
+
+FactorGraph BayesTreeSmoother::nonlinearFactors() const {
+  FactorGraph out;
+  for (const FactorSlot& f : factors_) {
+    if (f.alive && f.nonlinear) out.add(f.nonlinear);
+  }
+  return out;
 }
 
 std::vector<LinearMarginalPtr> BayesTreeSmoother::linearMarginals() const {

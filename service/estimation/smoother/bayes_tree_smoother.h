@@ -56,6 +56,8 @@ class BayesTreeSmoother final : public Smoother {
   Eigen::VectorXd delta(Key key) const;
   /// Nonlinear error recomputed from scratch over all factors (O(factors)).
   double errorFromScratch() const;
+  /// Nonlinear factors currently held (not yet marginalized).
+  FactorGraph nonlinearFactors() const;
   /// Linear marginals currently held (fixed-lag).
   std::vector<LinearMarginalPtr> linearMarginals() const;
   /// Variables whose linearization point is frozen by a linear marginal.
@@ -139,7 +141,7 @@ class BayesTreeSmoother final : public Smoother {
                                    UpdateStats& stats);
   void updateTree(const std::vector<VarId>& marked, const std::vector<FactorId>& new_factors, UpdateStats& stats);
   void stepGaussNewton(UpdateStats& stats);
-  void stepDamped(const std::vector<VarId>& damped_vars, UpdateStats& stats);
+  void stepDamped(const std::vector<VarId>& damped_vars, bool eliminate_first, UpdateStats& stats);
   void stepDogleg(UpdateStats& stats);
   void marginalize(const std::vector<VarId>& marginalizable, UpdateStats& stats);
 
@@ -207,8 +209,9 @@ class BayesTreeSmoother final : public Smoother {
   double error_peak_ = 0.0;          // largest |running sums| since the last exact re-sum
   double lambda_;
   double trust_radius_;
-  bool full_back_substitution_pending_ = false;
   std::uint64_t damp_stamp_ = 0;     // VarSlot::damped == damp_stamp_: damped now
+  std::vector<CliqueId> top_cliques_;
+  bool relinearize_all_pending_ = false;  // a rejected step left deltas off the tree's solution  // cliques of the last re-eliminated top, children first
 
   // Step scratch and undo log
   std::vector<VarId> changed_vars_;

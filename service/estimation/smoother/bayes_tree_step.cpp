@@ -125,59 +125,81 @@ void BayesTreeSmoother::stepGaussNewton(UpdateStats& stats) {
   stats.step_tries = 1;
 }
 
-void BayesTreeSmoother::stepDamped(const std::vector<VarId>& damped_vars, UpdateStats& stats) {
+void BayesTreeSmoother::stepDamped(const std::vector<VarId>& damped_vars, bool eliminate_first, UpdateStats& stats) {
   const double error_before = error_at_estimate_;
   // Cliques whose elimination sees the damping: those of the damped
   // variables and their ancestors, children first.
-  std::vector<CliqueId> path;
-  const std::uint64_t stamp = newStamp();
-  for (VarId v : damped_vars) {
-    for (CliqueId c = vars_[v].clique; c != kNone && cliques_[c].mark != stamp; c = cliques_[c].parent) {
-      cliques_[c].mark = stamp;
-      path.push_back(c);
+  auto path_of = [&](const std::vector<VarId>& vars) {
+    std::vector<CliqueId> path;
+    const std::uint64_t stamp = newStamp();
+    for (VarId v : vars) {
+      for (CliqueId c = vars_[v].clique; c != kNone && cliques_[c].mark != stamp; c = cliques_[c].parent) {
+        cliques_[c].mark = stamp;
+        path.push_back(c);
+      }
     }
-  }
-  auto depth = [&](CliqueId c) {
-    int d = 0;
-    for (; cliques_[c].parent != kNone; c = cliques_[c].parent) ++d;
-    return d;
+    auto depth = [&](CliqueId c) {
+      int d = 0;
+      for (; cliques_[c].parent != kNone; c = cliques_[c].parent) ++d;
+      return d;
+    };
+    std::vector<std::pair<int, CliqueId>> by_depth;
+    for (CliqueId c : path) by_depth.emplace_back(-depth(c), c);
+    std::sort(by_depth.begin(), by_depth.end());
+    path.clear();
+    for (const auto& [d, c] : by_depth) path.push_back(c);
+    return path;
   };
-  std::vector<std::pair<int, CliqueId>> by_depth;
-  for (CliqueId c : path) by_depth.emplace_back(-depth(c), c);
-  std::sort(by_depth.begin(), by_depth.end());
+  std::vector<CliqueId> path = path_of(damped_vars);
+  bool wide = false;
 
   // Rounding in the running error sum is ~1e-16 relative; a step that changes
   // nothing must not count as an increase.
   const double tolerance = 1e-12 * std::abs(error_before);
   double lambda = lambda_;
+  if (eliminate_first) {
+    for (CliqueId c : path) eliminateClique(c, lambda, stats);
+  }
   for (int attempt = 1;; ++attempt) {
     clearUndo();
     backSubstitute(params_.wildfire_threshold, stats);
     refreshErrorsOfChanged(true);
     stats.step_tries = attempt;
-    if (damped_vars.empty() || error_at_estimate_ <= error_before + tolerance) {
+    if (path.empty() || error_at_estimate_ <= error_before + tolerance) {
       stats.lambda = lambda;
-      lambda_ = std::max(params_.lambda_min, lambda * params_.lambda_decrease);
+      lambda_ = wide ? params_.lambda_initial : std::max(params_.lambda_min, lambda * params_.lambda_decrease);
       break;
     }
     undoStep();
     lambda *= params_.lambda_increase;
+    if (lambda > params_.lambda_max && params_.widen_damping && !wide) {
+      // The newest variables are pinned and the error still grows: the
+      // overshoot is in older variables. Damp the whole re-eliminated top.
+      wide = true;
+      ++stats.damping_widened;
+      lambda = params_.lambda_initial;
+      damp_stamp_ = newStamp();
+      for (CliqueId c : top_cliques_) {
+        for (VarId v : cliques_[c].frontals) vars_[v].damped = damp_stamp_;
+      }
+      path = top_cliques_;
+    }
     if (lambda > params_.lambda_max) {
       // Alg. 1 raises an error here; a real-time service keeps the previous
-      // estimate (new variables at their initial values) and says so.
+      // estimate (new variables at their initial values) and says so. The
+      // next update relinearizes every variable at that estimate, so the
+      // tree and the deltas agree again.
       stats.step_accepted = false;
       stats.lambda = params_.lambda_max;
       lambda_ = params_.lambda_initial;
-      full_back_substitution_pending_ = true;
+      relinearize_all_pending_ = true;  // next update linearizes at the kept estimate
       break;
     }
-    for (const auto& [d, c] : by_depth) eliminateClique(c, lambda, stats);
+    for (CliqueId c : path) eliminateClique(c, lambda, stats);
   }
   // The damping is transient: leave the tree holding the undamped system
   // (exact covariances, clean messages), keeping the accepted step.
-  if (!path.empty()) {
-    for (const auto& [d, c] : by_depth) eliminateClique(c, 0.0, stats);
-  }
+  for (CliqueId c : path) eliminateClique(c, 0.0, stats);
 }
 
 void BayesTreeSmoother::addCliqueGradient(CliqueId c, double sign) {

@@ -43,6 +43,7 @@ struct UpdateStats {
   int step_tries = 0;                 ///< D-iSAM2 lambda tries / dog-leg radius tries (1 = first try accepted)
   bool step_accepted = true;          ///< false: every try increased the error; the previous estimate was kept
   double lambda = 0.0;                ///< D-iSAM2: damping of the accepted try
+  int damping_widened = 0;            ///< D-iSAM2: 1 when the damping had to cover the whole re-eliminated top
   double trust_radius = 0.0;          ///< dog-leg: radius after the update
   double error_before = 0.0;          ///< nonlinear error at the previous estimate with the new factors
   double error_after = 0.0;           ///< nonlinear error at the new estimate

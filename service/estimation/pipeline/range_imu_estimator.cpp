@@ -1,0 +1,40 @@
+#include "estimation/pipeline/range_imu_estimator.h"
+
+#include <stdexcept>
+
+namespace rilo {
+
+RangeImuEstimator::RangeImuEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphParams& graph_params,
+                                     std::unique_ptr<Smoother> smoother, RangeImuStreamOptions stream_options)
+    : stream_(std::move(p_w_anchors), graph_params, stream_options), smoother_(std::move(smoother)) {
+  if (!smoother_) throw std::invalid_argument("RangeImuEstimator: null smoother");
+}
+
+UpdateStats RangeImuEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess) {
+  return absorb(stream_.start(t0_ns, T_w_b0_guess, v_w0_guess));
+}
+
+int RangeImuEstimator::process(std::vector<UpdateStats>* stats) {
+  int updates = 0;
+  while (auto increment = stream_.next(latest_)) {
+    const UpdateStats s = absorb(*increment);
+    if (stats) stats->push_back(s);
+    ++updates;
+  }
+  return updates;
+}
+
+UpdateStats RangeImuEstimator::absorb(const GraphIncrement& increment) {
+  timestamps_.clear();
+  for (const auto& [key, t_ns] : increment.key_times_ns) timestamps_[key] = t_ns;
+  const UpdateStats stats = smoother_->update(increment.factors, increment.values, timestamps_);
+  const std::uint64_t i = stream_.lastStateIndex();
+  latest_.index = i;
+  latest_.t_ns = stream_.lastStateTime();
+  latest_.T_w_b = std::get<Pose3>(smoother_->estimate(sym::X(i)));
+  latest_.v_w = std::get<Vec3>(smoother_->estimate(sym::V(i)));
+  latest_.bias = std::get<ImuBias>(smoother_->estimate(sym::B(i)));
+  return stats;
+}
+
+}  // namespace rilo

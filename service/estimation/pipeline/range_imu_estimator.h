@@ -1,0 +1,47 @@
+#pragma once
+// The seed's estimator, online: samples in, smoothed newest state out. Owns a
+// RangeImuGraphStream (which turns samples into graph increments) and a
+// smoother (which absorbs them); after every increment the newest state's
+// estimate seeds the next IMU prediction and preintegration.
+// Single-threaded: the estimation thread owns it.
+#include <memory>
+#include <vector>
+
+#include "estimation/pipeline/range_imu_graph_stream.h"
+#include "estimation/smoother/smoother.h"
+
+namespace rilo {
+
+class RangeImuEstimator {
+ public:
+  /// Throws std::invalid_argument on bad parameters (see the stream) or a null smoother.
+  RangeImuEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphParams& graph_params,
+                    std::unique_ptr<Smoother> smoother, RangeImuStreamOptions stream_options = {});
+
+  /// Opens state 0 at t0_ns around the given guess and absorbs its priors.
+  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess);
+  void addImu(const ImuSample& sample) { stream_.addImu(sample); }
+  void addRange(const RangeSample& sample) { stream_.addRange(sample); }
+  /// No more samples: lets the last ranging group through.
+  void finish() { stream_.finish(); }
+
+  /// Feeds every ready increment to the smoother; appends one UpdateStats per
+  /// update to `stats` when given. Returns the number of updates.
+  int process(std::vector<UpdateStats>* stats = nullptr);
+
+  /// Smoothed estimate of the newest state (valid after start()).
+  const StateEstimate& latest() const { return latest_; }
+  Smoother& smoother() { return *smoother_; }
+  const Smoother& smoother() const { return *smoother_; }
+  const RangeImuGraphStream& stream() const { return stream_; }
+
+ private:
+  UpdateStats absorb(const GraphIncrement& increment);
+
+  RangeImuGraphStream stream_;
+  std::unique_ptr<Smoother> smoother_;
+  StateEstimate latest_;
+  KeyTimestamps timestamps_;  // scratch
+};
+
+}  // namespace rilo

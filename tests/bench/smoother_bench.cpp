@@ -142,22 +142,3 @@ BENCHMARK(BM_SmootherHour)->Iterations(1)->Unit(benchmark::kSecond);
 
 }  // namespace
 }  // namespace rilo
-namespace rilo {
-namespace {
-void BM_ProbeClean(benchmark::State& state) {
-  sim::ScenarioParams sp;
-  sp.duration_s = 30.0;
-  sp.nlos_fraction = 0.0;
-  sp.outlier_probability = 0.0;
-  const sim::Scenario s = sim::simulateScenario(sp);
-  SmootherParams params;
-  params.method = static_cast<SmootherParams::Method>(state.range(0));
-  params.lag_s = 5.0;
-  for (auto _ : state) {
-    RunFigures fig = runWalk(s, params, false, state.range(1) ? "asymmetric" : "gaussian");
-    report(state, fig);
-  }
-}
-BENCHMARK(BM_ProbeClean)->Args({0, 0})->Args({1, 0})->Args({1, 1})->Iterations(1);
-}
-}

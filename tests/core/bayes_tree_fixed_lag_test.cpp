@@ -137,21 +137,40 @@ class LagHarness {
   }
 
   /// `inc` without its factors on variables that are gone, and without the
-  /// new variables such a factor would have tied to the rest (transitively):
-  /// they would form an island the dropped factor left under-determined.
+  /// new states such a factor was the motion link of: a new state is kept
+  /// only while a prior or a kept multi-state factor (IMU, bias) ties it to an
+  /// existing or kept state; otherwise it would be an island that ranges alone
+  /// leave under-determined.
   Increment filtered(const Increment& inc) const {
     Values values = inc.values;
     auto present = [&](Key k) { return values.exists(k) || smoother.exists(k); };
+    auto is_state = [](Key k) { return testing::isStateKey(k); };
     for (bool changed = true; changed;) {
       changed = false;
+      std::set<Key> anchored;
       for (const FactorPtr& f : inc.factors) {
         const auto& keys = f->keys();
-        if (std::all_of(keys.begin(), keys.end(), present)) continue;
-        for (Key k : keys) {
-          if (values.exists(k)) {
-            values.erase(k);
-            changed = true;
+        if (keys.size() == 1 && values.exists(keys[0])) anchored.insert(keys[0]);
+      }
+      for (bool grew = true; grew;) {
+        grew = false;
+        for (const FactorPtr& f : inc.factors) {
+          const auto& keys = f->keys();
+          if (!std::all_of(keys.begin(), keys.end(), present)) continue;
+          if (std::count_if(keys.begin(), keys.end(), is_state) < 2) continue;
+          const bool tied = std::any_of(keys.begin(), keys.end(), [&](Key k) {
+            return is_state(k) && (smoother.exists(k) || anchored.count(k));
+          });
+          if (!tied) continue;
+          for (Key k : keys) {
+            if (values.exists(k) && anchored.insert(k).second) grew = true;
           }
+        }
+      }
+      for (Key k : values.keys()) {
+        if (is_state(k) && !anchored.count(k)) {
+          values.erase(k);
+          changed = true;
         }
       }
     }
@@ -227,8 +246,7 @@ TEST(BayesTreeFixedLag, MatchesDenseSchurComplementOnRangeImuWalk) {
 
 // ------------------------------------------------------------------ random graphs
 
-// BUG (open, issue 3 closing note): fails against the current smoother; re-enable when fixed.
-TEST(BayesTreeFixedLag, DISABLED_MatchesDenseSchurComplementOnRandomGraphs) {
+TEST(BayesTreeFixedLag, MatchesDenseSchurComplementOnRandomGraphs) {
   int marginalized = 0, reordered = 0;
   for (std::uint64_t seed = 1; seed <= 4; ++seed) {
     for (FeedOrder order : {FeedOrder::kTime, FeedOrder::kRandomGrowth}) {
@@ -257,8 +275,7 @@ TEST(BayesTreeFixedLag, DISABLED_MatchesDenseSchurComplementOnRandomGraphs) {
   RecordProperty("reordered", reordered);
 }
 
-// BUG (open, issue 3 closing note): fails against the current smoother; re-enable when fixed.
-TEST(BayesTreeFixedLag, DISABLED_OutOfOrderTimestampsMarginalizeOnInsertion) {
+TEST(BayesTreeFixedLag, OutOfOrderTimestampsMarginalizeOnInsertion) {
   // Random growth from a middle state: older states arrive after newer ones;
   // with a short lag some are older than the cutoff the moment they arrive.
   int marginalized = 0, gone_on_arrival = 0;
@@ -553,8 +570,7 @@ Sizes sizesOf(const BayesTreeSmoother& s) {
   return {s.cliqueCount(), s.variableCount(), s.factorCount(), s.slotCapacity()};
 }
 
-// BUG (open, issue 3 closing note): fails against the current smoother; re-enable when fixed.
-TEST(BayesTreeFixedLag, DISABLED_LongRunOnAChainStaysBounded) {
+TEST(BayesTreeFixedLag, LongRunOnAChainStaysBounded) {
   // GTSAM #1452 / #150: thousands of updates; after a warm-up every pool and
   // count stays below what the first window after warm-up needed.
   RandomGraphOptions go;

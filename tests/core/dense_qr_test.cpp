@@ -185,8 +185,7 @@ TEST(StaircaseQr, FewerRowsThanColumns) {
   }
 }
 
-// BUG (open, issue 3 closing note): fails against the current smoother; re-enable when fixed.
-TEST(StaircaseQr, DISABLED_SeveralRightHandSides) {
+TEST(StaircaseQr, SeveralRightHandSides) {
   std::mt19937 rng(16);
   for (int extra : {0, 1, 3, 7}) {
     const int m = 15, n = 8;

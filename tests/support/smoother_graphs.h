@@ -115,6 +115,7 @@ struct RandomGraphOptions {
   double skip_imu_probability = 0.2;   ///< extra ImuFactor over two windows (i, i + 2)
   int max_ranges_per_state = 3;
   bool random_losses = true;           ///< range losses drawn from every makeRangeLoss name
+  bool convex_losses_only = false;     ///< ... or only from "gaussian" and "huber" (one optimum)
   double dt_min_s = 0.1, dt_max_s = 0.3;
   // Initial values: truth perturbed by these (rad, m, m/s; biases start at zero).
   double rotation_perturbation_rad = 0.05;
@@ -211,8 +212,10 @@ inline RandomGraph makeRandomGraph(std::uint64_t seed, const RandomGraphOptions&
     T = next.T_w_b;
     v = next.v_w;
     const Vec6 phi = imu.biasTransition(w.dt_s);
+    // The bias process of the IMU model itself, so the truth fits the bias factors.
+    const Vec6 bias_sigma = imu.biasDiscreteVariance(w.dt_s).cwiseSqrt();
     Vec6 bv = phi.cwiseProduct(b.vector());
-    bv += (Vec6() << randomVec(rng, 1e-3), randomVec(rng, 1e-4)).finished();
+    for (int a = 0; a < 6; ++a) bv(a) += bias_sigma(a) * n01(rng);
     b = ImuBias(bv);
     t += static_cast<std::int64_t>(std::llround(w.dt_s * 1e9));
   }
@@ -240,7 +243,8 @@ inline RandomGraph makeRandomGraph(std::uint64_t seed, const RandomGraphOptions&
   }
 
   // Ranges.
-  const std::vector<std::string>& losses = rangeLossNames();
+  const std::vector<std::string> losses =
+      o.convex_losses_only ? std::vector<std::string>{"gaussian", "huber"} : rangeLossNames();
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;
   g.state_anchors.resize(o.states);

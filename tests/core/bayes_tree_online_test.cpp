@@ -4,8 +4,8 @@
 #include <gtest/gtest.h>
 
 #include "estimation/smoother/bayes_tree_smoother.h"
-#include "support/dense_reference.h"
 #include "support/online_run.h"
+#include "support/smoother_graphs.h"
 
 namespace rilo {
 namespace {
@@ -28,13 +28,8 @@ TEST(BayesTreeOnline, TreeSolutionEqualsDenseAfterEveryUpdateWithRelinearization
   testing::runOnline(s, estimator, [&](const UpdateStats&, const RangeImuEstimator&) {
     ++updates;
     ASSERT_EQ(smoother.checkInvariants(), "");
-    const auto dense = testing::linearizeDense(smoother.nonlinearFactors(), smoother.linearMarginals(),
-                                               smoother.linearizationPoint());
-    const auto reference = testing::solveDense(dense);
-    double scale = 1e-12, worst = 0.0;
-    for (const auto& [key, x] : reference) scale = std::max(scale, x.cwiseAbs().maxCoeff());
-    for (const auto& [key, x] : reference) worst = std::max(worst, (smoother.delta(key) - x).cwiseAbs().maxCoeff());
-    ASSERT_LT(worst, 1e-9 * std::max(scale, 1e-2)) << "update " << updates << " scale " << scale;
+    const testing::DeltaComparison c = testing::compareDeltaWithDense(smoother, smoother.nonlinearFactors());
+    ASSERT_LT(c.worst, 1e-9 * std::max(c.scale, 1e-2)) << "update " << updates << " at " << c.worst_key;
   });
   EXPECT_GT(updates, 50);
 }

@@ -6,8 +6,8 @@
 #include "estimation/smoother/bayes_tree_smoother.h"
 #include "estimation/solver/batch_lm.h"
 #include "hal/sim/range_imu_scenario.h"
-#include "support/dense_reference.h"
-#include "support/incremental_feed.h"
+#include "support/online_run.h"
+#include "support/smoother_graphs.h"
 
 namespace rilo {
 namespace {
@@ -25,11 +25,7 @@ Walk makeWalk(double seconds, double range_hz, std::uint64_t seed, const std::st
   sp.duration_s = seconds;
   sp.range_rate_hz = range_hz;
   Walk w{sim::simulateScenario(sp), {}, {}, {}};
-  RangeImuGraphParams gp;
-  gp.p_b_tag = w.scenario.p_b_tag;
-  gp.range_loss = loss;
-  gp.range_noise.sigma_m = sp.range_sigma_m;
-  gp.imu = sim::imuParamsOf(sp);
+  const RangeImuGraphParams gp = testing::graphParamsFor(w.scenario, loss);
   const sim::KinematicState st0 = w.scenario.truthAt(w.scenario.ranges.front().t_ns);
   w.graph = buildRangeImuGraph(w.scenario.imu, w.scenario.ranges, w.scenario.p_w_anchors, st0.T_w_b, st0.v_w, gp);
   w.truth = sim::truthValues(w.scenario, w.graph.state_t_ns, w.graph.anchor_keys);
@@ -39,25 +35,8 @@ Walk makeWalk(double seconds, double range_hz, std::uint64_t seed, const std::st
   return w;
 }
 
-SmootherParams exactParams(SmootherParams::Method method) {
-  SmootherParams p;
-  p.method = method;
-  p.wildfire_threshold = 0.0;
-  p.always_relinearize_recent_updates = 0;
-  p.default_pose_threshold.setConstant(1e9);
-  p.default_bias_threshold.setConstant(1e9);
-  p.default_vec3_threshold.setConstant(1e9);
-  return p;
-}
-
-double maxRelativeDeltaError(const BayesTreeSmoother& smoother, const FactorGraph& graph) {
-  const auto dense = testing::linearizeDense(graph, smoother.linearMarginals(), smoother.linearizationPoint());
-  const auto reference = testing::solveDense(dense);
-  double scale = 1e-12, worst = 0.0;
-  for (const auto& [key, x] : reference) scale = std::max(scale, x.cwiseAbs().maxCoeff());
-  for (const auto& [key, x] : reference) worst = std::max(worst, (smoother.delta(key) - x).cwiseAbs().maxCoeff());
-  return worst / scale;
-}
+using testing::exactParams;
+using testing::maxRelativeDeltaError;
 
 TEST(BayesTreeSmoother, IncrementalLinearSolutionEqualsDenseWithoutRelinearization) {
   const Walk w = makeWalk(4.0, 10.0, 3);

@@ -16,6 +16,9 @@ constexpr int kMaxResidualDim = 15;  ///< combined IMU factor
 constexpr int kMaxVarDim = 6;        ///< Pose3, ImuBias
 constexpr int kMaxFactorKeys = 6;    ///< combined IMU factor: x_i v_i b_i x_j v_j b_j
 
+/// Covariance of one variable, in its tangent chart.
+using CovarianceBlock = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxVarDim, kMaxVarDim>;
+
 using Residual = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxResidualDim, 1>;
 using JacobianBlock = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxResidualDim, kMaxVarDim>;
 /// One Jacobian block per key of the factor, in keys() order.

@@ -14,6 +14,7 @@ void BayesTreeSmoother::updateTree(const std::vector<VarId>& marked, const std::
                                    UpdateStats& stats) {
   std::vector<VarId> top_vars;
   std::vector<FactorId> top_factors;
+  top_cliques_.clear();  // an update that re-eliminates nothing has no top to damp
   const std::vector<CliqueId> orphans = removeTop(marked, top_vars, top_factors);
   top_factors.insert(top_factors.end(), new_factors.begin(), new_factors.end());
   if (top_vars.empty()) return;
@@ -268,6 +269,19 @@ void BayesTreeSmoother::linearizeFactor(FactorSlot& f) {
   f.needs_linearization = false;
 }
 
+void BayesTreeSmoother::scatterRows(const Eigen::MatrixXd& blocks, const std::vector<VarId>& vars,
+                                    Eigen::Ref<Eigen::MatrixXd> W, int rhs_col, const int* dest, int first_row) const {
+  for (int i = 0; i < blocks.rows(); ++i) {
+    const int row = dest ? dest[i] : first_row + i;
+    int src = 0;
+    for (VarId v : vars) {
+      W.row(row).segment(vars_[v].col, vars_[v].dim) = blocks.row(i).segment(src, vars_[v].dim);
+      src += vars_[v].dim;
+    }
+    W(row, rhs_col) = blocks(i, src);
+  }
+}
+
 void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& stats) {
   Clique& q = cliques_[c];
   int col = 0;
@@ -348,26 +362,12 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     W.setZero();
     r = 0;
     for (FactorId f : q.factors) {
-      const FactorSlot& fs = factors_[f];
-      for (int i = 0; i < fs.linear.rows(); ++i, ++r) {
-        int src = 0;
-        for (VarId v : fs.vars) {
-          W.row(dest[r]).segment(vars_[v].col, vars_[v].dim) = fs.linear.row(i).segment(src, vars_[v].dim);
-          src += vars_[v].dim;
-        }
-        W(dest[r], n) = fs.linear(i, src);
-      }
+      scatterRows(factors_[f].linear, factors_[f].vars, W, n, dest.data() + r, 0);
+      r += static_cast<int>(factors_[f].linear.rows());
     }
     for (CliqueId ch : q.children) {
-      const Clique& child = cliques_[ch];
-      for (int i = 0; i < child.message.rows(); ++i, ++r) {
-        int src = 0;
-        for (VarId v : child.separator) {
-          W.row(dest[r]).segment(vars_[v].col, vars_[v].dim) = child.message.row(i).segment(src, vars_[v].dim);
-          src += vars_[v].dim;
-        }
-        W(dest[r], n) = child.message(i, src);
-      }
+      scatterRows(cliques_[ch].message, cliques_[ch].separator, W, n, dest.data() + r, 0);
+      r += static_cast<int>(cliques_[ch].message.rows());
     }
     const double sqrt_lambda = std::sqrt(lambda);
     for (VarId v : q.frontals) {

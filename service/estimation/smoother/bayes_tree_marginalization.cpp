@@ -134,26 +134,12 @@ void BayesTreeSmoother::marginalize(const std::vector<VarId>& marginalizable, Up
     Eigen::MatrixXd W = Eigen::MatrixXd::Zero(rows, n + 1);
     int r = 0;
     for (FactorId f : sources) {
-      const FactorSlot& fs = factors_[f];
-      for (int i = 0; i < fs.linear.rows(); ++i, ++r) {
-        int src = 0;
-        for (VarId v : fs.vars) {
-          W.row(r).segment(vars_[v].col, vars_[v].dim) = fs.linear.row(i).segment(src, vars_[v].dim);
-          src += vars_[v].dim;
-        }
-        W(r, n) = fs.linear(i, src);
-      }
+      scatterRows(factors_[f].linear, factors_[f].vars, W, n, nullptr, r);
+      r += static_cast<int>(factors_[f].linear.rows());
     }
     for (CliqueId ch : children) {
-      const Clique& child = cliques_[ch];
-      for (int i = 0; i < child.message.rows(); ++i, ++r) {
-        int src = 0;
-        for (VarId v : child.separator) {
-          W.row(r).segment(vars_[v].col, vars_[v].dim) = child.message.row(i).segment(src, vars_[v].dim);
-          src += vars_[v].dim;
-        }
-        W(r, n) = child.message(i, src);
-      }
+      scatterRows(cliques_[ch].message, cliques_[ch].separator, W, n, nullptr, r);
+      r += static_cast<int>(cliques_[ch].message.rows());
     }
     Eigen::VectorXd workspace(n + 1);
     staircaseQrInPlace(W, n, nullptr, workspace.data());

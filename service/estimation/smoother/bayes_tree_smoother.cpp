@@ -146,10 +146,7 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
   const std::vector<VarId> marginalizable = selectMarginalizable();
   std::vector<VarId> marked;
   for (FactorId f : added) marked.insert(marked.end(), factors_[f].vars.begin(), factors_[f].vars.end());
-  if (update_count_ % static_cast<std::uint64_t>(params_.relinearize_skip) == 0 ||
-      params_.always_relinearize_recent_updates > 0) {
-    relinearize(marked, marginalizable, stats);
-  }
+  relinearize(marked, marginalizable, stats);
   markForCleanMarginalization(marginalizable, marked, stats);
 
   // D-iSAM2 damps the new variables: they are ordered last, into the root.
@@ -184,7 +181,7 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
     }
     case SmootherParams::Method::kDogleg: stepDogleg(stats); break;
   }
-  for (CliqueId c = 0; c < static_cast<CliqueId>(cliques_.size()); ++c) cliques_[c].replaced = false;
+  for (CliqueId c : top_cliques_) cliques_[c].replaced = false;  // only the top was re-eliminated
 
   marginalize(marginalizable, stats);
 
@@ -208,7 +205,6 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
   stats.cliques_total = cliqueCount();
   stats.variables_total = variableCount();
   stats.factors_total = live_factors_;
-  stats.lambda = params_.method == SmootherParams::Method::kDamped ? stats.lambda : 0.0;
   stats.trust_radius = params_.method == SmootherParams::Method::kDogleg ? trust_radius_ : 0.0;
   stats.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return stats;
@@ -305,20 +301,24 @@ double BayesTreeSmoother::factorError(const FactorSlot& f, const Values& x) cons
 
 void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vector<VarId>& marginalizable,
                                     UpdateStats& stats) {
-  const bool threshold_check = update_count_ % static_cast<std::uint64_t>(params_.relinearize_skip) == 0;
-  const std::uint64_t skip_stamp = newStamp();
+  // After a rejected D-iSAM2 step every moved variable is relinearized at the
+  // kept estimate, so the tree and the deltas agree again.
+  const bool all = relinearize_all_pending_;
+  relinearize_all_pending_ = false;
+  const bool together = params_.relinearize_together || all;
+  const bool threshold_check = all || update_count_ % static_cast<std::uint64_t>(params_.relinearize_skip) == 0;
   // About to be marginalized: relinearizing them alone would re-eliminate the
   // path from their leaf to the root for nothing. When everything moves
-  // together (or after a rejected step) they move too: a stale state next to
-  // a fresh one leaves a large IMU residual at theta.
-  if (!relinearize_all_pending_ && !params_.relinearize_together) {
+  // together they move too: a stale state next to a fresh one leaves a large
+  // IMU residual at theta.
+  const std::uint64_t skip_stamp = newStamp();
+  if (!together) {
     for (VarId v : marginalizable) vars_[v].mark = skip_stamp;
   }
 
   std::vector<VarId> forced;
   std::vector<std::pair<double, VarId>> by_threshold;  // (largest |delta| / threshold, var)
   bool any_passed = false;
-  const bool relinearize_all = relinearize_all_pending_;
   for (VarId v = 0; v < static_cast<VarId>(vars_.size()); ++v) {
     VarSlot& slot = vars_[v];
     if (!slot.alive || slot.mark == skip_stamp || slot.introduced_at == update_count_) continue;
@@ -337,12 +337,11 @@ void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vecto
       const double a = std::abs(step[i]);
       ratio = std::max(ratio, t > 0.0 ? a / t : (a > 0.0 ? std::numeric_limits<double>::infinity() : 0.0));
     }
-    if (ratio >= 1.0 || params_.relinearize_together || relinearize_all_pending_) by_threshold.emplace_back(ratio, v);
     any_passed |= ratio >= 1.0;
+    if (ratio >= 1.0 || together) by_threshold.emplace_back(ratio, v);
   }
-  if (params_.relinearize_together && !any_passed && !relinearize_all_pending_) by_threshold.clear();
-  relinearize_all_pending_ = false;
-  if (params_.max_relinearized_variables > 0 && !relinearize_all &&
+  if (together && !any_passed && !all) by_threshold.clear();
+  if (params_.max_relinearized_variables > 0 && !together &&
       by_threshold.size() > static_cast<std::size_t>(params_.max_relinearized_variables)) {
     const auto keep = by_threshold.begin() + params_.max_relinearized_variables;
     std::nth_element(by_threshold.begin(), keep, by_threshold.end(),

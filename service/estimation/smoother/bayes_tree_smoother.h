@@ -154,16 +154,24 @@ class BayesTreeSmoother final : public Smoother {
   /// and (when lambda > 0) damping rows on its frontals in `damped_vars`.
   void eliminateClique(CliqueId c, double lambda, UpdateStats& stats);
   void linearizeFactor(FactorSlot& f);
+  /// Copies the rows of a block row [A_1 .. A_k | b] over `vars` into W:
+  /// block k at its variable's column (VarSlot::col), b at `rhs_col`; row i
+  /// goes to dest[i], or to first_row + i when dest is null.
+  void scatterRows(const Eigen::MatrixXd& blocks, const std::vector<VarId>& vars, Eigen::Ref<Eigen::MatrixXd> W,
+                   int rhs_col, const int* dest, int first_row) const;
   /// Back-substitution from the roots; re-solves replaced cliques and those
   /// whose separator moved by more than `threshold`. Appends every variable
   /// whose delta changed to `changed`, logging the old delta for undo.
   void backSubstitute(double threshold, UpdateStats& stats);
-  bool solveClique(CliqueId c, double threshold, std::uint64_t moved_stamp);
+  void solveClique(CliqueId c, double threshold, std::uint64_t moved_stamp);
 
   // Error bookkeeping
   double factorError(const FactorSlot& f, const Values& x) const;
   void refreshEstimate(VarId v);
   void refreshErrorsOfChanged(bool log_undo);
+  /// Re-evaluates (once each) the factors touching `vars` at the estimate and
+  /// updates the running sum, logging old errors for undo when asked.
+  void refreshFactorErrors(const std::vector<VarId>& vars, bool log_undo);
   void logDelta(VarId v);
   void undoStep();
   void clearUndo();

@@ -27,7 +27,7 @@ void BayesTreeSmoother::backSubstitute(double threshold, UpdateStats& stats) {
   }
 }
 
-bool BayesTreeSmoother::solveClique(CliqueId c, double threshold, std::uint64_t moved_stamp) {
+void BayesTreeSmoother::solveClique(CliqueId c, double threshold, std::uint64_t moved_stamp) {
   const Clique& q = cliques_[c];
   const int fd = q.frontal_dim;
   const int sd = q.separator_dim;
@@ -43,7 +43,6 @@ bool BayesTreeSmoother::solveClique(CliqueId c, double threshold, std::uint64_t 
   if (sd > 0) x.noalias() -= q.conditional.block(0, fd, fd, sd) * delta_sep;
   q.conditional.topLeftCorner(fd, fd).triangularView<Eigen::Upper>().solveInPlace(x);
 
-  bool any_moved = false;
   offset = 0;
   const bool step_follows = params_.method != SmootherParams::Method::kDogleg;
   for (VarId v : q.frontals) {
@@ -54,14 +53,10 @@ bool BayesTreeSmoother::solveClique(CliqueId c, double threshold, std::uint64_t 
       logDelta(v);
       slot.delta.head(slot.dim) = fresh;
       if (step_follows) slot.step = slot.delta;
-      if (change > threshold) {
-        slot.moved = moved_stamp;
-        any_moved = true;
-      }
+      if (change > threshold) slot.moved = moved_stamp;
     }
     offset += slot.dim;
   }
-  return any_moved;
 }
 
 // --- Incremental error ------------------------------------------------------------
@@ -87,9 +82,13 @@ void BayesTreeSmoother::refreshEstimate(VarId v) {
 }
 
 void BayesTreeSmoother::refreshErrorsOfChanged(bool log_undo) {
-  const std::uint64_t stamp = newStamp();
   for (VarId v : changed_vars_) refreshEstimate(v);
-  for (VarId v : changed_vars_) {
+  refreshFactorErrors(changed_vars_, log_undo);
+}
+
+void BayesTreeSmoother::refreshFactorErrors(const std::vector<VarId>& vars, bool log_undo) {
+  const std::uint64_t stamp = newStamp();
+  for (VarId v : vars) {
     for (FactorId f : vars_[v].factors) {
       FactorSlot& fs = factors_[f];
       if (fs.mark == stamp) continue;
@@ -217,7 +216,6 @@ void BayesTreeSmoother::addCliqueGradient(CliqueId c, double sign) {
 }
 
 void BayesTreeSmoother::applyStep(double a, double b) {
-  const std::uint64_t stamp = newStamp();
   std::vector<VarId> moved;
   if (a == 1.0 && b == 0.0 && step_is_delta_) {
     for (VarId v : changed_vars_) {
@@ -237,16 +235,7 @@ void BayesTreeSmoother::applyStep(double a, double b) {
   }
   step_is_delta_ = a == 1.0 && b == 0.0;
   for (VarId v : moved) refreshEstimate(v);
-  for (VarId v : moved) {
-    for (FactorId f : vars_[v].factors) {
-      FactorSlot& fs = factors_[f];
-      if (fs.mark == stamp) continue;
-      fs.mark = stamp;
-      const double e = factorError(fs, estimate_);
-      error_at_estimate_ += e - fs.error;
-      fs.error = e;
-    }
-  }
+  refreshFactorErrors(moved, false);
 }
 
 void BayesTreeSmoother::linearModel(double a, double b, double& change, double& d_norm_sq) const {

@@ -18,9 +18,6 @@ namespace rilo {
 /// are never marginalized by a fixed-lag smoother.
 using KeyTimestamps = std::unordered_map<Key, std::int64_t>;
 
-/// Marginal covariance block of one variable, in its tangent chart.
-using CovarianceBlock = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxVarDim, kMaxVarDim>;
-
 /// What one update did; the figures behind the service's diagnostics.
 struct UpdateStats {
   // Bayes tree

@@ -43,7 +43,8 @@ struct SmootherParams {
   bool relinearize_together = true;
   /// Upper bound on variables relinearized by threshold in one update (largest
   /// relative delta first; the rest wait for the next update): bounds the
-  /// re-elimination after a large correction. 0 = unbounded.
+  /// re-elimination after a large correction. 0 = unbounded. Ignored with
+  /// relinearize_together (a partial set is what that option avoids).
   int max_relinearized_variables = 0;
 
   // --- Partial back-substitution -----------------------------------------

@@ -30,7 +30,7 @@ namespace rilo {
 class BatchLevenbergMarquardt {
  public:
   /// Marginal covariance of one variable (dim x dim, tangent chart of Values).
-  using CovarianceBlock = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxVarDim, kMaxVarDim>;
+  using CovarianceBlock = rilo::CovarianceBlock;
 
   struct Output {
     Values values;  ///< optimized values (keys in no factor are copied unchanged)

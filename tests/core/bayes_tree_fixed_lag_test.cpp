@@ -629,13 +629,10 @@ TEST(BayesTreeFixedLag, LongRunOnAChainStaysBounded) {
   EXPECT_NEAR(smoother.error(), smoother.errorFromScratch(), 1e-9 * std::max(1.0, smoother.errorFromScratch()));
 }
 
-// BUG: fails. A marginal whose keys are all untimed (anchors) is never removed
-// nor merged with the earlier ones on the same keys (bayes_tree_marginalization.cpp,
-// step 1 creates one per boundary clique, step 2 only removes factors on
-// marginalized variables): one LinearMarginal per marginalized pose, and the
-// root's elimination grows with them.
-// BUG (open, issue 3 closing note): fails against the current smoother; re-enable when fixed.
-TEST(BayesTreeFixedLag, DISABLED_LongRunOfRangeOnlyPosesStaysBounded) {
+// Regression: a marginal whose keys are all untimed (anchors) was never
+// merged with the earlier ones on the same keys: one LinearMarginal per
+// marginalized pose, and the root's elimination grew with them.
+TEST(BayesTreeFixedLag, LongRunOfRangeOnlyPosesStaysBounded) {
   // Poses without a motion model, each ranging to the same four anchor
   // variables: every marginalized pose leaves a marginal on the anchors alone.
   // Those marginals must be merged (or otherwise bounded), not accumulated.

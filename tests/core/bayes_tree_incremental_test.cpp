@@ -431,11 +431,9 @@ TEST_F(BadInput, SeveralRejectionsInARowThenAValidUpdate) {
   expectStillWorks();
 }
 
-// BUG: fails. validateInput checks keys only; the variant type is first seen by
-// the factor's evaluate() in insertFactors, after insertVariables changed the
-// smoother: the throw leaves x60 inserted in no clique.
-// BUG (open, issue 3 closing note): fails against the current smoother; re-enable when fixed.
-TEST_F(BadInput, DISABLED_ValueOfTheWrongTypeForItsFactor) {
+// Regression: validateInput once checked keys only, and the variant type was
+// first seen by evaluate() after insertVariables had changed the smoother.
+TEST_F(BadInput, ValueOfTheWrongTypeForItsFactor) {
   // A new key whose value is a Vec3 while its factor needs a Pose3: the
   // smoother learns it only when it evaluates the factor. The interface
   // promises std::invalid_argument "with nothing changed" for inconsistent
@@ -449,9 +447,8 @@ TEST_F(BadInput, DISABLED_ValueOfTheWrongTypeForItsFactor) {
   expectStillWorks();
 }
 
-// BUG: fails. Same cause; the bad factor stays inserted, so every later update throws.
-// BUG (open, issue 3 closing note): fails against the current smoother; re-enable when fixed.
-TEST_F(BadInput, DISABLED_FactorOfTheWrongTypeOnAnExistingKey) {
+// Regression: same cause; the bad factor stayed inserted and every later update threw.
+TEST_F(BadInput, FactorOfTheWrongTypeOnAnExistingKey) {
   // A pose prior on an existing velocity (a Vec3): same failure as above,
   // in a factor-only update.
   FactorGraph f;

@@ -119,9 +119,14 @@ void BayesTreeSmoother::marginalize(const std::vector<VarId>& marginalizable, Up
     }
     const int n = col;
     std::vector<FactorId> sources;
+    std::vector<FactorId> merged;  // earlier marginals of b on kept variables only
     for (FactorId f : q.factors) {
       const auto& fv = factors_[f].vars;
-      if (std::any_of(fv.begin(), fv.end(), [&](VarId v) { return vars_[v].marginalize; })) sources.push_back(f);
+      if (std::any_of(fv.begin(), fv.end(), [&](VarId v) { return vars_[v].marginalize; })) {
+        sources.push_back(f);
+      } else if (factors_[f].marginal) {
+        merged.push_back(f);
+      }
     }
     std::vector<CliqueId> children;
     for (CliqueId ch : q.children) {
@@ -131,6 +136,11 @@ void BayesTreeSmoother::marginalize(const std::vector<VarId>& marginalizable, Up
     for (FactorId f : sources) rows += static_cast<int>(factors_[f].linear.rows());
     for (CliqueId ch : children) rows += static_cast<int>(cliques_[ch].message.rows());
     if (rows == 0) continue;
+    // Fold b's earlier marginals into the new one (re-expressed at theta):
+    // otherwise every marginalized state leaves one more marginal on the
+    // same long-lived variables (anchors) and the root's elimination grows.
+    sources.insert(sources.end(), merged.begin(), merged.end());
+    for (FactorId f : merged) rows += static_cast<int>(factors_[f].linear.rows());
     Eigen::MatrixXd W = Eigen::MatrixXd::Zero(rows, n + 1);
     int r = 0;
     for (FactorId f : sources) {
@@ -188,6 +198,10 @@ void BayesTreeSmoother::marginalize(const std::vector<VarId>& marginalizable, Up
     fs.clique = b;
     q.factors.push_back(f);
     linearizeFactor(fs);
+    for (FactorId old : merged) {
+      removeFactor(old);
+      ++stats.marginal_factors_merged;
+    }
     fs.error = factorError(fs, estimate_);
     fs.error_at_theta = dogleg ? factorError(fs, theta_) : 0.0;
     error_at_estimate_ += fs.error;

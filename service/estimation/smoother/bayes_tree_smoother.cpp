@@ -230,6 +230,20 @@ void BayesTreeSmoother::validateInput(const FactorGraph& new_factors, const Valu
       }
       covered.insert(k);
     }
+    // The variable types a factor needs are known only to its evaluate():
+    // try it once on its own keys before anything is inserted.
+    Values scratch;
+    for (Key k : f->keys()) scratch.insertOrAssign(k, new_values.exists(k) ? new_values.at(k) : theta_.at(k));
+    try {
+      Residual r;
+      Jacobians H;
+      f->evaluate(scratch, r, &H);
+    } catch (const std::exception& e) {
+      std::string keys;
+      for (Key k : f->keys()) keys += (keys.empty() ? "" : ", ") + keyString(k);
+      throw std::invalid_argument("BayesTreeSmoother::update: new factor " + std::to_string(i) + " (keys " + keys +
+                                  ") cannot be evaluated on the given values: " + e.what());
+    }
   }
   for (const auto& [key, value] : new_values) {
     if (!covered.count(key)) throw std::invalid_argument("BayesTreeSmoother::update: new variable " + keyString(key) + " has no factor");

@@ -35,6 +35,7 @@ struct UpdateStats {
   // Fixed lag
   int variables_marginalized = 0;
   int marginal_factors_created = 0;
+  int marginal_factors_merged = 0;    ///< earlier marginals folded into a new one on the same clique
   int variables_reordered_for_marginalization = 0;  ///< extra keys re-eliminated so marginal keys become leaves
   // Step control
   int step_tries = 0;                 ///< D-iSAM2 lambda tries / dog-leg radius tries (1 = first try accepted)

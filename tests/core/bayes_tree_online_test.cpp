@@ -36,3 +36,50 @@ TEST(BayesTreeOnline, TreeSolutionEqualsDenseAfterEveryUpdateWithRelinearization
 
 }  // namespace
 }  // namespace rilo
+
+namespace rilo {
+namespace {
+
+struct OnlineFigures {
+  double mean_error_m = 0.0;
+  double mean_tries = 0.0;
+  int rejected = 0;
+};
+
+OnlineFigures runWalk(SmootherParams params) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 20.0;
+  sp.seed = 5;
+  const sim::Scenario s = sim::simulateScenario(sp);
+  params.lag_s = 5.0;
+  RangeImuEstimator estimator(s.p_w_anchors, testing::graphParamsFor(s), std::make_unique<BayesTreeSmoother>(params));
+  OnlineFigures fig;
+  int n = 0;
+  testing::runOnline(s, estimator, [&](const UpdateStats& st, const RangeImuEstimator& e) {
+    fig.mean_error_m += (e.latest().T_w_b.p - s.truthAt(e.latest().t_ns).T_w_b.p).norm();
+    fig.mean_tries += st.step_tries;
+    fig.rejected += st.step_accepted ? 0 : 1;
+    ++n;
+  });
+  fig.mean_error_m /= n;
+  fig.mean_tries /= n;
+  return fig;
+}
+
+TEST(BayesTreeOnline, DampedFactorsAcceptanceTracksLikeGaussNewtonInAboutOneTry) {
+  // The default D-iSAM2 acceptance looks at the damped variables' factors:
+  // on a walk with NLOS it must neither reject good steps (the failure of the
+  // whole-graph test with stale linearization points) nor cost retries.
+  SmootherParams gn;
+  gn.method = SmootherParams::Method::kGaussNewton;
+  SmootherParams damped;  // defaults: D-iSAM2, kDampedFactors
+  const OnlineFigures a = runWalk(gn);
+  const OnlineFigures b = runWalk(damped);
+  EXPECT_LT(a.mean_error_m, 0.5);
+  EXPECT_LE(b.mean_error_m, 1.1 * a.mean_error_m + 0.01) << "iSAM2 " << a.mean_error_m;
+  EXPECT_EQ(b.rejected, 0);
+  EXPECT_LT(b.mean_tries, 1.5);
+}
+
+}  // namespace
+}  // namespace rilo

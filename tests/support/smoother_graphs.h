@@ -34,6 +34,9 @@ namespace rilo::testing {
 inline SmootherParams exactParams(SmootherParams::Method method) {
   SmootherParams p;
   p.method = method;
+  // The seed's literal acceptance (whole-graph error), whose guarantee the
+  // damped tests check; the service's default is kDampedFactors.
+  p.acceptance = SmootherParams::Acceptance::kGlobal;
   p.wildfire_threshold = 0.0;
   p.always_relinearize_recent_updates = 0;
   p.default_pose_threshold.setConstant(1e9);
@@ -46,6 +49,9 @@ inline SmootherParams exactParams(SmootherParams::Method method) {
 inline SmootherParams relinearizingParams(SmootherParams::Method method, double threshold) {
   SmootherParams p;
   p.method = method;
+  // The seed's literal acceptance (whole-graph error), whose guarantee the
+  // damped tests check; the service's default is kDampedFactors.
+  p.acceptance = SmootherParams::Acceptance::kGlobal;
   p.wildfire_threshold = 0.0;
   p.default_pose_threshold.setConstant(threshold);
   p.default_bias_threshold.setConstant(threshold);

@@ -282,6 +282,21 @@ void BayesTreeSmoother::scatterRows(const Eigen::MatrixXd& blocks, const std::ve
   }
 }
 
+Vec6 BayesTreeSmoother::informationDiagonal(VarId v) const {
+  Vec6 h = Vec6::Zero();
+  for (FactorId f : vars_[v].factors) {
+    const FactorSlot& fs = factors_[f];
+    int src = 0;
+    for (VarId u : fs.vars) {
+      if (u == v) {
+        h.head(vars_[v].dim) += fs.linear.middleCols(src, vars_[v].dim).colwise().squaredNorm().transpose();
+      }
+      src += vars_[u].dim;
+    }
+  }
+  return h;
+}
+
 void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& stats) {
   Clique& q = cliques_[c];
   int col = 0;
@@ -369,10 +384,19 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
       scatterRows(cliques_[ch].message, cliques_[ch].separator, W, n, dest.data() + r, 0);
       r += static_cast<int>(cliques_[ch].message.rows());
     }
-    const double sqrt_lambda = std::sqrt(lambda);
+    // Levenberg-Marquardt rows sqrt(lambda * h_ii) (delta_i - c_i), h_ii the
+    // diagonal of J^T J (Marquardt): lambda is dimensionless across a stiff
+    // IMU position (h ~ 1e10) and a weak yaw. Centred on the accepted delta c,
+    // so a large lambda keeps the variable where it is instead of pulling it
+    // back to theta.
     for (VarId v : q.frontals) {
       if (lambda > 0.0 && vars_[v].damped == damp_stamp_) {
-        for (int i = 0; i < vars_[v].dim; ++i, ++r) W(dest[r], vars_[v].col + i) = sqrt_lambda;
+        const Vec6 h = informationDiagonal(v);
+        for (int i = 0; i < vars_[v].dim; ++i, ++r) {
+          const double scale = std::sqrt(lambda * std::clamp(h[i], kMinDampingDiagonal, kMaxDampingDiagonal));
+          W(dest[r], vars_[v].col + i) = scale;
+          W(dest[r], n) = scale * vars_[v].damping_center[i];
+        }
       }
     }
     if (regularize) {

@@ -160,7 +160,10 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
     if (damped.empty()) {
       for (FactorId f : added) damped.insert(damped.end(), factors_[f].vars.begin(), factors_[f].vars.end());
     }
-    for (VarId v : damped) vars_[v].damped = damp_stamp_;
+    for (VarId v : damped) {
+      vars_[v].damped = damp_stamp_;
+      vars_[v].damping_center = vars_[v].step;
+    }
   }
   updateTree(marked, added, stats);
 
@@ -172,6 +175,7 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
         for (CliqueId c : top_cliques_) {
           for (VarId v : cliques_[c].frontals) {
             vars_[v].damped = damp_stamp_;
+            vars_[v].damping_center = vars_[v].step;
             damped.push_back(v);
           }
         }

@@ -77,6 +77,9 @@ class BayesTreeSmoother final : public Smoother {
   using FactorId = int;
   using CliqueId = int;
   static constexpr int kNone = -1;
+  // Bounds on the diagonal that scales the D-iSAM2 damping (as GTSAM's LM).
+  static constexpr double kMinDampingDiagonal = 1e-6;
+  static constexpr double kMaxDampingDiagonal = 1e32;
 
   struct VarSlot {
     bool alive = false;
@@ -84,6 +87,7 @@ class BayesTreeSmoother final : public Smoother {
     int dim = 0;
     Vec6 delta = Vec6::Zero();         // tree solution (D-iSAM2: of the accepted damping)
     Vec6 step = Vec6::Zero();          // applied step (dog-leg; equals delta otherwise)
+    Vec6 damping_center = Vec6::Zero(); // D-iSAM2: the accepted delta a damped variable is held to
     CliqueId clique = kNone;
     std::vector<FactorId> factors;     // factors touching the variable
     int frozen = 0;                    // linear marginals touching it
@@ -174,6 +178,11 @@ class BayesTreeSmoother final : public Smoother {
   void refreshFactorErrors(const std::vector<VarId>& vars, bool log_undo);
   void logDelta(VarId v);
   void undoStep();
+  /// D-iSAM2 (Acceptance::kDampedFactors): error change of this try on the
+  /// factors of the damped variables.
+  double dampedFactorsErrorChange() const;
+  /// Diagonal of J^T J for variable v over its factors (scales the damping).
+  Vec6 informationDiagonal(VarId v) const;
   void clearUndo();
 
   // Pools

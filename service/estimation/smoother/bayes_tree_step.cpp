@@ -159,12 +159,14 @@ void BayesTreeSmoother::stepDamped(const std::vector<VarId>& damped_vars, bool e
   if (eliminate_first) {
     for (CliqueId c : path) eliminateClique(c, lambda, stats);
   }
+  const bool global = params_.acceptance == SmootherParams::Acceptance::kGlobal;
   for (int attempt = 1;; ++attempt) {
     clearUndo();
     backSubstitute(params_.wildfire_threshold, stats);
     refreshErrorsOfChanged(true);
     stats.step_tries = attempt;
-    if (path.empty() || error_at_estimate_ <= error_before + tolerance) {
+    const double change = global ? error_at_estimate_ - error_before : dampedFactorsErrorChange();
+    if (path.empty() || change <= tolerance) {
       stats.lambda = lambda;
       lambda_ = wide ? params_.lambda_initial : std::max(params_.lambda_min, lambda * params_.lambda_decrease);
       break;
@@ -179,7 +181,10 @@ void BayesTreeSmoother::stepDamped(const std::vector<VarId>& damped_vars, bool e
       lambda = params_.lambda_initial;
       damp_stamp_ = newStamp();
       for (CliqueId c : top_cliques_) {
-        for (VarId v : cliques_[c].frontals) vars_[v].damped = damp_stamp_;
+        for (VarId v : cliques_[c].frontals) {
+          vars_[v].damped = damp_stamp_;
+          vars_[v].damping_center = vars_[v].step;
+        }
       }
       path = top_cliques_;
     }
@@ -199,6 +204,18 @@ void BayesTreeSmoother::stepDamped(const std::vector<VarId>& damped_vars, bool e
   // The damping is transient: leave the tree holding the undamped system
   // (exact covariances, clean messages), keeping the accepted step.
   for (CliqueId c : path) eliminateClique(c, 0.0, stats);
+}
+
+double BayesTreeSmoother::dampedFactorsErrorChange() const {
+  // undo_error_ holds each refreshed factor once, with its error before the try.
+  double change = 0.0;
+  for (const auto& [f, before] : undo_error_) {
+    const FactorSlot& fs = factors_[f];
+    if (std::any_of(fs.vars.begin(), fs.vars.end(), [&](VarId v) { return vars_[v].damped == damp_stamp_; })) {
+      change += fs.error - before;
+    }
+  }
+  return change;
 }
 
 void BayesTreeSmoother::addCliqueGradient(CliqueId c, double sign) {

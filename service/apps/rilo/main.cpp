@@ -1,11 +1,12 @@
 // rilo: the tool for people (simulate, replay, evaluate, listen, probe).
-// Subcommands arrive with their issues; today: demo.
+// Subcommands arrive with their issues: demo, listen, ...
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <exception>
 
 #include "demo.h"
+#include "listen.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"rilo: Ranging-Inertial LOcalization tools"};
@@ -18,6 +19,8 @@ int main(int argc, char** argv) {
   demo_cmd->add_option("--range-hz", demo.range_hz, "Total ranging rate (Hz)")->capture_default_str()->check(CLI::Range(0.5, 200.0));
   demo_cmd->add_option("--nlos", demo.nlos_fraction, "Fraction of time an anchor is NLOS")->capture_default_str()->check(CLI::Range(0.0, 0.9));
   demo_cmd->add_option("--noise", demo.noise_models, "Range noise models to compare")->capture_default_str();
+
+  rilo::tool::addListenCommand(app);
 
   CLI11_PARSE(app, argc, argv);
   try {

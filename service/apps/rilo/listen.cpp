@@ -1,0 +1,381 @@
+#include "listen.h"
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <ctime>
+#include <deque>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dds/conversions.h"
+#include "dds/participant.h"
+#include "dds/subscriber.h"
+
+namespace rilo::tool {
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+extern "C" void onStopSignal(int) { g_stop = 1; }
+
+constexpr int kExitSetupError = 1;
+constexpr int kExitTimeout = 2;
+
+/// rilo's one clock: stamps are CLOCK_MONOTONIC ns of the publishing device.
+std::int64_t monotonicNowNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+/// Rate of one topic from its stamps over the last second.
+class RateMeter {
+ public:
+  double add(std::int64_t stamp_ns) {
+    if (!stamps_.empty() && stamp_ns <= stamps_.back()) stamps_.clear();  // publisher restarted or reordered
+    stamps_.push_back(stamp_ns);
+    while (stamps_.size() > 2 && stamps_.back() - stamps_.front() > kWindowNs) stamps_.pop_front();
+    if (stamps_.size() < 2) return 0.0;
+    const double span_s = static_cast<double>(stamps_.back() - stamps_.front()) * 1e-9;
+    return static_cast<double>(stamps_.size() - 1) / span_s;
+  }
+
+ private:
+  static constexpr std::int64_t kWindowNs = 1'000'000'000;
+  std::deque<std::int64_t> stamps_;
+};
+
+struct Rpy {
+  double roll_deg, pitch_deg, yaw_deg;
+};
+
+/// ZYX (yaw, pitch, roll) angles of the body in the world, REP-103.
+Rpy rpyOf(const Eigen::Quaterniond& q_in) {
+  const Eigen::Quaterniond q = q_in.normalized();
+  const double sinp = std::clamp(2.0 * (q.w() * q.y() - q.z() * q.x()), -1.0, 1.0);
+  constexpr double kDeg = 180.0 / M_PI;
+  return {std::atan2(2.0 * (q.w() * q.x() + q.y() * q.z()), 1.0 - 2.0 * (q.x() * q.x() + q.y() * q.y())) * kDeg,
+          std::asin(sinp) * kDeg,
+          std::atan2(2.0 * (q.w() * q.z() + q.x() * q.y()), 1.0 - 2.0 * (q.y() * q.y() + q.z() * q.z())) * kDeg};
+}
+
+Eigen::Vector3d sigmas(const dds::Mat6& covariance) {
+  return covariance.diagonal().head<3>().cwiseMax(0.0).cwiseSqrt();
+}
+
+double stampSeconds(std::int64_t t_ns) { return static_cast<double>(t_ns) * 1e-9; }
+
+// --- JSON, one object per line ---------------------------------------------
+
+class JsonLine {
+ public:
+  explicit JsonLine(const char* topic) {
+    line_ = "{";
+    string("topic", topic);
+  }
+  JsonLine& number(const char* key, double v) {
+    this->key(key);
+    appendNumber(v);
+    return *this;
+  }
+  JsonLine& integer(const char* key, std::int64_t v) {
+    this->key(key);
+    line_ += std::to_string(v);
+    return *this;
+  }
+  JsonLine& unsignedInteger(const char* key, std::uint64_t v) {
+    this->key(key);
+    line_ += std::to_string(v);
+    return *this;
+  }
+  JsonLine& string(const char* key, const std::string& v) {
+    this->key(key);
+    line_ += '"';
+    for (const char c : v) {
+      switch (c) {
+        case '"': line_ += "\\\""; break;
+        case '\\': line_ += "\\\\"; break;
+        case '\n': line_ += "\\n"; break;
+        case '\t': line_ += "\\t"; break;
+        default:
+          if (static_cast<unsigned char>(c) < 0x20) {
+            std::array<char, 8> u{};
+            std::snprintf(u.data(), u.size(), "\\u%04x", static_cast<unsigned>(static_cast<unsigned char>(c)));
+            line_ += u.data();
+          } else {
+            line_ += c;
+          }
+      }
+    }
+    line_ += '"';
+    return *this;
+  }
+  template <class Vector>
+  JsonLine& array(const char* key, const Vector& v) {
+    this->key(key);
+    line_ += '[';
+    for (Eigen::Index i = 0; i < v.size(); ++i) {
+      if (i > 0) line_ += ',';
+      appendNumber(v(i));
+    }
+    line_ += ']';
+    return *this;
+  }
+  JsonLine& matrix(const char* key, const dds::Mat6& m) {  // row-major, as on the wire
+    Eigen::Matrix<double, 36, 1> flat;
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) flat(6 * r + c) = m(r, c);
+    }
+    return array(key, flat);
+  }
+  void print() {
+    line_ += "}\n";
+    std::fputs(line_.c_str(), stdout);
+    std::fflush(stdout);
+  }
+
+ private:
+  void key(const char* k) {
+    if (line_.size() > 1) line_ += ',';
+    line_ += '"';
+    line_ += k;
+    line_ += "\":";
+  }
+  void appendNumber(double v) {
+    if (!std::isfinite(v)) {
+      line_ += "null";  // JSON has no NaN/inf
+      return;
+    }
+    std::array<char, 32> buf{};
+    std::snprintf(buf.data(), buf.size(), "%.15g", v);
+    line_ += buf.data();
+  }
+  std::string line_;
+};
+
+Eigen::Vector4d xyzw(const Eigen::Quaterniond& q) { return {q.x(), q.y(), q.z(), q.w()}; }
+
+// --- printing ----------------------------------------------------------------
+
+struct TopicStats {
+  RateMeter rate;
+  std::uint64_t received = 0;
+};
+
+void printOdometry(const dds::OdometryMessage& m, double rate_hz, double latency_ms, bool json) {
+  if (json) {
+    JsonLine("odometry")
+        .integer("stamp_ns", m.stamp_ns)
+        .string("frame_id", m.frame_id)
+        .string("child_frame_id", m.child_frame_id)
+        .array("position", m.p_w_b)
+        .array("orientation_xyzw", xyzw(m.q_w_b))
+        .array("linear_velocity_body", m.v_b)
+        .array("angular_velocity_body", m.omega_b)
+        .matrix("pose_covariance", m.pose_covariance)
+        .matrix("twist_covariance", m.twist_covariance)
+        .number("rate_hz", rate_hz)
+        .number("latency_ms", latency_ms)
+        .print();
+    return;
+  }
+  const Rpy rpy = rpyOf(m.q_w_b);
+  const Eigen::Vector3d s = sigmas(m.pose_covariance);
+  std::printf(
+      "odometry %14.6f  p [%8.3f %8.3f %8.3f] m  rpy [%7.2f %7.2f %7.2f] deg  v_b [%6.2f %6.2f %6.2f] m/s  "
+      "sigma_p [%.3f %.3f %.3f] m  %6.1f Hz  latency %7.2f ms\n",
+      stampSeconds(m.stamp_ns), m.p_w_b.x(), m.p_w_b.y(), m.p_w_b.z(), rpy.roll_deg, rpy.pitch_deg, rpy.yaw_deg,
+      m.v_b.x(), m.v_b.y(), m.v_b.z(), s.x(), s.y(), s.z(), rate_hz, latency_ms);
+  std::fflush(stdout);
+}
+
+void printPose(const dds::PoseMessage& m, double rate_hz, double latency_ms, bool json) {
+  if (json) {
+    JsonLine("pose")
+        .integer("stamp_ns", m.stamp_ns)
+        .string("frame_id", m.frame_id)
+        .array("position", m.p_w_b)
+        .array("orientation_xyzw", xyzw(m.q_w_b))
+        .matrix("covariance", m.covariance)
+        .number("rate_hz", rate_hz)
+        .number("latency_ms", latency_ms)
+        .print();
+    return;
+  }
+  const Rpy rpy = rpyOf(m.q_w_b);
+  const Eigen::Vector3d s = sigmas(m.covariance);
+  std::printf(
+      "pose     %14.6f  p [%8.3f %8.3f %8.3f] m  rpy [%7.2f %7.2f %7.2f] deg  sigma_p [%.3f %.3f %.3f] m  "
+      "%6.1f Hz  latency %7.2f ms\n",
+      stampSeconds(m.stamp_ns), m.p_w_b.x(), m.p_w_b.y(), m.p_w_b.z(), rpy.roll_deg, rpy.pitch_deg, rpy.yaw_deg,
+      s.x(), s.y(), s.z(), rate_hz, latency_ms);
+  std::fflush(stdout);
+}
+
+void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms, bool json) {
+  const ServiceStatus& s = m.status;
+  std::string fault(s.last_fault.data());
+  if (!json) {  // one line per sample
+    std::replace_if(fault.begin(), fault.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20; }, ' ');
+  }
+  if (json) {
+    JsonLine("status")
+        .integer("stamp_ns", s.t_ns)
+        .unsignedInteger("state", static_cast<std::uint64_t>(s.state))
+        .string("state_name", m.state_name)
+        .unsignedInteger("imu_samples", s.imu_samples)
+        .unsignedInteger("range_samples", s.range_samples)
+        .unsignedInteger("queue_overflows", s.queue_overflows)
+        .unsignedInteger("late_updates", s.late_updates)
+        .unsignedInteger("sensor_faults", s.sensor_faults)
+        .unsignedInteger("sensor_silences", s.sensor_silences)
+        .unsignedInteger("reinitializations", s.reinitializations)
+        .unsignedInteger("rejected_ranges", s.rejected_ranges)
+        .unsignedInteger("published_odometry", s.published_odometry)
+        .number("last_update_ms", s.last_update_ms)
+        .number("mean_update_ms", s.mean_update_ms)
+        .number("max_update_ms", s.max_update_ms)
+        .unsignedInteger("last_cliques_reeliminated", s.last_cliques_reeliminated)
+        .unsignedInteger("last_relinearized", s.last_relinearized)
+        .number("last_lambda", s.last_lambda)
+        .number("odometry_latency_ms", s.odometry_latency_ms)
+        .number("pose_latency_ms", s.pose_latency_ms)
+        .string("last_fault", fault)
+        .number("rate_hz", rate_hz)
+        .number("latency_ms", latency_ms)
+        .print();
+    return;
+  }
+  std::printf(
+      "status   %14.6f  %-12s imu %llu  ranges %llu (rejected %llu)  overflows %llu  late %llu  faults %llu  "
+      "silences %llu  reinit %llu  update %.2f ms (mean %.2f, max %.2f)  odometry latency %.2f ms  pose latency "
+      "%.2f ms  %5.1f Hz  latency %7.2f ms%s%s%s\n",
+      stampSeconds(s.t_ns), m.state_name.c_str(), static_cast<unsigned long long>(s.imu_samples),
+      static_cast<unsigned long long>(s.range_samples), static_cast<unsigned long long>(s.rejected_ranges),
+      static_cast<unsigned long long>(s.queue_overflows), static_cast<unsigned long long>(s.late_updates),
+      static_cast<unsigned long long>(s.sensor_faults), static_cast<unsigned long long>(s.sensor_silences),
+      static_cast<unsigned long long>(s.reinitializations), s.last_update_ms, s.mean_update_ms, s.max_update_ms,
+      s.odometry_latency_ms, s.pose_latency_ms, rate_hz, latency_ms, fault.empty() ? "" : "  fault \"",
+      fault.c_str(), fault.empty() ? "" : "\"");
+  std::fflush(stdout);
+}
+
+double latencyMs(std::int64_t stamp_ns) { return static_cast<double>(monotonicNowNs() - stamp_ns) * 1e-6; }
+
+}  // namespace
+
+int runListen(const ListenOptions& o) {
+  dds::SubscriberOptions so;
+  so.topics.odometry = o.odometry_topic;
+  so.topics.pose = o.pose_topic;
+  so.topics.status = o.status_topic;
+  so.odometry = o.topic == "all" || o.topic == "odometry";
+  so.pose = o.topic == "all" || o.topic == "pose";
+  so.status = o.topic == "all" || o.topic == "status";
+  if (!so.odometry && !so.pose && !so.status) {
+    throw std::invalid_argument("--topic must be odometry, pose, status or all, got '" + o.topic + "'");
+  }
+  if (!(o.timeout_s >= 0.0)) throw std::invalid_argument("--timeout must be >= 0");
+
+  const dds::Participant participant(
+      dds::ParticipantOptions{o.domain, o.loopback ? dds::loopbackConfigXml() : std::string()});
+  dds::Subscriber subscriber(participant, so);
+  if (!o.json) {
+    std::fprintf(stderr, "rilo listen: domain %u, %s%s%s%s%s (stamps and latency on CLOCK_MONOTONIC)\n", o.domain,
+                 so.odometry ? so.topics.odometry.c_str() : "", so.odometry ? " " : "",
+                 so.pose ? so.topics.pose.c_str() : "", so.pose ? " " : "", so.status ? so.topics.status.c_str() : "");
+  }
+
+  g_stop = 0;
+  std::signal(SIGINT, onStopSignal);
+  std::signal(SIGTERM, onStopSignal);
+
+  TopicStats odometry_stats, pose_stats, status_stats;
+  std::vector<dds::OdometryMessage> odometry;
+  std::vector<dds::PoseMessage> poses;
+  std::vector<dds::StatusMessage> statuses;
+  std::uint64_t received = 0;
+  const auto timeout = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(o.timeout_s));
+  auto last_arrival = std::chrono::steady_clock::now();
+  const auto done = [&] { return o.count > 0 && received >= o.count; };
+
+  while (g_stop == 0) {
+    auto wait = std::chrono::nanoseconds(std::chrono::milliseconds(100));  // bounded so signals are seen
+    if (o.timeout_s > 0.0) {
+      const auto left = timeout - (std::chrono::steady_clock::now() - last_arrival);
+      if (left <= std::chrono::nanoseconds::zero()) {
+        std::fprintf(stderr, "rilo listen: nothing received for %.1f s on domain %u\n", o.timeout_s, o.domain);
+        return kExitTimeout;
+      }
+      wait = std::min(wait, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+    }
+    if (!subscriber.waitForData(wait)) continue;
+
+    odometry.clear();
+    poses.clear();
+    statuses.clear();
+    subscriber.takeOdometry(odometry);
+    subscriber.takePose(poses);
+    subscriber.takeStatus(statuses);
+    if (!odometry.empty() || !poses.empty() || !statuses.empty()) last_arrival = std::chrono::steady_clock::now();
+    for (const auto& m : odometry) {
+      if (done()) break;
+      printOdometry(m, odometry_stats.rate.add(m.stamp_ns), latencyMs(m.stamp_ns), o.json);
+      ++received;
+    }
+    for (const auto& m : poses) {
+      if (done()) break;
+      printPose(m, pose_stats.rate.add(m.stamp_ns), latencyMs(m.stamp_ns), o.json);
+      ++received;
+    }
+    for (const auto& m : statuses) {
+      if (done()) break;
+      printStatus(m, status_stats.rate.add(m.status.t_ns), latencyMs(m.status.t_ns), o.json);
+      ++received;
+    }
+    if (done()) return 0;
+  }
+  return 0;  // interrupted
+}
+
+void addListenCommand(CLI::App& app) {
+  auto options = std::make_shared<ListenOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "listen",
+      "Subscribe to rilod's DDS topics and print poses, per-topic rate and latency (now - stamp, CLOCK_MONOTONIC: "
+      "meaningful on the device itself)");
+  cmd->add_option("--topic", options->topic, "Topic to listen to")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"odometry", "pose", "status", "all"}));
+  cmd->add_option("--count", options->count, "Stop after this many samples (0 = until Ctrl-C)")->capture_default_str();
+  cmd->add_flag("--json", options->json, "One JSON object per line");
+  cmd->add_option("--domain", options->domain, "DDS domain id")->capture_default_str()->check(CLI::Range(0u, 232u));
+  cmd->add_option("--timeout", options->timeout_s,
+                  "Exit with code 2 when nothing arrives for this many seconds (0 = wait forever)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--loopback", options->loopback,
+                "Only use the loopback interface, unicast discovery (match a service started the same way)");
+  cmd->add_option("--odometry-topic", options->odometry_topic, "DDS name of the odometry topic")->capture_default_str();
+  cmd->add_option("--pose-topic", options->pose_topic, "DDS name of the pose topic")->capture_default_str();
+  cmd->add_option("--status-topic", options->status_topic, "DDS name of the status topic")->capture_default_str();
+  cmd->callback([options] {
+    int code = 0;
+    try {
+      code = runListen(*options);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "rilo listen: %s\n", e.what());
+      code = kExitSetupError;
+    }
+    if (code != 0) throw CLI::RuntimeError(code);
+  });
+}
+
+}  // namespace rilo::tool
+

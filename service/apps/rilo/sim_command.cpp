@@ -1,0 +1,187 @@
+#include "sim_command.h"
+
+#include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "hal/recording/recording_files.h"
+#include "hal/sim/office_recording.h"
+
+namespace rilo::tool {
+namespace {
+
+/// True if `dir` holds any file of a recording (the writer would refuse it).
+bool holdsRecording(const std::filesystem::path& dir) {
+  for (std::string_view f : {recording::kMetaFile, recording::kAnchorsFile, recording::kTagsFile, recording::kImuFile,
+                             recording::kRangeFile, recording::kTdoaFile, recording::kUltrasonicFile,
+                             recording::kGroundTruthFile}) {
+    if (std::filesystem::exists(dir / f)) return true;
+  }
+  return false;
+}
+
+/// Progress on stderr once the work has taken more than a second: one line
+/// rewritten in place on a terminal, a line per 10% otherwise.
+class ProgressPrinter {
+ public:
+  explicit ProgressPrinter(double minutes) : minutes_(minutes), tty_(::isatty(STDERR_FILENO) == 1) {}
+  ~ProgressPrinter() {
+    if (tty_ && printed_) std::fputc('\n', stderr);
+  }
+  ProgressPrinter(const ProgressPrinter&) = delete;
+  ProgressPrinter& operator=(const ProgressPrinter&) = delete;
+
+  void operator()(double fraction) {
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    if (elapsed < 1.0) return;
+    const int percent = static_cast<int>(fraction * 100.0);
+    if (tty_) {
+      std::fprintf(stderr, "\rrilo sim: %3d%% of a %.1f min session (%.0f s)", percent, minutes_, elapsed);
+      std::fflush(stderr);
+      printed_ = true;
+    } else if (percent / 10 > last_decile_) {
+      last_decile_ = percent / 10;
+      std::fprintf(stderr, "rilo sim: %3d%% of a %.1f min session (%.0f s)\n", percent, minutes_, elapsed);
+    }
+  }
+
+ private:
+  double minutes_;
+  bool tty_;
+  bool printed_ = false;
+  int last_decile_ = -1;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+}  // namespace
+
+int runSim(const SimOptions& o) {
+  try {
+    sim::OfficeScenarioParams p;
+    p.seed = o.seed;
+    p.duration_s = o.minutes * 60.0;
+    p.range_rate_hz = o.range_hz;
+    p.anchors.count = o.anchors;
+    p.channel.nlos_severity = o.nlos_severity;
+    p.imu_rate_hz = o.imu_hz;
+    p.ranges_per_cycle = o.ranges_per_cycle;
+    p.packet_loss = o.packet_loss;
+    p.walk.start_moving = o.start_moving;
+    if (o.plan == "default") {
+      p.plan = sim::OfficePlanKind::kDefault;
+    } else if (o.plan == "random") {
+      p.plan = sim::OfficePlanKind::kRandom;
+    } else {
+      throw std::invalid_argument("--plan must be default or random, not '" + o.plan + "'");
+    }
+    if (o.truth_hz > o.imu_hz) throw std::invalid_argument("--truth-hz must not exceed --imu-hz");
+    sim::validate(p);
+
+    const std::filesystem::path out(o.out);
+    if (std::filesystem::exists(out) && !std::filesystem::is_directory(out)) {
+      throw std::invalid_argument(o.out + " exists and is not a folder");
+    }
+    if (!o.force && std::filesystem::exists(out) && holdsRecording(out)) {
+      throw std::invalid_argument(o.out + " already holds a recording (use --force to replace it)");
+    }
+
+    sim::ScenarioRecordingOptions ro;
+    ro.name = out.filename().empty() ? out.parent_path().filename().string() : out.filename().string();
+    char description[256];
+    std::snprintf(description, sizeof(description),
+                  "rilo sim: %s office plan, seed %llu, %d anchors, %.1f min walk%s, ranging %.1f Hz (%d per cycle), "
+                  "packet loss %.2f, NLOS severity %.2f",
+                  o.plan.c_str(), static_cast<unsigned long long>(o.seed), o.anchors, o.minutes,
+                  o.start_moving ? " (moving at start)" : "", o.range_hz, o.ranges_per_cycle, o.packet_loss,
+                  o.nlos_severity);
+    ro.description = description;
+    ro.truth_rate_hz = o.truth_hz;
+    ro.writer.overwrite = o.force;
+
+    // Anchor heights for the summary (the plan is cheap to rebuild).
+    const sim::OfficePlan plan = p.plan == sim::OfficePlanKind::kRandom ? sim::randomOfficePlan(p.seed)
+                                                                         : sim::defaultOfficePlan();
+    const std::vector<Eigen::Vector3d> anchors = sim::placeAnchors(plan, p.anchors);
+    double z_min = anchors.front().z(), z_max = z_min;
+    for (const Eigen::Vector3d& a : anchors) {
+      z_min = std::min(z_min, a.z());
+      z_max = std::max(z_max, a.z());
+    }
+
+    sim::OfficeStats st;
+    {
+      ProgressPrinter printer(o.minutes);
+      ro.progress = [&printer](double f) { printer(f); };
+      st = sim::writeOfficeRecording(p, out, ro);
+    }
+    const double lost_pct = st.slots ? 100.0 * static_cast<double>(st.lost) / static_cast<double>(st.slots) : 0.0;
+    const double empty_pct =
+        st.cycles ? 100.0 * static_cast<double>(st.empty_slots) /
+                        static_cast<double>(st.cycles * static_cast<std::size_t>(o.ranges_per_cycle))
+                  : 0.0;
+    std::printf("rilo sim: wrote %s\n", o.out.c_str());
+    std::printf("  plan      %s office %.1f m x %.1f m, %zu spaces; %zu anchors at %.2f-%.2f m\n", o.plan.c_str(),
+                plan.size_m.x(), plan.size_m.y(), plan.spaces.size(), anchors.size(), z_min, z_max);
+    std::printf("  duration  %.1f s, seed %llu\n", st.duration_s, static_cast<unsigned long long>(o.seed));
+    std::printf("  imu       %zu samples at %g Hz\n", st.imu_samples, o.imu_hz);
+    std::printf("  ranges    %zu (%.1f /s of %g scheduled; %.1f%% packets lost, %.1f%% slots without a heard anchor)\n",
+                st.ranges, st.rangesPerSecond(), o.range_hz, lost_pct, empty_pct);
+    std::printf("  NLOS      %.1f%% of ranges (mean excess %.2f m, max %.2f m); outliers %.2f%%\n",
+                100.0 * st.nlosFraction(), st.meanNlosExcess(), st.nlos_excess_max_m, 100.0 * st.outlierRate());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rilo sim: %s\n", e.what());
+    return 1;
+  }
+}
+
+void addSimCommand(CLI::App& app) {
+  auto o = std::make_shared<SimOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "sim", "Simulate a person walking through an office (UWB ranges + IMU) and write it as a recording folder");
+  cmd->add_option("OUT", o->out, "Recording folder to create")->required();
+  cmd->add_option("--seed", o->seed, "Seed of the walk, the noise and (with --plan random) the plan")
+      ->capture_default_str();
+  cmd->add_option("--minutes", o->minutes, "Duration of the session (min)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.05, 600.0));
+  cmd->add_option("--range-hz", o->range_hz, "Total ranging rate over all anchors, before packet loss (Hz)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 1000.0));
+  cmd->add_option("--anchors", o->anchors, "Number of anchors, mounted on walls at 2.0-2.8 m")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 32));
+  cmd->add_option("--nlos-severity", o->nlos_severity,
+                  "Scale of the range excess through walls, furniture and bodies (0 = none, 1 = typical)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10.0));
+  cmd->add_option("--imu-hz", o->imu_hz, "IMU sample rate (Hz)")->capture_default_str()->check(CLI::Range(50.0, 4000.0));
+  cmd->add_option("--ranges-per-cycle", o->ranges_per_cycle, "Strongest anchors ranged per cycle")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 32));
+  cmd->add_option("--packet-loss", o->packet_loss, "Probability that a range packet is lost")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 0.95));
+  cmd->add_option("--plan", o->plan, "Office plan: default (20 m x 12 m, corridor, 6 rooms) or random (from the seed)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"default", "random"}));
+  cmd->add_option("--truth-hz", o->truth_hz, "Ground-truth pose rate in groundtruth.csv (Hz, at most --imu-hz)")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 4000.0));
+  cmd->add_flag("--start-moving", o->start_moving, "Start the session while walking instead of standing still");
+  cmd->add_flag("--force", o->force, "Replace a recording already in OUT");
+  cmd->callback([o] {
+    const int rc = runSim(*o);
+    if (rc != 0) throw CLI::RuntimeError(rc);
+  });
+}
+
+}  // namespace rilo::tool

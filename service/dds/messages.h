@@ -1,0 +1,46 @@
+#pragma once
+// Received rilo messages as C++ values (the reader side: `rilo listen`,
+// tests). Conventions are those of the ROS messages on the wire (see
+// conversions.h): pose covariance rotation about the world axes, twist in the
+// body frame.
+#include <cstdint>
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "runtime/service_status.h"
+
+namespace rilo::dds {
+
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+
+struct OdometryMessage {
+  std::int64_t stamp_ns = 0;             ///< header.stamp (ns, rilo's one clock)
+  std::int64_t source_timestamp_ns = 0;  ///< DDS source timestamp of the sample (rilo writes stamp_ns)
+  std::string frame_id;                  ///< world frame
+  std::string child_frame_id;            ///< body frame
+  Eigen::Vector3d p_w_b = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_w_b = Eigen::Quaterniond::Identity();
+  Mat6 pose_covariance = Mat6::Zero();   ///< (p_w, rotation about world axes)
+  Eigen::Vector3d v_b = Eigen::Vector3d::Zero();      ///< body velocity in the body frame (m/s)
+  Eigen::Vector3d omega_b = Eigen::Vector3d::Zero();  ///< body rate in the body frame (rad/s)
+  Mat6 twist_covariance = Mat6::Zero();  ///< (v_b, omega_b)
+};
+
+struct PoseMessage {
+  std::int64_t stamp_ns = 0;
+  std::int64_t source_timestamp_ns = 0;
+  std::string frame_id;                  ///< world frame
+  Eigen::Vector3d p_w_b = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_w_b = Eigen::Quaterniond::Identity();
+  Mat6 covariance = Mat6::Zero();        ///< (p_w, rotation about world axes)
+};
+
+struct StatusMessage {
+  std::int64_t source_timestamp_ns = 0;
+  ServiceStatus status;                  ///< status.t_ns = header.stamp
+  std::string state_name;
+};
+
+}  // namespace rilo::dds

@@ -1,0 +1,63 @@
+#include "dds/qos.h"
+
+#include <new>
+#include <stdexcept>
+#include <string>
+
+namespace rilo::dds {
+namespace {
+
+QosPtr newQos() {
+  QosPtr qos(dds_create_qos());
+  if (!qos) throw std::bad_alloc();
+  return qos;
+}
+
+}  // namespace
+
+QosPtr writerQos(TopicKind kind) {
+  QosPtr qos = newQos();
+  dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
+  switch (kind) {
+    case TopicKind::kOdometry:
+      dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+      break;
+    case TopicKind::kPose:
+      dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kPoseHistoryDepth);
+      break;
+    case TopicKind::kStatus:
+      dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
+      dds_qset_durability(qos.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+      break;
+  }
+  return qos;
+}
+
+QosPtr readerQos(TopicKind kind, std::int32_t odometry_depth) {
+  if (odometry_depth <= 0) {
+    throw std::invalid_argument("readerQos: odometry_depth must be > 0, got " + std::to_string(odometry_depth));
+  }
+  QosPtr qos = newQos();
+  dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
+  switch (kind) {
+    case TopicKind::kOdometry:
+      dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, odometry_depth);
+      break;
+    case TopicKind::kPose:
+      dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kPoseHistoryDepth);
+      break;
+    case TopicKind::kStatus:
+      dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
+      dds_qset_durability(qos.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+      break;
+  }
+  return qos;
+}
+
+}  // namespace rilo::dds

@@ -1,0 +1,37 @@
+#pragma once
+// QoS of rilo's topics (writers and the matching readers).
+//
+//   topic     writer                                            reader (rilo listen, tests)
+//   odometry  best-effort, volatile, keep-last 1                best-effort, keep-last `depth` (default 256)
+//   pose      reliable, volatile, keep-last 10                  reliable, keep-last 10
+//   status    reliable, transient-local, keep-last 1            reliable, transient-local, keep-last 1
+//
+// Odometry is sensor data at IMU rate: a late sample is worthless, so it is
+// never retransmitted and never blocks (ROS 2 subscribers need the
+// SensorDataQoS / best-effort profile; a reliable reader does not match).
+// Pose and status are reliable; their writers use max_blocking_time 0, so a
+// congested link makes dds_write return DDS_RETCODE_TIMEOUT instead of
+// stalling the service. Status is transient-local so a late joiner gets the
+// current status at once.
+#include <dds/dds.h>
+
+#include <cstdint>
+#include <memory>
+
+#include "dds/topics.h"
+
+namespace rilo::dds {
+
+struct QosDeleter {
+  void operator()(dds_qos_t* qos) const noexcept { dds_delete_qos(qos); }
+};
+using QosPtr = std::unique_ptr<dds_qos_t, QosDeleter>;
+
+inline constexpr std::int32_t kPoseHistoryDepth = 10;
+inline constexpr std::int32_t kDefaultOdometryReaderDepth = 256;
+
+QosPtr writerQos(TopicKind kind);
+/// `odometry_depth` is the keep-last depth of an odometry reader (> 0).
+QosPtr readerQos(TopicKind kind, std::int32_t odometry_depth = kDefaultOdometryReaderDepth);
+
+}  // namespace rilo::dds

@@ -1,0 +1,249 @@
+// Publisher and Subscriber through real Cyclone DDS: two participants of one
+// process on a private domain, loopback only.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "dds/conversions.h"
+#include "dds/publisher.h"
+#include "dds/subscriber.h"
+#include "dds_test_support.h"
+
+namespace rilo::dds {
+namespace {
+
+using namespace std::chrono_literals;
+using testing::kMatchTimeout;
+
+std::string testName() { return ::testing::UnitTest::GetInstance()->current_test_info()->name(); }
+
+/// Takes from `take` until `count` messages arrived or 10 s passed.
+template <class Message, class Take>
+std::vector<Message> receive(Subscriber& sub, std::size_t count, Take take) {
+  std::vector<Message> out;
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (out.size() < count && std::chrono::steady_clock::now() < deadline) {
+    if (sub.waitForData(100ms)) take(out);
+  }
+  return out;
+}
+
+void expectOdometryEquals(const OdometryMessage& m, const NavigationState& s, const FrameIds& frames) {
+  EXPECT_EQ(m.stamp_ns, s.t_ns);
+  EXPECT_EQ(m.source_timestamp_ns, s.t_ns);
+  EXPECT_EQ(m.frame_id, frames.world);
+  EXPECT_EQ(m.child_frame_id, frames.body);
+  EXPECT_EQ(m.p_w_b, s.p_w_b);
+  EXPECT_EQ(m.q_w_b.coeffs(), s.q_w_b.normalized().coeffs());
+  EXPECT_EQ(m.pose_covariance, rosPoseCovariance(s));
+  const BodyTwist twist = bodyTwist(s);
+  EXPECT_EQ(m.v_b, twist.v_b);
+  EXPECT_EQ(m.omega_b, s.omega_b);
+  EXPECT_EQ(m.twist_covariance, twist.covariance);
+}
+
+class DdsPubSub : public ::testing::Test {
+ protected:
+  DdsPubSub()
+      : names_(testing::uniqueTopicNames(testName())),
+        pub_participant_(testing::loopbackOptions()),
+        sub_participant_(testing::loopbackOptions()) {}
+
+  TopicNames names_;
+  Participant pub_participant_;
+  Participant sub_participant_;
+};
+
+TEST_F(DdsPubSub, OdometryArrivesWithExactFields) {
+  PublisherOptions po;
+  po.topics = names_;
+  Publisher pub(pub_participant_, po);
+  SubscriberOptions so;
+  so.topics = names_;
+  Subscriber sub(sub_participant_, so);
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kOdometry, 1, kMatchTimeout));
+  ASSERT_TRUE(sub.waitForPublishers(TopicKind::kOdometry, 1, kMatchTimeout));
+  EXPECT_EQ(pub.matchedSubscribers(TopicKind::kOdometry), 1u);
+
+  std::mt19937 rng(21);
+  std::vector<NavigationState> sent;
+  for (int i = 0; i < 20; ++i) {
+    sent.push_back(testing::randomState(rng, 10'000'000'000 + i * 5'000'000));
+    const WriteStatus ws = pub.publishOdometry(sent.back());
+    ASSERT_TRUE(ws.ok()) << ws.text();
+  }
+  const auto got = receive<OdometryMessage>(sub, sent.size(), [&](auto& out) { sub.takeOdometry(out); });
+  ASSERT_EQ(got.size(), sent.size());  // in-process delivery, reader depth 256: nothing lost
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    SCOPED_TRACE(i);
+    expectOdometryEquals(got[i], sent[i], po.frames);
+  }
+}
+
+TEST_F(DdsPubSub, CustomFramesAndTopicNames) {
+  PublisherOptions po;
+  po.topics = names_;
+  po.topics.odometry = "rt/robot7/odom_";
+  po.topics.odometry += std::to_string(::getpid());
+  po.frames.world = "odom";
+  po.frames.body = "imu_link";
+  Publisher pub(pub_participant_, po);
+  SubscriberOptions so;
+  so.topics = po.topics;
+  so.pose = false;
+  so.status = false;
+  Subscriber sub(sub_participant_, so);
+  EXPECT_FALSE(sub.subscribed(TopicKind::kPose));
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kOdometry, 1, kMatchTimeout));
+  std::mt19937 rng(22);
+  const NavigationState s = testing::randomState(rng, 77'000'000'000);
+  ASSERT_TRUE(pub.publishOdometry(s).ok());
+  const auto got = receive<OdometryMessage>(sub, 1, [&](auto& out) { sub.takeOdometry(out); });
+  ASSERT_EQ(got.size(), 1u);
+  expectOdometryEquals(got[0], s, po.frames);
+  std::vector<PoseMessage> none;
+  EXPECT_EQ(sub.takePose(none), 0u);
+}
+
+TEST_F(DdsPubSub, PoseArrivesWithExactFields) {
+  PublisherOptions po;
+  po.topics = names_;
+  Publisher pub(pub_participant_, po);
+  SubscriberOptions so;
+  so.topics = names_;
+  Subscriber sub(sub_participant_, so);
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kPose, 1, kMatchTimeout));
+  std::mt19937 rng(23);
+  const NavigationState s = testing::randomState(rng, 3'500'000'017);
+  ASSERT_TRUE(pub.publishPose(s).ok());
+  const auto got = receive<PoseMessage>(sub, 1, [&](auto& out) { sub.takePose(out); });
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].stamp_ns, s.t_ns);
+  EXPECT_EQ(got[0].source_timestamp_ns, s.t_ns);
+  EXPECT_EQ(got[0].frame_id, "map");
+  EXPECT_EQ(got[0].p_w_b, s.p_w_b);
+  EXPECT_EQ(got[0].q_w_b.coeffs(), s.q_w_b.normalized().coeffs());
+  EXPECT_EQ(got[0].covariance, rosPoseCovariance(s));
+  std::vector<OdometryMessage> odometry;
+  EXPECT_EQ(sub.takeOdometry(odometry), 0u);  // topics do not mix
+}
+
+TEST_F(DdsPubSub, StatusArrivesWithExactFields) {
+  PublisherOptions po;
+  po.topics = names_;
+  Publisher pub(pub_participant_, po);
+  SubscriberOptions so;
+  so.topics = names_;
+  Subscriber sub(sub_participant_, so);
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kStatus, 1, kMatchTimeout));
+  const ServiceStatus s = testing::sampleStatus(9'000'000'000);
+  ASSERT_TRUE(pub.publishStatus(s).ok());
+  const auto got = receive<StatusMessage>(sub, 1, [&](auto& out) { sub.takeStatus(out); });
+  ASSERT_EQ(got.size(), 1u);
+  const ServiceStatus& r = got[0].status;
+  EXPECT_EQ(got[0].state_name, "degraded");
+  EXPECT_EQ(got[0].source_timestamp_ns, s.t_ns);
+  EXPECT_EQ(r.t_ns, s.t_ns);
+  EXPECT_EQ(r.state, s.state);
+  EXPECT_EQ(r.imu_samples, s.imu_samples);
+  EXPECT_EQ(r.range_samples, s.range_samples);
+  EXPECT_EQ(r.queue_overflows, s.queue_overflows);
+  EXPECT_EQ(r.late_updates, s.late_updates);
+  EXPECT_EQ(r.sensor_faults, s.sensor_faults);
+  EXPECT_EQ(r.sensor_silences, s.sensor_silences);
+  EXPECT_EQ(r.reinitializations, s.reinitializations);
+  EXPECT_EQ(r.rejected_ranges, s.rejected_ranges);
+  EXPECT_EQ(r.published_odometry, s.published_odometry);
+  EXPECT_EQ(r.last_update_ms, s.last_update_ms);
+  EXPECT_EQ(r.mean_update_ms, s.mean_update_ms);
+  EXPECT_EQ(r.max_update_ms, s.max_update_ms);
+  EXPECT_EQ(r.last_cliques_reeliminated, s.last_cliques_reeliminated);
+  EXPECT_EQ(r.last_relinearized, s.last_relinearized);
+  EXPECT_EQ(r.last_lambda, s.last_lambda);
+  EXPECT_EQ(r.odometry_latency_ms, s.odometry_latency_ms);
+  EXPECT_EQ(r.pose_latency_ms, s.pose_latency_ms);
+  EXPECT_STREQ(r.last_fault.data(), "dwm3000 /dev/spidev0.0: RX timeout");
+}
+
+TEST_F(DdsPubSub, StatusFaultFillingTheWholeArrayStaysTerminated) {
+  PublisherOptions po;
+  po.topics = names_;
+  Publisher pub(pub_participant_, po);
+  SubscriberOptions so;
+  so.topics = names_;
+  so.odometry = false;
+  so.pose = false;
+  Subscriber sub(sub_participant_, so);
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kStatus, 1, kMatchTimeout));
+  ServiceStatus s = testing::sampleStatus(1);
+  s.last_fault.fill('f');  // no terminating NUL in the source
+  s.state = TrackingState::kLost;
+  ASSERT_TRUE(pub.publishStatus(s).ok());
+  const auto got = receive<StatusMessage>(sub, 1, [&](auto& out) { sub.takeStatus(out); });
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(std::string(got[0].status.last_fault.data()), std::string(127, 'f'));
+  EXPECT_EQ(got[0].state_name, "lost");
+}
+
+// Transient-local: a listener that joins after the last status still gets it.
+TEST_F(DdsPubSub, LateStatusSubscriberGetsTheLastStatus) {
+  PublisherOptions po;
+  po.topics = names_;
+  Publisher pub(pub_participant_, po);
+  ServiceStatus first = testing::sampleStatus(1'000);
+  first.state = TrackingState::kInitializing;
+  ASSERT_TRUE(pub.publishStatus(first).ok());
+  const ServiceStatus last = testing::sampleStatus(2'000);
+  ASSERT_TRUE(pub.publishStatus(last).ok());
+
+  SubscriberOptions so;
+  so.topics = names_;
+  Subscriber sub(sub_participant_, so);
+  const auto got = receive<StatusMessage>(sub, 1, [&](auto& out) { sub.takeStatus(out); });
+  ASSERT_EQ(got.size(), 1u);  // keep-last 1: only the newest
+  EXPECT_EQ(got[0].status.t_ns, last.t_ns);
+  EXPECT_EQ(got[0].state_name, "degraded");
+}
+
+TEST_F(DdsPubSub, WaitForDataTimesOutWithoutPublisher) {
+  SubscriberOptions so;
+  so.topics = names_;
+  Subscriber sub(sub_participant_, so);
+  EXPECT_FALSE(sub.waitForData(50ms));
+  EXPECT_EQ(sub.matchedPublishers(TopicKind::kOdometry), 0u);
+  EXPECT_FALSE(sub.waitForPublishers(TopicKind::kPose, 1, 50ms));
+}
+
+TEST_F(DdsPubSub, InvalidStatesAreRejectedWithoutWriting) {
+  PublisherOptions po;
+  po.topics = names_;
+  Publisher pub(pub_participant_, po);
+  SubscriberOptions so;
+  so.topics = names_;
+  Subscriber sub(sub_participant_, so);
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kOdometry, 1, kMatchTimeout));
+  std::mt19937 rng(24);
+  NavigationState s = testing::randomState(rng, 1'000);
+  s.valid = false;
+  WriteStatus ws = pub.publishOdometry(s);
+  EXPECT_EQ(ws.code, DDS_RETCODE_PRECONDITION_NOT_MET);
+  EXPECT_STREQ(ws.text(), "navigation state not valid (estimator not initialized)");
+  s.valid = true;
+  s.t_ns = -5;
+  ws = pub.publishPose(s);
+  EXPECT_EQ(ws.code, DDS_RETCODE_BAD_PARAMETER);
+  EXPECT_STREQ(ws.text(), "negative t_ns");
+  s.t_ns = 5;
+  s.p_w_b.x() = std::numeric_limits<double>::quiet_NaN();
+  ws = pub.publishOdometry(s);
+  EXPECT_EQ(ws.code, DDS_RETCODE_BAD_PARAMETER);
+  EXPECT_STREQ(ws.text(), "non-finite navigation state");
+  EXPECT_FALSE(sub.waitForData(100ms));
+  EXPECT_STREQ(WriteStatus{}.text(), dds_strretcode(DDS_RETCODE_OK));
+}
+
+}  // namespace
+}  // namespace rilo::dds

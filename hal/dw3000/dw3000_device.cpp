@@ -1,0 +1,507 @@
+#include "hal/dw3000/dw3000_device.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "hal/dw3000/clock_offset.h"
+#include "hal/dw3000/registers.h"
+#include "hal/dw3000/timestamp.h"
+
+namespace rilo::dw3000 {
+namespace {
+
+class Dw3000Category final : public std::error_category {
+ public:
+  const char* name() const noexcept override { return "dw3000"; }
+  std::string message(int value) const override {
+    switch (static_cast<Dw3000Errc>(value)) {
+      case Dw3000Errc::kReadCrcMismatch: return "SPI read CRC mismatch";
+      case Dw3000Errc::kTooManyBytes: return "SPI access longer than the driver's buffers";
+    }
+    return "unknown dw3000 error";
+  }
+};
+
+std::string hex32(std::uint32_t v) {
+  char text[16];
+  std::snprintf(text, sizeof text, "0x%08X", v);
+  return text;
+}
+
+std::string msText(std::int64_t ns) {
+  char text[32];
+  const double ms = static_cast<double>(ns) * 1e-6;
+  std::snprintf(text, sizeof text, ms >= 1.0 ? "%.0f ms" : "%.3g ms", ms);
+  return text;
+}
+
+std::uint32_t le32(const std::uint8_t* p) {
+  return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
+         (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
+}
+
+void putLe(std::uint32_t v, std::uint8_t* p, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) p[i] = static_cast<std::uint8_t>((v >> (8 * i)) & 0xFFu);
+}
+
+// Events that end an exchange (the interrupt mask, SPICRCE added with CRC).
+constexpr std::uint32_t kExchangeEnd = status::kRxFcg | status::kAllRxErrors | status::kAllRxTimeouts;
+
+}  // namespace
+
+const std::error_category& dw3000Category() noexcept {
+  static const Dw3000Category category;
+  return category;
+}
+
+std::error_code make_error_code(Dw3000Errc e) noexcept { return {static_cast<int>(e), dw3000Category()}; }
+
+const char* toString(ExchangeStatus status) noexcept {
+  switch (status) {
+    case ExchangeStatus::kOk: return "ok";
+    case ExchangeStatus::kRxTimeout: return "RX timeout";
+    case ExchangeStatus::kRxError: return "RX error";
+    case ExchangeStatus::kBadFrame: return "unexpected frame";
+    case ExchangeStatus::kImplausibleRange: return "implausible range";
+    case ExchangeStatus::kSpiError: return "SPI error";
+    case ExchangeStatus::kSpiCrcError: return "SPI CRC error";
+    case ExchangeStatus::kIrqWaitError: return "IRQ wait error";
+    case ExchangeStatus::kTxFailed: return "poll not transmitted";
+    case ExchangeStatus::kHostTimeout: return "no IRQ and no RX event";
+  }
+  return "?";
+}
+
+Dw3000Device::Dw3000Device(const Dw3000Config& config, hal::SpiDevice& spi, hal::InterruptLine& irq,
+                           hal::OutputLine* reset, hal::Clock& clock)
+    : config_(config), spi_(spi), irq_(irq), reset_(reset), clock_(clock) {
+  validateConfig(config_);
+  const double budget_us = shrDurationUs(config_) + payloadAirtimeUs(config_, kPollLength + kFcsLength) +
+                           config_.rx_after_tx_delay_us + config_.rx_timeout_us;
+  exchange_timeout_ns_ = static_cast<std::int64_t>(std::ceil(budget_us * 1e3)) + config_.irq_wait_margin_ns;
+}
+
+// ---------------------------------------------------------------------------
+// Register access
+
+std::error_code Dw3000Device::read(RegAddr addr, std::span<std::uint8_t> out) noexcept {
+  if (out.size() > kMaxAccess) return make_error_code(Dw3000Errc::kTooManyBytes);
+  const SpiHeader header = encodeHeader(addr, false);
+  const std::array<hal::SpiTransfer, 2> xfers{{{header.bytes.data(), nullptr, header.size, false},
+                                               {nullptr, out.data(), out.size(), false}}};
+  if (const std::error_code e = spi_.transfer(xfers)) return e;
+  if (crc_enabled_ && !(addr == reg::kSpiRdCrc)) {
+    // The chip keeps the CRC of the last read (header and data) in SPI_RD_CRC.
+    const std::uint8_t expected = crc8(out, crc8(header.view()));
+    std::uint8_t reported = 0;
+    if (const std::error_code e = read(reg::kSpiRdCrc, {&reported, 1})) return e;
+    if (reported != expected) return make_error_code(Dw3000Errc::kReadCrcMismatch);
+  }
+  return {};
+}
+
+std::error_code Dw3000Device::write(RegAddr addr, std::span<const std::uint8_t> data) noexcept {
+  if (data.size() > kMaxAccess) return make_error_code(Dw3000Errc::kTooManyBytes);
+  const SpiHeader header = encodeHeader(addr, true);
+  std::uint8_t crc = 0;
+  std::size_t count = 2;
+  if (crc_enabled_) {
+    crc = crc8(data, crc8(header.view()));
+    count = 3;
+  }
+  const std::array<hal::SpiTransfer, 3> xfers{{{header.bytes.data(), nullptr, header.size, false},
+                                               {data.data(), nullptr, data.size(), false},
+                                               {&crc, nullptr, 1, false}}};
+  return spi_.transfer(std::span<const hal::SpiTransfer>(xfers.data(), count));
+}
+
+std::error_code Dw3000Device::writeMasked(RegAddr addr, AccessMode mode, std::uint32_t and_mask,
+                                          std::uint32_t or_mask) noexcept {
+  const std::size_t body_size = maskedBodySize(mode);
+  if (body_size == 0) return std::make_error_code(std::errc::invalid_argument);
+  const std::size_t width = body_size / 2;
+  const SpiHeader header = encodeHeader(addr, true, mode);
+  std::array<std::uint8_t, 9> body{};
+  putLe(and_mask, body.data(), width);
+  putLe(or_mask, body.data() + width, width);
+  std::size_t size = body_size;
+  if (crc_enabled_) body[size++] = crc8({body.data(), body_size}, crc8(header.view()));
+  const std::array<hal::SpiTransfer, 2> xfers{{{header.bytes.data(), nullptr, header.size, false},
+                                               {body.data(), nullptr, size, false}}};
+  return spi_.transfer(xfers);
+}
+
+std::error_code Dw3000Device::fastCommand(std::uint8_t command) noexcept {
+  const std::uint8_t byte = encodeFastCommand(command);
+  const std::array<hal::SpiTransfer, 1> xfers{{{&byte, nullptr, 1, false}}};
+  return spi_.transfer(xfers);
+}
+
+std::error_code Dw3000Device::read32(RegAddr addr, std::uint32_t& value) noexcept {
+  std::array<std::uint8_t, 4> bytes{};
+  const std::error_code e = read(addr, bytes);
+  value = le32(bytes.data());
+  return e;
+}
+
+std::error_code Dw3000Device::write32(RegAddr addr, std::uint32_t value) noexcept {
+  std::array<std::uint8_t, 4> bytes{};
+  putLe(value, bytes.data(), 4);
+  return write(addr, bytes);
+}
+
+// ---------------------------------------------------------------------------
+// Bring-up
+
+void Dw3000Device::fail(Dw3000Error::Kind kind, const std::string& what) const {
+  throw Dw3000Error(kind, "dw3000 " + spi_.path() + ": " + what);
+}
+
+void Dw3000Device::check(std::error_code e, const char* step) const {
+  if (!e) return;
+  const auto kind = e == Dw3000Errc::kReadCrcMismatch ? Dw3000Error::Kind::kSpiCrc : Dw3000Error::Kind::kSpi;
+  fail(kind, std::string("SPI failed while ") + step + ": " + e.message());
+}
+
+void Dw3000Device::resetChip() {
+  if (reset_ != nullptr) {
+    if (const std::error_code e = reset_->set(false)) {
+      fail(Dw3000Error::Kind::kSpi, "cannot drive reset line " + reset_->path() + " low: " + e.message());
+    }
+    clock_.sleepForNs(config_.reset_low_ns);
+    if (const std::error_code e = reset_->set(true)) {
+      fail(Dw3000Error::Kind::kSpi, "cannot release reset line " + reset_->path() + ": " + e.message());
+    }
+    return;
+  }
+  // Soft reset through SOFT_RST (UNVERIFIED: Qorvo's driver also forces the
+  // system clock to the RC oscillator first).
+  const std::uint8_t assert_reset = 0x00;
+  const std::uint8_t release = 0xFF;
+  check(write(reg::kSoftRst, {&assert_reset, 1}), "asserting SOFT_RST");
+  crc_enabled_ = false;  // the reset turned the chip's SPI CRC off
+  clock_.sleepForNs(config_.reset_low_ns);
+  check(write(reg::kSoftRst, {&release, 1}), "releasing SOFT_RST");
+}
+
+std::uint32_t Dw3000Device::waitStatus(std::uint32_t bits, std::int64_t timeout_ns, const char* step) {
+  const std::int64_t deadline_ns = clock_.nowNs() + timeout_ns;
+  std::uint32_t st = 0;
+  for (;;) {
+    check(read32(reg::kSysStatus, st), step);
+    if ((st & bits) == bits || clock_.nowNs() >= deadline_ns) return st;
+    clock_.sleepForNs(config_.poll_interval_ns);
+  }
+}
+
+std::error_code Dw3000Device::clearAllStatus() noexcept {
+  if (const std::error_code e = write32(reg::kSysStatus, 0xFFFF'FFFFu)) return e;
+  const std::array<std::uint8_t, 2> ones{0xFF, 0xFF};
+  return write(reg::kSysStatusHi, ones);
+}
+
+std::error_code Dw3000Device::drainEdges() noexcept {
+  // Stale edges (from before the last clear) would end the next wait early.
+  hal::EdgeEvent event;
+  std::error_code error;
+  for (int i = 0; i < 32; ++i) {
+    const hal::WaitResult w = irq_.waitEdge(std::chrono::nanoseconds(0), event, error);
+    if (w == hal::WaitResult::kError) return error ? error : std::make_error_code(std::errc::io_error);
+    if (w != hal::WaitResult::kEdge) break;
+  }
+  return {};
+}
+
+void Dw3000Device::bringUp() {
+  dev_id_ = 0;
+  if (const std::error_code e = spi_.setSpeedHz(config_.spi_slow_hz)) {
+    fail(Dw3000Error::Kind::kSpi, "cannot set the slow SPI clock (" + std::to_string(config_.spi_slow_hz) +
+                                      " Hz): " + e.message());
+  }
+  resetChip();  // a soft reset still speaks the CRC mode of the last bring-up
+  crc_enabled_ = false;
+
+  // IDLE_RC: SPIRDY and RCINIT both set.
+  const std::uint32_t ready = status::kSpiRdy | status::kRcInit;
+  const std::uint32_t boot_status = waitStatus(ready, config_.boot_timeout_ns, "waiting for SPIRDY/RCINIT");
+  if ((boot_status & ready) != ready) {
+    fail(Dw3000Error::Kind::kBootTimeout,
+         "no SPIRDY/RCINIT within " + msText(config_.boot_timeout_ns) + " after reset (SYS_STATUS reads " +
+             hex32(boot_status) + "): check power, the reset line and the SPI wiring (mode 0)");
+  }
+
+  check(read32(reg::kDevId, dev_id_), "reading DEV_ID");
+  if (dev_id_ != kDevIdDw3110 && dev_id_ != kDevIdDw3120) {
+    fail(Dw3000Error::Kind::kWrongDevId, "DEV_ID reads " + hex32(dev_id_) + ", expected " + hex32(kDevIdDw3110) +
+                                             " (DW3110) or " + hex32(kDevIdDw3120) +
+                                             " (DW3120): wrong device, wiring or SPI mode");
+  }
+  check(clearAllStatus(), "clearing SYS_STATUS");
+
+  if (config_.spi_crc) {
+    // This write itself carries no CRC; everything after it does.
+    check(writeMasked(reg::kSysCfg, AccessMode::kMask8, 0xFF, sys_cfg::kSpiCrc), "enabling SPI CRC");
+    crc_enabled_ = true;
+    std::uint32_t sys_cfg = 0;
+    check(read32(reg::kSysCfg, sys_cfg), "reading SYS_CFG back");
+    if ((sys_cfg & sys_cfg::kSpiCrc) == 0) {
+      fail(Dw3000Error::Kind::kSpiCrc, "SYS_CFG reads " + hex32(sys_cfg) + " after enabling SPI CRC");
+    }
+  }
+
+  // Channel, preamble, SFD; frame wait timeout enable; TX frame control.
+  const std::uint32_t chan_ctrl = (config_.channel == UwbChannel::k9 ? 1u : 0u) |
+                                  (static_cast<std::uint32_t>(config_.sfd_type) << 1) |
+                                  (static_cast<std::uint32_t>(config_.preamble_code) << 3) |
+                                  (static_cast<std::uint32_t>(config_.preamble_code) << 8);
+  check(write32(reg::kChanCtrl, chan_ctrl), "writing CHAN_CTRL");
+  check(writeMasked(reg::kSysCfg, AccessMode::kMask32, ~sys_cfg::kPhr6M8, sys_cfg::kRxWtoe), "writing SYS_CFG");
+  const std::uint32_t tx_fctrl = (static_cast<std::uint32_t>(preambleLengthCode(config_.preamble_length))
+                                  << tx_fctrl::kPsrShift) |
+                                 (config_.data_rate == DataRate::k6M8 ? tx_fctrl::kBr6M8 : 0u) | tx_fctrl::kRanging;
+  check(write32(reg::kTxFctrl, tx_fctrl), "writing TX_FCTRL");
+  check(write32(reg::kPanAdr, (static_cast<std::uint32_t>(config_.pan_id) << 16) | config_.tag_address),
+        "writing PAN_ADR");
+  for (const RegisterWrite& w : config_.extra_init_writes) {
+    std::array<std::uint8_t, 4> bytes{};
+    putLe(w.value, bytes.data(), w.length);
+    check(write(w.addr, {bytes.data(), w.length}), "applying extra_init_writes");
+  }
+
+  const std::uint32_t pll_status = waitStatus(status::kCpLock, config_.pll_lock_timeout_ns, "waiting for CP_LOCK");
+  if ((pll_status & status::kCpLock) == 0) {
+    fail(Dw3000Error::Kind::kPllLock,
+         "PLL did not lock: CP_LOCK not set within " + msText(config_.pll_lock_timeout_ns) +
+             " after configuring channel " + std::to_string(static_cast<int>(config_.channel)) +
+             " (SYS_STATUS reads " + hex32(pll_status) + ")");
+  }
+
+  // Antenna delays, RX-after-TX delay and frame wait timeout.
+  const std::array<std::uint8_t, 2> tx_antd{static_cast<std::uint8_t>(config_.tx_antenna_delay & 0xFFu),
+                                            static_cast<std::uint8_t>(config_.tx_antenna_delay >> 8)};
+  check(write(reg::kTxAntd, tx_antd), "writing TX_ANTD");
+  check(writeMasked(reg::kCiaConf, AccessMode::kMask16, 0x0000, config_.rx_antenna_delay), "writing CIA_CONF");
+  check(writeMasked(reg::kAckResp, AccessMode::kMask32, ~0xFFFFFu,
+                    uwbMicrosecondsFromUs(config_.rx_after_tx_delay_us)),
+        "writing ACK_RESP (W4R_TIM)");
+  check(writeMasked(reg::kRxFwto, AccessMode::kMask32, ~0xFFFFFu, uwbMicrosecondsFromUs(config_.rx_timeout_us)),
+        "writing RX_FWTO");
+
+  // Interrupts: clear everything, then unmask only what ends an exchange.
+  check(clearAllStatus(), "clearing SYS_STATUS");
+  irq_mask_ = kExchangeEnd | (crc_enabled_ ? status::kSpiCrcE : 0u);
+  check(write32(reg::kSysEnable, irq_mask_), "writing SYS_ENABLE");
+  const std::array<std::uint8_t, 2> zero{0, 0};
+  check(write(reg::kSysEnableHi, zero), "writing SYS_ENABLE (high)");
+
+  if (crc_enabled_) {
+    std::uint32_t st = 0;
+    check(read32(reg::kSysStatus, st), "reading SYS_STATUS");
+    if ((st & status::kSpiCrcE) != 0) {
+      fail(Dw3000Error::Kind::kSpiCrc,
+           "SPI CRC error reported during configuration (SYS_STATUS " + hex32(st) + "): check SPI signal integrity");
+    }
+  }
+  bool high = false;
+  if (const std::error_code e = irq_.readLevel(high)) {
+    fail(Dw3000Error::Kind::kIrqStuck, "cannot read IRQ line " + irq_.path() + ": " + e.message());
+  }
+  if (high) {
+    fail(Dw3000Error::Kind::kIrqStuck, "IRQ line " + irq_.path() +
+                                           " is high with SYS_STATUS cleared: check the IRQ wiring and polarity "
+                                           "(active high expected)");
+  }
+
+  // Fast SPI, proven by reading DEV_ID again.
+  if (const std::error_code e = spi_.setSpeedHz(config_.spi_fast_hz)) {
+    fail(Dw3000Error::Kind::kFastSpi, "cannot set the fast SPI clock (" + std::to_string(config_.spi_fast_hz) +
+                                          " Hz): " + e.message());
+  }
+  std::uint32_t fast_id = 0;
+  const std::error_code e = read32(reg::kDevId, fast_id);
+  if (e || fast_id != dev_id_) {
+    fail(Dw3000Error::Kind::kFastSpi,
+         "DEV_ID reads " + hex32(fast_id) + (e ? " (" + e.message() + ")" : std::string()) + " at spi_fast_hz = " +
+             std::to_string(config_.spi_fast_hz) + " Hz (" + hex32(dev_id_) + " at the slow clock): lower spi_fast_hz");
+  }
+  if (const std::error_code drain_error = drainEdges()) {
+    fail(Dw3000Error::Kind::kIrqStuck, "cannot read IRQ line " + irq_.path() + ": " + drain_error.message());
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Ranging
+
+IrqCheck Dw3000Device::clearAndCheckIrq(std::uint32_t seen_status) noexcept {
+  // Every bit we saw, every event an exchange can raise and every enabled
+  // bit: an enabled bit left set holds the line high and no edge ever comes.
+  (void)write32(reg::kSysStatus, seen_status | status::kAllTxRxEvents | status::kSpiCrcE | irq_mask_);
+  bool high = false;
+  if (irq_.readLevel(high) || !high) return IrqCheck::kOk;
+  // Stuck high: clear every bit of both words and the IRQ summary.
+  (void)clearAllStatus();
+  (void)fastCommand(fast_cmd::kClrIrqs);
+  if (irq_.readLevel(high) || !high) return IrqCheck::kRecovered;
+  return IrqCheck::kStuck;
+}
+
+void Dw3000Device::abortExchange(ExchangeResult& r, std::uint32_t seen_status) noexcept {
+  (void)fastCommand(fast_cmd::kTxRxOff);
+  r.irq = clearAndCheckIrq(seen_status);
+}
+
+void Dw3000Device::readResponse(const AnchorConfig& anchor, std::uint8_t sequence, ExchangeResult& r) noexcept {
+  const auto spiFault = [&r](std::error_code e) {
+    r.error = e;
+    r.status = e == Dw3000Errc::kReadCrcMismatch ? ExchangeStatus::kSpiCrcError : ExchangeStatus::kSpiError;
+  };
+  std::uint32_t finfo = 0;
+  if (const std::error_code e = read32(reg::kRxFinfo, finfo)) return spiFault(e);
+  const std::size_t length = finfo & 0x3FFu;
+  if (length != kResponseLength + kFcsLength) {
+    r.status = ExchangeStatus::kBadFrame;
+    r.frame_error = FrameError::kWrongLength;
+    return;
+  }
+  std::array<std::uint8_t, kResponseLength> frame_bytes{};
+  if (const std::error_code e = read(reg::kRxBuffer0, frame_bytes)) return spiFault(e);
+  ResponseFrame response;
+  r.frame_error = decodeResponse(frame_bytes, response);
+  if (r.frame_error == FrameError::kOk) {
+    if (response.pan_id != config_.pan_id || response.destination != config_.tag_address ||
+        response.source != anchor.short_address) {
+      r.frame_error = FrameError::kWrongAddress;
+    } else if (response.sequence != sequence) {
+      r.frame_error = FrameError::kWrongSequence;
+    }
+  }
+  if (r.frame_error != FrameError::kOk) {
+    r.status = ExchangeStatus::kBadFrame;
+    return;
+  }
+
+  std::array<std::uint8_t, 5> stamp{};
+  if (const std::error_code e = read(reg::kTxTime, stamp)) return spiFault(e);
+  r.stamps.poll_tx = readTimestamp40(stamp.data());
+  if (const std::error_code e = read(reg::kRxTime, stamp)) return spiFault(e);
+  r.stamps.resp_rx = readTimestamp40(stamp.data());
+  r.stamps.poll_rx = response.poll_rx;
+  r.stamps.resp_tx = response.resp_tx;
+
+  switch (config_.clock_offset_source) {
+    case ClockOffsetSource::kCiaDiag0: {
+      std::array<std::uint8_t, 2> raw{};
+      if (const std::error_code e = read(reg::kCiaDiag0, raw)) return spiFault(e);
+      r.clock_offset_ratio = clockOffsetFromCiaDiag0(static_cast<std::uint32_t>(raw[0] | (raw[1] << 8)));
+      break;
+    }
+    case ClockOffsetSource::kCarrierIntegrator: {
+      std::array<std::uint8_t, 3> raw{};  // all 21 bits, not one byte
+      if (const std::error_code e = read(reg::kDrxDiag3, raw)) return spiFault(e);
+      r.clock_offset_ratio =
+          clockOffsetFromCarrierIntegrator(carrierIntegratorFromBytes(raw[0], raw[1], raw[2]), config_.channel);
+      break;
+    }
+    case ClockOffsetSource::kNone: r.clock_offset_ratio = 0.0; break;
+  }
+
+  r.twr = computeSsTwr(r.stamps, r.clock_offset_ratio);
+  r.range_m = r.twr.range_m;
+  if (!(r.range_m >= config_.min_range_m && r.range_m <= config_.max_range_m)) {
+    r.status = ExchangeStatus::kImplausibleRange;
+    return;
+  }
+  r.status = ExchangeStatus::kOk;
+}
+
+ExchangeResult Dw3000Device::range(const AnchorConfig& anchor) noexcept {
+  ExchangeResult r;
+  const auto spiFault = [&](std::error_code e, std::uint32_t seen) {
+    r.error = e;
+    r.status = e == Dw3000Errc::kReadCrcMismatch ? ExchangeStatus::kSpiCrcError : ExchangeStatus::kSpiError;
+    r.t_ns = clock_.nowNs();
+    abortExchange(r, seen);
+    return r;
+  };
+  if (const std::error_code e = drainEdges()) {
+    r.status = ExchangeStatus::kIrqWaitError;
+    r.error = e;
+    r.t_ns = clock_.nowNs();
+    return r;
+  }
+
+  // Poll frame, its length, then TX and wait-for-response in one command.
+  const std::uint8_t sequence = sequence_++;
+  std::array<std::uint8_t, kPollLength> poll{};
+  encodePoll(PollFrame{sequence, config_.pan_id, anchor.short_address, config_.tag_address}, poll);
+  if (const std::error_code e = write(reg::kTxBuffer, poll)) return spiFault(e, 0);
+  if (const std::error_code e = writeMasked(reg::kTxFctrl, AccessMode::kMask16, ~tx_fctrl::kLengthMask & 0xFFFFu,
+                                            static_cast<std::uint32_t>(kPollLength + kFcsLength))) {
+    return spiFault(e, 0);
+  }
+  if (const std::error_code e = fastCommand(fast_cmd::kTxW4r)) return spiFault(e, 0);
+
+  // Wait for an event that ends the exchange; other edges are ignored.
+  const std::uint32_t end_bits = irq_mask_ | kExchangeEnd;
+  const std::int64_t deadline_ns = clock_.nowNs() + exchange_timeout_ns_;
+  std::uint32_t st = 0;
+  for (;;) {
+    const std::int64_t remaining_ns = std::max<std::int64_t>(0, deadline_ns - clock_.nowNs());
+    hal::EdgeEvent edge;
+    std::error_code wait_error;
+    const hal::WaitResult w = irq_.waitEdge(std::chrono::nanoseconds(remaining_ns), edge, wait_error);
+    if (w == hal::WaitResult::kError) {
+      r.status = ExchangeStatus::kIrqWaitError;
+      r.error = wait_error;
+      r.t_ns = clock_.nowNs();
+      (void)read32(reg::kSysStatus, st);
+      r.sys_status = st;
+      abortExchange(r, st);
+      return r;
+    }
+    if (const std::error_code e = read32(reg::kSysStatus, st)) return spiFault(e, 0);
+    if ((st & end_bits) != 0) {
+      r.missed_edge = w != hal::WaitResult::kEdge;
+      r.t_ns = r.missed_edge ? clock_.nowNs() : edge.t_ns;
+      break;
+    }
+    if (w == hal::WaitResult::kTimeout) {
+      // The chip never ended the exchange: either the poll never went out or
+      // the receiver/IRQ is wedged. Both are device faults.
+      r.status = (st & status::kTxFrs) == 0 ? ExchangeStatus::kTxFailed : ExchangeStatus::kHostTimeout;
+      r.t_ns = clock_.nowNs();
+      r.sys_status = st;
+      abortExchange(r, st);
+      return r;
+    }
+  }
+  r.sys_status = st;
+
+  if ((st & status::kSpiCrcE) != 0) {
+    r.status = ExchangeStatus::kSpiCrcError;  // one of our writes was dropped by the chip
+    abortExchange(r, st);
+    return r;
+  }
+  if ((st & status::kAllRxErrors) != 0) {
+    r.status = ExchangeStatus::kRxError;
+    abortExchange(r, st);
+    return r;
+  }
+  if ((st & status::kAllRxTimeouts) != 0 || (st & status::kRxFcg) == 0) {
+    r.status = ExchangeStatus::kRxTimeout;
+    abortExchange(r, st);
+    return r;
+  }
+
+  readResponse(anchor, sequence, r);
+  if (isDeviceFault(r.status)) {
+    abortExchange(r, st);
+    return r;
+  }
+  r.irq = clearAndCheckIrq(st);
+  return r;
+}
+
+}  // namespace rilo::dw3000

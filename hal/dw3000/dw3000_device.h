@@ -1,0 +1,146 @@
+#pragma once
+// DW3000 register access and the SS-TWR exchange, on the bus interfaces
+// (hal::SpiDevice, hal::InterruptLine, an optional reset hal::OutputLine,
+// hal::Clock so virtual time works in tests).
+//
+// bringUp(): reset pulse, slow SPI, SPIRDY + RCINIT, DEV_ID, SPI CRC, channel
+// configuration, CP_LOCK, antenna delays, RX-after-TX delay and RX timeout,
+// interrupt mask, fast SPI (DEV_ID re-read to prove the fast clock works).
+// Throws Dw3000Error with a message naming the device and what was seen.
+//
+// range(): one poll/response exchange (TX_W4R: the chip opens its receiver
+// itself, so Linux latency never enters the ranging timing), never throws,
+// never allocates; every status bit it can leave behind is cleared and the
+// IRQ line is checked low afterwards.
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+
+#include "hal/bus/clock.h"
+#include "hal/bus/gpio_line.h"
+#include "hal/bus/spi_device.h"
+#include "hal/dw3000/dw3000_config.h"
+#include "hal/dw3000/spi_framing.h"
+#include "hal/dw3000/ss_twr.h"
+#include "hal/dw3000/twr_frame.h"
+
+namespace rilo::dw3000 {
+
+/// Errors of this driver that are not errno values.
+enum class Dw3000Errc {
+  kReadCrcMismatch = 1,  ///< SPI_RD_CRC differs from the CRC of the bytes we read
+  kTooManyBytes,         ///< access longer than the driver's fixed buffers
+};
+const std::error_category& dw3000Category() noexcept;
+std::error_code make_error_code(Dw3000Errc e) noexcept;
+
+/// A bring-up failure: what() names the device path and what was read.
+class Dw3000Error : public std::runtime_error {
+ public:
+  enum class Kind { kSpi, kBootTimeout, kWrongDevId, kPllLock, kSpiCrc, kIrqStuck, kFastSpi };
+  Dw3000Error(Kind kind, const std::string& message) : std::runtime_error(message), kind_(kind) {}
+  Kind kind() const noexcept { return kind_; }
+
+ private:
+  Kind kind_;
+};
+
+enum class ExchangeStatus : std::uint8_t {
+  kOk,
+  // Link faults: the anchor did not give us a usable range.
+  kRxTimeout,         ///< RXFTO / RXPTO: nothing (decodable) arrived in time
+  kRxError,           ///< RXPHE, RXFCE, RXFSL, RXSTO, ARFE, CIAERR, RXOVRR
+  kBadFrame,          ///< a good frame that is not our response
+  kImplausibleRange,  ///< outside [min_range_m, max_range_m]
+  // Device faults: the chip or the bus misbehaved.
+  kSpiError,      ///< the SPI back-end failed (errno in `error`)
+  kSpiCrcError,   ///< SPICRCE (a write arrived corrupted) or a read CRC mismatch
+  kIrqWaitError,  ///< the interrupt back-end failed (errno in `error`)
+  kTxFailed,      ///< no TXFRS and no RX event: the poll never went out (PLL unlocked?)
+  kHostTimeout,   ///< poll sent but no RX event and no timeout from the chip
+};
+const char* toString(ExchangeStatus status) noexcept;
+constexpr bool isDeviceFault(ExchangeStatus s) { return s >= ExchangeStatus::kSpiError; }
+
+/// IRQ line check after clearing SYS_STATUS.
+enum class IrqCheck : std::uint8_t {
+  kOk,         ///< low
+  kRecovered,  ///< was high; a full clear (all bits + CLR_IRQS) brought it low
+  kStuck,      ///< still high: the chip needs a reset
+};
+
+struct ExchangeResult {
+  ExchangeStatus status = ExchangeStatus::kOk;
+  IrqCheck irq = IrqCheck::kOk;
+  bool missed_edge = false;      ///< the chip finished but no IRQ edge came (t_ns is the host read time)
+  std::int64_t t_ns = 0;         ///< host time of the RX-good edge (CLOCK_MONOTONIC), or of the failure
+  std::uint32_t sys_status = 0;  ///< SYS_STATUS (low word) that ended the exchange
+  double range_m = std::numeric_limits<double>::quiet_NaN();
+  double clock_offset_ratio = 0.0;
+  TwrTimestamps stamps;
+  TwrResult twr;
+  FrameError frame_error = FrameError::kOk;
+  std::error_code error;         ///< SPI / IRQ back-end error
+};
+
+class Dw3000Device {
+ public:
+  /// Buses are borrowed and must outlive the device; `reset` may be null (a
+  /// soft reset through SOFT_RST is used then, UNVERIFIED sequence).
+  /// Throws std::invalid_argument for a bad configuration.
+  Dw3000Device(const Dw3000Config& config, hal::SpiDevice& spi, hal::InterruptLine& irq, hal::OutputLine* reset,
+               hal::Clock& clock);
+
+  void bringUp();
+  ExchangeResult range(const AnchorConfig& anchor) noexcept;
+
+  std::uint32_t devId() const noexcept { return dev_id_; }
+  std::uint32_t irqMask() const noexcept { return irq_mask_; }
+  bool spiCrcEnabled() const noexcept { return crc_enabled_; }
+  const std::string& path() const noexcept { return spi_.path(); }
+  const Dw3000Config& config() const noexcept { return config_; }
+  /// Host-side wait budget of one exchange (ns).
+  std::int64_t exchangeTimeoutNs() const noexcept { return exchange_timeout_ns_; }
+
+  // Register access (one SPI message each; CRC handled when enabled).
+  std::error_code read(RegAddr addr, std::span<std::uint8_t> out) noexcept;
+  std::error_code write(RegAddr addr, std::span<const std::uint8_t> data) noexcept;
+  std::error_code writeMasked(RegAddr addr, AccessMode mode, std::uint32_t and_mask, std::uint32_t or_mask) noexcept;
+  std::error_code fastCommand(std::uint8_t command) noexcept;
+  std::error_code read32(RegAddr addr, std::uint32_t& value) noexcept;
+  std::error_code write32(RegAddr addr, std::uint32_t value) noexcept;
+
+ private:
+  static constexpr std::size_t kMaxAccess = 128;  // longest register/buffer access
+
+  [[noreturn]] void fail(Dw3000Error::Kind kind, const std::string& what) const;
+  void check(std::error_code e, const char* step) const;
+  void resetChip();
+  std::uint32_t waitStatus(std::uint32_t bits, std::int64_t timeout_ns, const char* step);
+  std::error_code clearAllStatus() noexcept;
+  std::error_code drainEdges() noexcept;
+  IrqCheck clearAndCheckIrq(std::uint32_t seen_status) noexcept;
+  void abortExchange(ExchangeResult& r, std::uint32_t seen_status) noexcept;
+  void readResponse(const AnchorConfig& anchor, std::uint8_t sequence, ExchangeResult& r) noexcept;
+
+  Dw3000Config config_;
+  hal::SpiDevice& spi_;
+  hal::InterruptLine& irq_;
+  hal::OutputLine* reset_;
+  hal::Clock& clock_;
+  bool crc_enabled_ = false;
+  std::uint32_t dev_id_ = 0;
+  std::uint32_t irq_mask_ = 0;
+  std::uint8_t sequence_ = 0;
+  std::int64_t exchange_timeout_ns_ = 0;
+};
+
+}  // namespace rilo::dw3000
+
+template <>
+struct std::is_error_code_enum<rilo::dw3000::Dw3000Errc> : std::true_type {};

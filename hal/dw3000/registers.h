@@ -1,0 +1,115 @@
+#pragma once
+// DW3000 register map: the subset this driver uses, as (file, offset) pairs,
+// status bits and fast commands. Source: docs/hardware-notes.md section 1;
+// entries marked "Qorvo driver" come from Qorvo's public DW3000 driver and
+// are not in the notes (UNVERIFIED on our hardware).
+#include <cstdint>
+
+namespace rilo::dw3000 {
+
+/// A register address: 5-bit file (0x00-0x1F) and 7-bit offset (buffers
+/// files may be read past offset 0x7F by continuing a burst).
+struct RegAddr {
+  std::uint8_t file = 0;
+  std::uint8_t offset = 0;
+  friend constexpr bool operator==(RegAddr a, RegAddr b) { return a.file == b.file && a.offset == b.offset; }
+};
+
+namespace reg {
+inline constexpr RegAddr kDevId{0x00, 0x00};      ///< 4 bytes, 0xDECA0302 / 0xDECA0312
+inline constexpr RegAddr kPanAdr{0x00, 0x0C};     ///< short address (15:0), PAN id (31:16) (Qorvo driver)
+inline constexpr RegAddr kSysCfg{0x00, 0x10};     ///< 4 bytes
+inline constexpr RegAddr kSpiRdCrc{0x00, 0x18};   ///< CRC-8 of the last read (Qorvo driver: SPICRC_CFG)
+inline constexpr RegAddr kSysTime{0x00, 0x1C};    ///< 4 bytes: device time bits 39:8
+inline constexpr RegAddr kTxFctrl{0x00, 0x24};    ///< 4 (+2) bytes
+inline constexpr RegAddr kDxTime{0x00, 0x2C};     ///< 4 bytes: delayed TX/RX time bits 39:8
+inline constexpr RegAddr kRxFwto{0x00, 0x34};     ///< frame wait timeout, bits 19:0, UWB microseconds (Qorvo driver)
+inline constexpr RegAddr kSysEnable{0x00, 0x3C};  ///< interrupt mask, low 32 bits
+inline constexpr RegAddr kSysEnableHi{0x00, 0x40};  ///< interrupt mask, high 16 bits
+inline constexpr RegAddr kSysStatus{0x00, 0x44};  ///< 4 bytes low + 2 bytes high at 0x48; write 1 to clear
+inline constexpr RegAddr kSysStatusHi{0x00, 0x48};
+inline constexpr RegAddr kRxFinfo{0x00, 0x4C};    ///< length bits 9:0 (includes the 2-byte FCS)
+inline constexpr RegAddr kRxTime{0x00, 0x64};     ///< 5 bytes, RX antenna delay applied
+inline constexpr RegAddr kTxTime{0x00, 0x74};     ///< 5 bytes
+inline constexpr RegAddr kTxAntd{0x01, 0x04};     ///< 2 bytes, TX antenna delay (device units)
+inline constexpr RegAddr kAckResp{0x01, 0x08};    ///< W4R_TIM bits 19:0 (RX-after-TX delay, UWB microseconds)
+inline constexpr RegAddr kChanCtrl{0x01, 0x14};   ///< RF_CHAN b0, SFD_TYPE b2:1, TX_PCODE b7:3, RX_PCODE b12:8
+inline constexpr RegAddr kDrxDiag3{0x06, 0x29};   ///< carrier integrator, 21-bit signed (3 bytes read)
+inline constexpr RegAddr kXtalTrim{0x09, 0x14};
+inline constexpr RegAddr kCiaDiag0{0x0C, 0x20};   ///< clock offset bits 12:0 signed, ratio = value / 2^26
+inline constexpr RegAddr kCiaConf{0x0E, 0x00};    ///< RX antenna delay bits 15:0
+inline constexpr RegAddr kSysState{0x0F, 0x30};
+inline constexpr RegAddr kSoftRst{0x11, 0x00};
+inline constexpr RegAddr kRxBuffer0{0x12, 0x00};
+inline constexpr RegAddr kRxBuffer1{0x13, 0x00};
+inline constexpr RegAddr kTxBuffer{0x14, 0x00};
+}  // namespace reg
+
+/// DEV_ID values of the parts we accept.
+inline constexpr std::uint32_t kDevIdDw3110 = 0xDECA0302;
+inline constexpr std::uint32_t kDevIdDw3120 = 0xDECA0312;
+
+/// SYS_CFG bits (Qorvo driver names; SPI_CRC is in the notes).
+namespace sys_cfg {
+inline constexpr std::uint32_t kPhr6M8 = 1u << 5;   ///< PHR at 6.8 Mb/s (Qorvo driver)
+inline constexpr std::uint32_t kSpiCrc = 1u << 6;   ///< SPI CRC check enable
+inline constexpr std::uint32_t kRxWtoe = 1u << 9;   ///< RX frame wait timeout enable (Qorvo driver)
+}  // namespace sys_cfg
+
+/// TX_FCTRL fields (Qorvo driver): TXFLEN 9:0, TXBR b10 (6.8 Mb/s), TR b11
+/// (ranging frame), TXPSR 15:12 (preamble length code).
+namespace tx_fctrl {
+inline constexpr std::uint32_t kLengthMask = 0x3FF;
+inline constexpr std::uint32_t kBr6M8 = 1u << 10;
+inline constexpr std::uint32_t kRanging = 1u << 11;
+inline constexpr int kPsrShift = 12;
+}  // namespace tx_fctrl
+
+/// SYS_STATUS bits (low 32-bit word).
+namespace status {
+inline constexpr std::uint32_t kIrqs = 1u << 0;
+inline constexpr std::uint32_t kCpLock = 1u << 1;
+inline constexpr std::uint32_t kSpiCrcE = 1u << 2;
+inline constexpr std::uint32_t kTxFrs = 1u << 7;
+inline constexpr std::uint32_t kRxPrd = 1u << 8;
+inline constexpr std::uint32_t kRxSfdd = 1u << 9;
+inline constexpr std::uint32_t kCiaDone = 1u << 10;
+inline constexpr std::uint32_t kRxPhd = 1u << 11;
+inline constexpr std::uint32_t kRxPhe = 1u << 12;
+inline constexpr std::uint32_t kRxFr = 1u << 13;
+inline constexpr std::uint32_t kRxFcg = 1u << 14;
+inline constexpr std::uint32_t kRxFce = 1u << 15;
+inline constexpr std::uint32_t kRxFsl = 1u << 16;
+inline constexpr std::uint32_t kRxFto = 1u << 17;
+inline constexpr std::uint32_t kCiaErr = 1u << 18;
+inline constexpr std::uint32_t kRxOvrr = 1u << 20;
+inline constexpr std::uint32_t kRxPto = 1u << 21;
+inline constexpr std::uint32_t kSpiRdy = 1u << 23;
+inline constexpr std::uint32_t kRcInit = 1u << 24;
+inline constexpr std::uint32_t kRxSto = 1u << 26;
+inline constexpr std::uint32_t kHpdWarn = 1u << 27;
+inline constexpr std::uint32_t kCpErr = 1u << 28;
+inline constexpr std::uint32_t kArfe = 1u << 29;
+
+/// Reception failed: header/FCS/sync errors, overrun, CIA failure.
+inline constexpr std::uint32_t kAllRxErrors = kRxPhe | kRxFce | kRxFsl | kRxSto | kArfe | kCiaErr | kRxOvrr;
+/// Receiver gave up waiting: frame wait or preamble detection timeout.
+inline constexpr std::uint32_t kAllRxTimeouts = kRxFto | kRxPto;
+/// Every event a ranging exchange can leave behind (cleared after each one).
+inline constexpr std::uint32_t kAllTxRxEvents = kTxFrs | kRxPrd | kRxSfdd | kCiaDone | kRxPhd | kRxFr | kRxFcg |
+                                                kAllRxErrors | kAllRxTimeouts;
+}  // namespace status
+
+/// Fast commands (`0x81 | cmd << 1`).
+namespace fast_cmd {
+inline constexpr std::uint8_t kTxRxOff = 0x00;
+inline constexpr std::uint8_t kTx = 0x01;
+inline constexpr std::uint8_t kRx = 0x02;
+inline constexpr std::uint8_t kDtx = 0x03;
+inline constexpr std::uint8_t kDrx = 0x04;
+inline constexpr std::uint8_t kTxW4r = 0x0C;
+inline constexpr std::uint8_t kDtxW4r = 0x0D;
+inline constexpr std::uint8_t kClrIrqs = 0x12;
+}  // namespace fast_cmd
+
+}  // namespace rilo::dw3000

@@ -1,0 +1,575 @@
+#include "devices/emulation/dw3000_emulator.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rilo::emu {
+namespace {
+
+// Register map transcribed from docs/hardware-notes.md independently of the
+// driver's registers.h, so a wrong address there shows up as a failing test.
+constexpr std::uint8_t kGen = 0x00;            // general file
+constexpr std::size_t kDevId = 0x00;
+constexpr std::size_t kSysCfg = 0x10;
+constexpr std::size_t kSpiRdCrc = 0x18;
+constexpr std::size_t kSysTime = 0x1C;
+constexpr std::size_t kTxFctrl = 0x24;
+constexpr std::size_t kRxFwto = 0x34;
+constexpr std::size_t kSysEnable = 0x3C;       // 4 bytes + 2 at 0x40
+constexpr std::size_t kSysStatus = 0x44;       // 6 bytes
+constexpr std::size_t kRxFinfo = 0x4C;
+constexpr std::size_t kRxTime = 0x64;
+constexpr std::size_t kTxTime = 0x74;
+constexpr std::uint8_t kFileGen2 = 0x01;
+constexpr std::size_t kTxAntd = 0x04;
+constexpr std::size_t kAckResp = 0x08;
+constexpr std::size_t kChanCtrl = 0x14;
+constexpr std::uint8_t kFileDrx = 0x06;
+constexpr std::size_t kDrxDiag3 = 0x29;
+constexpr std::uint8_t kFileCia = 0x0C;
+constexpr std::size_t kCiaDiag0 = 0x20;
+constexpr std::uint8_t kFileCiaConf = 0x0E;
+constexpr std::uint8_t kFileRst = 0x11;
+constexpr std::uint8_t kFileRxBuf = 0x12;
+constexpr std::uint8_t kFileTxBuf = 0x14;
+
+constexpr std::uint32_t kSysCfgSpiCrc = 0x40;
+constexpr std::uint32_t kSysCfgRxWtoe = 1u << 9;
+
+constexpr std::uint64_t kCpLock = 1u << 1;
+constexpr std::uint64_t kSpiCrcE = 1u << 2;
+constexpr std::uint64_t kTxFrs = 1u << 7;
+constexpr std::uint64_t kRxPrd = 1u << 8;
+constexpr std::uint64_t kRxSfdd = 1u << 9;
+constexpr std::uint64_t kCiaDone = 1u << 10;
+constexpr std::uint64_t kRxPhd = 1u << 11;
+constexpr std::uint64_t kRxFr = 1u << 13;
+constexpr std::uint64_t kRxFcg = 1u << 14;
+constexpr std::uint64_t kRxFto = 1u << 17;
+constexpr std::uint64_t kSpiRdy = 1u << 23;
+constexpr std::uint64_t kRcInit = 1u << 24;
+
+constexpr double kClockHz = 499.2e6 * 128.0;
+constexpr double kUusNs = 512.0 / 499.2e6 * 1e9;
+constexpr double kLightMps = 299702547.0;
+constexpr std::uint64_t kMask40 = (std::uint64_t{1} << 40) - 1;
+
+std::uint8_t crc8(std::span<const std::uint8_t> bytes, std::uint8_t crc) {
+  for (const std::uint8_t b : bytes) {
+    crc ^= b;
+    for (int i = 0; i < 8; ++i) crc = static_cast<std::uint8_t>((crc & 0x80u) ? (crc << 1) ^ 0x07u : crc << 1);
+  }
+  return crc;
+}
+
+std::uint64_t le(std::span<const std::uint8_t> bytes) {
+  std::uint64_t v = 0;
+  for (std::size_t i = bytes.size(); i-- > 0;) v = (v << 8) | bytes[i];
+  return v;
+}
+
+bool readOnly(std::uint8_t file, std::size_t offset) {
+  if (file != kGen) return false;
+  return offset < 4 || offset == kSpiRdCrc || (offset >= kSysTime && offset < kSysTime + 4) ||
+         (offset >= kRxFinfo && offset < kRxFinfo + 4) || (offset >= kRxTime && offset < kRxTime + 5) ||
+         (offset >= kTxTime && offset < kTxTime + 5);
+}
+
+}  // namespace
+
+Dw3000Emulator::Dw3000Emulator(VirtualClock& clock, EmulatedInterruptLine& irq, EmulatedOutputLine* reset,
+                               Dw3000EmulatorParams params)
+    : clock_(clock), irq_(irq), params_(std::move(params)) {
+  for (std::size_t f = 0; f < files_.size(); ++f) {
+    files_[f].assign((f >= kFileRxBuf && f <= kFileTxBuf) ? 1024 : 256, 0);
+  }
+  if (reset != nullptr) {
+    reset->onChange([this](bool high) {
+      if (high) {
+        startBoot();
+      } else {
+        enterReset();
+      }
+    });
+  }
+  enterReset();
+  startBoot();
+}
+
+std::size_t Dw3000Emulator::addResponder(Dw3000ResponderModel model) {
+  responders_.push_back(std::move(model));
+  return responders_.size() - 1;
+}
+
+// ---------------------------------------------------------------------------
+// State
+
+void Dw3000Emulator::enterReset() {
+  soft_reset_held_ = false;
+  ++generation_;
+  ++exchange_;
+  ++counters_.resets;
+  state_ = State::kReset;
+  crc_active_ = false;
+  stuck_active_ = false;
+  stuck_armed_ = false;
+  for (auto& file : files_) std::fill(file.begin(), file.end(), 0);
+  updateIrq();
+}
+
+void Dw3000Emulator::startBoot() {
+  if (state_ != State::kReset) return;
+  state_ = State::kInitRc;
+  const std::uint64_t generation = generation_;
+  if (never_boots_) return;
+  clock_.schedule(clock_.nowNs() + params_.boot_ns, [this, generation] {
+    if (generation != generation_) return;
+    state_ = State::kIdleRc;
+    boot_ns_ = clock_.nowNs();
+    ++counters_.boots;
+    put(kGen, kDevId, params_.dev_id, 4);
+    setStatusBits(kSpiRdy | kRcInit);
+  });
+}
+
+void Dw3000Emulator::relockPll() {
+  if (state_ != State::kIdleRc && state_ != State::kIdlePll) return;
+  state_ = State::kIdleRc;
+  if (pll_failure_count_ > 0) {
+    --pll_failure_count_;
+    return;  // never locks
+  }
+  const std::uint64_t generation = generation_;
+  clock_.schedule(clock_.nowNs() + params_.pll_lock_ns, [this, generation] {
+    if (generation != generation_ || state_ != State::kIdleRc) return;
+    state_ = State::kIdlePll;
+    ++counters_.pll_locks;
+    setStatusBits(kCpLock);
+  });
+}
+
+void Dw3000Emulator::injectPllLossOfLock() {
+  if (state_ == State::kIdlePll) state_ = State::kIdleRc;
+  ++exchange_;
+}
+
+std::uint32_t Dw3000Emulator::spiLimitHz() const {
+  return (state_ == State::kReset || state_ == State::kInitRc) ? params_.max_slow_spi_hz : params_.max_spi_hz;
+}
+
+// ---------------------------------------------------------------------------
+// Registers
+
+std::uint32_t Dw3000Emulator::reg32(std::uint8_t file, std::size_t offset) const {
+  return static_cast<std::uint32_t>(le({files_[file].data() + offset, 4}));
+}
+
+std::uint32_t Dw3000Emulator::peek32(std::uint8_t file, std::uint8_t offset) const { return reg32(file, offset); }
+
+void Dw3000Emulator::put(std::uint8_t file, std::size_t offset, std::uint64_t value, std::size_t bytes) {
+  for (std::size_t i = 0; i < bytes; ++i) files_[file][offset + i] = static_cast<std::uint8_t>((value >> (8 * i)) & 0xFFu);
+}
+
+std::uint64_t Dw3000Emulator::status() const { return le({files_[kGen].data() + kSysStatus, 6}); }
+
+std::uint32_t Dw3000Emulator::enabledInterrupts() const { return reg32(kGen, kSysEnable); }
+
+void Dw3000Emulator::setStatusBits(std::uint64_t bits) {
+  put(kGen, kSysStatus, status() | bits, 6);
+  if (stuck_armed_ && (bits & enabledInterrupts()) != 0) {
+    stuck_armed_ = false;
+    stuck_active_ = true;
+  }
+  updateIrq();
+}
+
+void Dw3000Emulator::clearStatusBits(std::uint64_t bits) {
+  put(kGen, kSysStatus, status() & ~bits, 6);
+  updateIrq();
+}
+
+void Dw3000Emulator::updateIrq() {
+  const std::uint64_t enabled = le({files_[kGen].data() + kSysEnable, 6});
+  irq_.setLevel(stuck_active_ || (status() & enabled) != 0);
+}
+
+double Dw3000Emulator::ourDeviceUnits(double t_ns) const {
+  return static_cast<double>(params_.initial_device_time) +
+         (t_ns - static_cast<double>(boot_ns_)) * 1e-9 * kClockHz * (1.0 + params_.clock_ppm * 1e-6);
+}
+
+double Dw3000Emulator::responderDeviceUnits(const Dw3000ResponderModel& r, double t_ns) const {
+  return static_cast<double>(r.initial_device_time) + t_ns * 1e-9 * kClockHz * (1.0 + r.clock_ppm * 1e-6);
+}
+
+double Dw3000Emulator::responderTimeOf(const Dw3000ResponderModel& r, double units) const {
+  return (units - static_cast<double>(r.initial_device_time)) / (kClockHz * (1.0 + r.clock_ppm * 1e-6)) * 1e9;
+}
+
+std::uint64_t Dw3000Emulator::deviceTimeNow() const {
+  return static_cast<std::uint64_t>(std::llround(ourDeviceUnits(static_cast<double>(clock_.nowNs())))) & kMask40;
+}
+
+std::uint8_t Dw3000Emulator::readByte(std::uint8_t file, std::size_t offset) const {
+  if (file == kGen && offset >= kSysTime && offset < kSysTime + 4) {
+    // SYS_TIME: device time bits 39:8, bit 0 always zero.
+    const std::uint64_t t = (deviceTimeNow() >> 8) & 0xFFFF'FFFEu;
+    return static_cast<std::uint8_t>((t >> (8 * (offset - kSysTime))) & 0xFFu);
+  }
+  return offset < files_[file].size() ? files_[file][offset] : 0;
+}
+
+void Dw3000Emulator::applyWrite(std::uint8_t file, std::size_t offset, std::span<const std::uint8_t> data) {
+  bool chan_ctrl_written = false;
+  bool status_written = false;
+  bool soft_reset = false;
+  bool soft_release = false;
+  std::uint64_t clear_bits = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const std::size_t at = offset + i;
+    if (at >= files_[file].size()) break;
+    if (readOnly(file, at)) continue;
+    if (file == kGen && at >= kSysStatus && at < kSysStatus + 6) {
+      clear_bits |= static_cast<std::uint64_t>(data[i]) << (8 * (at - kSysStatus));
+      status_written = true;
+      continue;
+    }
+    if (file == kFileRst && at == 0) {
+      soft_reset = data[i] == 0x00;
+      soft_release = data[i] == 0xFF;
+    }
+    if (file == kFileGen2 && at >= kChanCtrl && at < kChanCtrl + 4) chan_ctrl_written = true;
+    files_[file][at] = data[i];
+  }
+  if (status_written) {
+    ++counters_.status_clears;
+    clearStatusBits(clear_bits);
+  }
+  if (file == kGen) crc_active_ = (reg32(kGen, kSysCfg) & kSysCfgSpiCrc) != 0;
+  if (chan_ctrl_written) relockPll();
+  if (soft_reset) {
+    enterReset();
+    soft_reset_held_ = true;
+  }
+  if (soft_release) startBoot();
+  updateIrq();
+}
+
+// ---------------------------------------------------------------------------
+// SPI
+
+std::error_code Dw3000Emulator::setSpeedHz(std::uint32_t speed_hz) noexcept {
+  speed_hz_ = speed_hz;
+  return {};
+}
+
+std::error_code Dw3000Emulator::transfer(std::span<const hal::SpiTransfer> transfers) noexcept {
+  if (fail_count_ > 0) {
+    --fail_count_;
+    return fail_error_;
+  }
+  // Split into chip-select frames (cs_change ends one) and run each.
+  std::vector<std::uint8_t> tx;
+  std::vector<std::uint8_t> rx;
+  std::vector<const hal::SpiTransfer*> parts;
+  const auto flush = [&] {
+    if (tx.empty()) return;
+    rx.assign(tx.size(), 0);
+    processFrame(tx, rx);
+    std::size_t at = 0;
+    for (const hal::SpiTransfer* t : parts) {
+      if (t->rx != nullptr) std::copy_n(rx.begin() + static_cast<std::ptrdiff_t>(at), t->len, t->rx);
+      at += t->len;
+    }
+    tx.clear();
+    parts.clear();
+  };
+  for (const hal::SpiTransfer& t : transfers) {
+    for (std::size_t i = 0; i < t.len; ++i) tx.push_back(t.tx != nullptr ? t.tx[i] : 0);
+    parts.push_back(&t);
+    if (t.cs_change) flush();
+  }
+  flush();
+  return {};
+}
+
+void Dw3000Emulator::processFrame(std::span<const std::uint8_t> tx, std::span<std::uint8_t> rx) {
+  ++counters_.messages;
+  if (speed_hz_ > spiLimitHz()) {
+    // Too fast for the current state: the chip samples garbage.
+    ++counters_.speed_violations;
+    std::fill(rx.begin(), rx.end(), 0xFF);
+    return;
+  }
+  const std::uint8_t b0 = tx[0];
+  std::size_t header = 1;
+  std::uint8_t file = static_cast<std::uint8_t>((b0 >> 1) & 0x1Fu);
+  std::size_t offset = 0;
+  int mode = 0;
+  const bool write = (b0 & 0x80u) != 0;
+  if ((b0 & 0x40u) != 0) {
+    if (tx.size() < 2) {
+      ++counters_.unsupported;
+      return;
+    }
+    header = 2;
+    offset = static_cast<std::size_t>(((b0 & 0x01u) << 6) | (tx[1] >> 2));
+    mode = tx[1] & 0x03;
+  } else if ((b0 & 0x01u) != 0) {
+    if (state_ == State::kReset || state_ == State::kInitRc) return;
+    if (!write || tx.size() != 1) {
+      ++counters_.unsupported;
+      return;
+    }
+    fastCommand(static_cast<std::uint8_t>((b0 >> 1) & 0x1Fu));
+    updateIrq();
+    return;
+  }
+
+  // Held in reset or still in INIT_RC: the SPI does not answer (reads 0),
+  // except SOFT_RST while a soft reset holds the chip.
+  if (state_ == State::kReset || state_ == State::kInitRc) {
+    const bool soft_release = soft_reset_held_ && write && file == kFileRst && (b0 & 0x01u) == 0;
+    if (!soft_release) return;
+  }
+
+  if (!write) {
+    if (mode != 0) {
+      ++counters_.unsupported;
+      return;
+    }
+    for (std::size_t i = header; i < tx.size(); ++i) rx[i] = readByte(file, offset + (i - header));
+    if (crc_active_ && !(file == kGen && offset == kSpiRdCrc)) {
+      files_[kGen][kSpiRdCrc] = crc8(rx.subspan(header), crc8(tx.first(header), 0));
+      if (read_crc_error_count_ > 0 && tx.size() > header) {
+        --read_crc_error_count_;
+        ++counters_.read_corruptions;
+        rx[header] ^= 0x10;  // flipped on the wire, after the chip computed its CRC
+      }
+    }
+    return;
+  }
+
+  std::span<const std::uint8_t> body = tx.subspan(header);
+  if (crc_active_) {
+    if (body.empty()) {
+      ++counters_.unsupported;
+      return;
+    }
+    const std::uint8_t sent = body.back();
+    body = body.first(body.size() - 1);
+    const bool corrupted = write_crc_error_count_ > 0;
+    if (corrupted) --write_crc_error_count_;
+    if (corrupted || crc8(body, crc8(tx.first(header), 0)) != sent) {
+      ++counters_.write_crc_errors;
+      setStatusBits(kSpiCrcE);  // the write is dropped
+      return;
+    }
+  }
+  if (mode == 0) {
+    applyWrite(file, offset, body);
+    return;
+  }
+  const std::size_t width = mode == 1 ? 1 : (mode == 2 ? 2 : 4);
+  if (body.size() != 2 * width) {
+    ++counters_.unsupported;
+    return;
+  }
+  const std::uint64_t and_mask = le(body.first(width));
+  const std::uint64_t or_mask = le(body.subspan(width, width));
+  std::uint64_t current = 0;
+  for (std::size_t i = 0; i < width; ++i) current |= static_cast<std::uint64_t>(readByte(file, offset + i)) << (8 * i);
+  std::uint64_t value = (current & and_mask) | or_mask;
+  if (file == kGen && offset >= kSysStatus && offset < kSysStatus + 6) value = or_mask;  // W1C: ones clear
+  std::array<std::uint8_t, 4> bytes{};
+  for (std::size_t i = 0; i < width; ++i) bytes[i] = static_cast<std::uint8_t>((value >> (8 * i)) & 0xFFu);
+  applyWrite(file, offset, {bytes.data(), width});
+}
+
+void Dw3000Emulator::fastCommand(std::uint8_t command) {
+  switch (command) {
+    case 0x00:  // TXRXOFF
+      ++counters_.trxoff;
+      ++exchange_;
+      break;
+    case 0x0C:  // TX_W4R
+      ++counters_.tx_w4r;
+      startExchange();
+      break;
+    case 0x12:  // CLR_IRQS
+      ++counters_.clr_irqs;
+      if (stuck_active_ && stuck_mode_ == StuckIrq::kUntilFullClear) stuck_active_ = false;
+      clearStatusBits(~std::uint64_t{0});
+      break;
+    default:
+      ++counters_.unsupported;
+      break;
+  }
+}
+
+// ---------------------------------------------------------------------------
+// The exchange: our poll, the responder's firmware, the response
+
+void Dw3000Emulator::startExchange() {
+  const std::uint64_t exchange = ++exchange_;
+  if (state_ != State::kIdlePll) {
+    ++counters_.tx_while_unlocked;  // the PLL is not locked: nothing is sent
+    return;
+  }
+  const auto alive = [this, exchange, generation = generation_] {
+    return generation == generation_ && exchange == exchange_;
+  };
+  const double t0 = static_cast<double>(clock_.nowNs());
+  const std::size_t length = reg32(kGen, kTxFctrl) & 0x3FFu;  // with FCS
+  std::vector<std::uint8_t> poll(files_[kFileTxBuf].begin(),
+                                 files_[kFileTxBuf].begin() + static_cast<std::ptrdiff_t>(length >= 2 ? length - 2 : 0));
+
+  // Our transmission.
+  const double t_rmarker = t0 + params_.tx_startup_ns + params_.shr_ns;
+  const std::int64_t tx_units = std::llround(ourDeviceUnits(t_rmarker));
+  const std::uint16_t tx_antd = static_cast<std::uint16_t>(reg32(kFileGen2, kTxAntd) & 0xFFFFu);
+  const std::uint64_t tx_time = static_cast<std::uint64_t>(tx_units + tx_antd) & kMask40;
+  const double t_departure = t_rmarker + params_.true_tx_antenna_delay_units / kClockHz * 1e9;
+  const double t_tx_end = t_rmarker + params_.phr_ns + static_cast<double>(length) * params_.ns_per_byte;
+  clock_.schedule(static_cast<std::int64_t>(std::ceil(t_tx_end)), [this, alive, tx_time] {
+    if (!alive()) return;
+    put(kGen, kTxTime, tx_time, 5);
+    setStatusBits(kTxFrs);
+  });
+
+  // Our receiver: opens W4R_TIM after the TX end, closes after RX_FWTO.
+  const double t_rx_on = t_tx_end + static_cast<double>(reg32(kFileGen2, kAckResp) & 0xFFFFFu) * kUusNs;
+  const std::uint32_t fwto = reg32(kGen, kRxFwto) & 0xFFFFFu;
+  const bool timeout_enabled = (reg32(kGen, kSysCfg) & kSysCfgRxWtoe) != 0 && fwto > 0;
+  const double t_rx_deadline =
+      timeout_enabled ? t_rx_on + static_cast<double>(fwto) * kUusNs : std::numeric_limits<double>::infinity();
+  const auto timeOut = [this, alive, t_rx_deadline] {
+    ++counters_.rx_timeouts;
+    if (!std::isfinite(t_rx_deadline)) return;  // receiver stays open: only the host's timeout ends it
+    clock_.schedule(static_cast<std::int64_t>(std::ceil(t_rx_deadline)), [this, alive] {
+      if (alive()) setStatusBits(kRxFto);
+    });
+  };
+
+  // The responder's firmware: a poll of our format addressed to it.
+  const bool is_poll = poll.size() == 11 && poll[0] == 0x41 && poll[1] == 0x88 && poll[9] == 0xA0 && poll[10] == 1;
+  const std::uint16_t pan = is_poll ? static_cast<std::uint16_t>(poll[3] | (poll[4] << 8)) : 0;
+  const std::uint16_t dst = is_poll ? static_cast<std::uint16_t>(poll[5] | (poll[6] << 8)) : 0;
+  const std::uint16_t src = is_poll ? static_cast<std::uint16_t>(poll[7] | (poll[8] << 8)) : 0;
+  const std::uint32_t chan_ctrl = reg32(kFileGen2, kChanCtrl);
+  const int channel = (chan_ctrl & 1u) != 0 ? 9 : 5;
+  const auto tx_code = static_cast<std::uint8_t>((chan_ctrl >> 3) & 0x1Fu);
+  const auto rx_code = static_cast<std::uint8_t>((chan_ctrl >> 8) & 0x1Fu);
+  const Dw3000ResponderModel* responder = nullptr;
+  for (const Dw3000ResponderModel& r : responders_) {
+    if (is_poll && r.present && r.short_address == dst && r.pan_id == pan && r.channel == channel &&
+        r.preamble_code == tx_code && r.preamble_code == rx_code) {
+      responder = &r;
+    }
+  }
+  if (responder == nullptr || rx_timeout_count_ > 0) {
+    if (responder != nullptr) --rx_timeout_count_;
+    timeOut();
+    return;
+  }
+  const Dw3000ResponderModel& r = *responder;
+  const double d1 = r.distance_m(static_cast<std::int64_t>(t_departure));
+  const double t_arrival_r = t_departure + d1 / kLightMps * 1e9;
+  const std::int64_t rx_units_r =
+      std::llround(responderDeviceUnits(r, t_arrival_r + r.true_rx_antenna_delay_units / kClockHz * 1e9));
+  const std::int64_t poll_rx = rx_units_r - r.rx_antenna_delay;  // unwrapped, its clock
+  const std::int64_t reply_units = std::llround(r.reply_delay_us * 1e-6 * kClockHz);
+  if (r.reply_delay_us < r.processing_us) {  // its firmware cannot make the deadline
+    timeOut();
+    return;
+  }
+  // DX_TIME holds bits 39:8 with bit 8 cleared: the RMARKER leaves on a
+  // 512-unit boundary, and the firmware predicts the stamp the same way.
+  const std::int64_t tx_raw_r = (poll_rx + reply_units) & ~std::int64_t{0x1FF};
+  const std::int64_t resp_tx = tx_raw_r + r.tx_antenna_delay;
+  const double t_departure_r = responderTimeOf(r, static_cast<double>(tx_raw_r)) +
+                               r.true_tx_antenna_delay_units / kClockHz * 1e9;
+  const double d2 = r.distance_m(static_cast<std::int64_t>(t_departure_r));
+  const double t_arrival = t_departure_r + d2 / kLightMps * 1e9;
+  const std::uint16_t rx_antd = static_cast<std::uint16_t>(reg32(kFileCiaConf, 0x00) & 0xFFFFu);
+  const std::int64_t rx_units =
+      std::llround(ourDeviceUnits(t_arrival + params_.true_rx_antenna_delay_units / kClockHz * 1e9));
+  const std::uint64_t rx_time = static_cast<std::uint64_t>(rx_units - rx_antd) & kMask40;
+
+  const double t_preamble = t_arrival - params_.shr_ns;
+  const std::size_t response_length = 21 + 2;
+  const double t_frame_end = t_arrival + params_.phr_ns + static_cast<double>(response_length) * params_.ns_per_byte;
+  if (t_preamble < t_rx_on) {
+    ++counters_.missed_preambles;
+    timeOut();
+    return;
+  }
+  if (t_frame_end > t_rx_deadline) {
+    timeOut();
+    return;
+  }
+
+  // The response as the anchors' firmware builds it (docs/uwb-protocol.md).
+  std::array<std::uint8_t, 23> frame{};
+  frame[0] = 0x41;
+  frame[1] = 0x88;
+  frame[2] = poll[2];
+  frame[3] = static_cast<std::uint8_t>(pan & 0xFFu);
+  frame[4] = static_cast<std::uint8_t>(pan >> 8);
+  frame[5] = static_cast<std::uint8_t>(src & 0xFFu);
+  frame[6] = static_cast<std::uint8_t>(src >> 8);
+  frame[7] = static_cast<std::uint8_t>(r.short_address & 0xFFu);
+  frame[8] = static_cast<std::uint8_t>(r.short_address >> 8);
+  frame[9] = 0xA1;
+  frame[10] = 1;
+  for (int i = 0; i < 5; ++i) {
+    frame[11 + i] = static_cast<std::uint8_t>((static_cast<std::uint64_t>(poll_rx) >> (8 * i)) & 0xFFu);
+    frame[16 + i] = static_cast<std::uint8_t>((static_cast<std::uint64_t>(resp_tx) >> (8 * i)) & 0xFFu);
+  }
+
+  if (corrupt_count_ > 0 && corrupt_index_ < 21) {
+    --corrupt_count_;
+    frame[corrupt_index_] ^= corrupt_mask_;
+  }
+
+  // Clock offset as our receiver measures it: positive when we are slower.
+  const double ratio = 1.0 - (1.0 + params_.clock_ppm * 1e-6) / (1.0 + r.clock_ppm * 1e-6);
+  const std::int64_t cia = std::clamp<std::int64_t>(std::llround(ratio * 67108864.0), -4096, 4095);
+  const double hz_per_lsb = 998.4e6 / 2.0 / 1024.0 / 131072.0;
+  const double ppm_per_hz = channel == 9 ? -1e6 / 7987.2e6 : -1e6 / 6489.6e6;
+  const std::int64_t carrier = std::llround(ratio * 1e6 / (hz_per_lsb * ppm_per_hz));
+  // Reserved bits above the fields set, so a driver that does not mask fails.
+  const std::uint64_t cia_raw = (static_cast<std::uint64_t>(cia) & 0x1FFFu) | (0x5u << 13);
+  const std::uint64_t carrier_raw = (static_cast<std::uint64_t>(carrier) & 0x1FFFFFu) | (0x5u << 21) | (0xA5u << 24);
+
+  std::uint32_t error_bits = 0;
+  if (rx_error_count_ > 0) {
+    --rx_error_count_;
+    error_bits = rx_error_bits_;
+  }
+  Dw3000ExchangeTruth truth;
+  truth.valid = true;
+  truth.responder = r.short_address;
+  truth.distance_m = 0.5 * (d1 + d2);
+  truth.reply_s = static_cast<double>(resp_tx - poll_rx) / (kClockHz * (1.0 + r.clock_ppm * 1e-6));
+  truth.clock_offset_ratio = ratio;
+  clock_.schedule(static_cast<std::int64_t>(std::ceil(t_frame_end)),
+                  [this, alive, frame, rx_time, cia_raw, carrier_raw, error_bits, truth]() mutable {
+                    if (!alive()) return;
+                    if (error_bits != 0) {
+                      setStatusBits(kRxPrd | kRxSfdd | error_bits);
+                      return;
+                    }
+                    std::copy(frame.begin(), frame.end(), files_[kFileRxBuf].begin());
+                    put(kGen, kRxFinfo, frame.size() | (1u << 15), 4);
+                    put(kGen, kRxTime, rx_time, 5);
+                    put(kFileCia, kCiaDiag0, cia_raw, 4);
+                    put(kFileDrx, kDrxDiag3, carrier_raw, 4);
+                    truth.rx_good_ns = clock_.nowNs();
+                    truth_ = truth;
+                    ++counters_.responses_delivered;
+                    setStatusBits(kRxPrd | kRxSfdd | kRxPhd | kRxFr | kCiaDone | kRxFcg);
+                  });
+}
+
+}  // namespace rilo::emu

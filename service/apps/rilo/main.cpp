@@ -7,6 +7,7 @@
 
 #include "demo.h"
 #include "listen.h"
+#include "sim_command.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"rilo: Ranging-Inertial LOcalization tools"};
@@ -20,6 +21,7 @@ int main(int argc, char** argv) {
   demo_cmd->add_option("--nlos", demo.nlos_fraction, "Fraction of time an anchor is NLOS")->capture_default_str()->check(CLI::Range(0.0, 0.9));
   demo_cmd->add_option("--noise", demo.noise_models, "Range noise models to compare")->capture_default_str();
 
+  rilo::tool::addSimCommand(app);
   rilo::tool::addListenCommand(app);
 
   CLI11_PARSE(app, argc, argv);

@@ -1,0 +1,163 @@
+#include "hal/replay/replay_source.h"
+
+#include <time.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+#include "hal/recording/recording_reader.h"
+
+namespace rilo {
+namespace {
+
+std::int64_t monotonicNowNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+void monotonicSleepUntil(std::int64_t wake_ns) {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(wake_ns / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(wake_ns % 1'000'000'000);
+  // EINTR: return early; the caller re-checks the clock and the stop flag.
+  clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+}
+
+/// Stream kinds in their order at equal t_ns.
+enum Stream : int { kImu = 0, kRange = 1, kTdoa = 2, kUltrasonic = 3, kStreams = 4 };
+
+}  // namespace
+
+ReplaySource::ReplaySource(const std::filesystem::path& dir, ReplayOptions options)
+    : name_(dir.string()), options_(std::move(options)) {
+  checkOptions();
+  recording_ = readRecording(dir, &report_);  // RecordingError: file, line, column
+}
+
+ReplaySource::ReplaySource(Recording recording, std::string name, ReplayOptions options)
+    : recording_(std::move(recording)), name_(std::move(name)), options_(std::move(options)) {
+  checkOptions();
+}
+
+void ReplaySource::checkOptions() const {
+  if (!(std::isfinite(options_.speed) && options_.speed > 0.0)) {
+    throw std::invalid_argument("ReplayOptions.speed must be finite and > 0");
+  }
+  if (options_.max_sleep_ns <= 0) throw std::invalid_argument("ReplayOptions.max_sleep_ns must be > 0");
+}
+
+std::int64_t ReplaySource::now() const { return options_.now_ns ? options_.now_ns() : monotonicNowNs(); }
+
+void ReplaySource::sleepUntil(std::int64_t wake_ns) const {
+  if (options_.sleep_until_ns) {
+    options_.sleep_until_ns(wake_ns);
+  } else {
+    monotonicSleepUntil(wake_ns);
+  }
+}
+
+std::size_t ReplaySource::sampleCount() const {
+  return (options_.imu ? recording_.imu.size() : 0) + (options_.ranges ? recording_.ranges.size() : 0) +
+         (options_.tdoa ? recording_.tdoa.size() : 0) + (options_.ultrasonic ? recording_.ultrasonic.size() : 0);
+}
+
+std::string ReplaySource::describe() const {
+  std::string d = "replay " + name_;
+  if (options_.pacing == ReplayOptions::Pacing::kAsFastAsPossible) return d + " (as fast as possible)";
+  char speed[32];
+  std::snprintf(speed, sizeof(speed), "%g", options_.speed);
+  return d + " (paced x" + speed + (options_.shift_to_now ? ", time shifted to now)" : ")");
+}
+
+SourceEnd ReplaySource::run(SampleSink& sink, const std::atomic<bool>& stop) {
+  for (const ReadWarning& w : report_.warnings) {
+    SourceFault f;
+    f.device = "replay:" + (std::filesystem::path(name_) / w.file).string();
+    f.what = w.message;
+    f.fatal = false;
+    sink.fault(f);
+  }
+
+  const Recording& r = recording_;
+  const std::size_t sizes[kStreams] = {options_.imu ? r.imu.size() : 0, options_.ranges ? r.ranges.size() : 0,
+                                       options_.tdoa ? r.tdoa.size() : 0,
+                                       options_.ultrasonic ? r.ultrasonic.size() : 0};
+  std::size_t next[kStreams] = {0, 0, 0, 0};
+  auto timeOf = [&](int s, std::size_t i) -> std::int64_t {
+    switch (s) {
+      case kImu: return r.imu[i].t_ns;
+      case kRange: return r.ranges[i].t_ns;
+      case kTdoa: return r.tdoa[i].t_ns;
+      default: return r.ultrasonic[i].t_ns;
+    }
+  };
+  // The stream with the earliest next sample; ties go to the lower stream kind.
+  auto pick = [&]() -> int {
+    int best = -1;
+    std::int64_t best_t = std::numeric_limits<std::int64_t>::max();
+    for (int s = 0; s < kStreams; ++s) {
+      if (next[s] >= sizes[s]) continue;
+      const std::int64_t t = timeOf(s, next[s]);
+      if (best < 0 || t < best_t) {
+        best = s;
+        best_t = t;
+      }
+    }
+    return best;
+  };
+
+  const bool paced = options_.pacing == ReplayOptions::Pacing::kRealTime;
+  const int first = pick();
+  const std::int64_t t_first = first >= 0 ? timeOf(first, 0) : 0;
+  const std::int64_t start = paced ? now() : 0;
+  shift_ns_ = paced && options_.shift_to_now ? start - t_first : 0;
+
+  for (;;) {
+    if (stop.load(std::memory_order_relaxed)) return SourceEnd::kStopped;
+    const int s = pick();
+    if (s < 0) return SourceEnd::kEndOfData;
+    const std::size_t i = next[s]++;
+    const std::int64_t t = timeOf(s, i);
+    if (paced) {
+      const double offset_ns = static_cast<double>(t - t_first) / options_.speed;
+      const std::int64_t due = start + static_cast<std::int64_t>(std::llround(offset_ns));
+      for (std::int64_t clock = now(); clock < due; clock = now()) {
+        if (stop.load(std::memory_order_relaxed)) return SourceEnd::kStopped;
+        sleepUntil(std::min(due, clock + options_.max_sleep_ns));
+      }
+      if (stop.load(std::memory_order_relaxed)) return SourceEnd::kStopped;
+    }
+    switch (s) {
+      case kImu: {
+        ImuSample m = r.imu[i];
+        m.t_ns += shift_ns_;
+        sink.push(Sample{m});
+        break;
+      }
+      case kRange: {
+        RangeSample m = r.ranges[i];
+        m.t_ns += shift_ns_;
+        sink.push(Sample{m});
+        break;
+      }
+      case kTdoa: {
+        TdoaSample m = r.tdoa[i];
+        m.t_ns += shift_ns_;
+        sink.push(Sample{m});
+        break;
+      }
+      default: {
+        UltrasonicSample m = r.ultrasonic[i];
+        m.t_ns += shift_ns_;
+        sink.push(Sample{m});
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace rilo

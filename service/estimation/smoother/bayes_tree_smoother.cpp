@@ -333,6 +333,12 @@ void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vecto
   if (!together) {
     for (VarId v : marginalizable) vars_[v].mark = skip_stamp;
   }
+  if (params_.relinearize_max_age_s > 0.0 && have_time_ && !all) {
+    const std::int64_t oldest_ns = newest_t_ns_ - static_cast<std::int64_t>(std::llround(params_.relinearize_max_age_s * 1e9));
+    for (VarSlot& slot : vars_) {
+      if (slot.alive && slot.has_time && slot.t_ns < oldest_ns) slot.mark = skip_stamp;
+    }
+  }
 
   std::vector<VarId> forced;
   std::vector<std::pair<double, VarId>> by_threshold;  // (largest |delta| / threshold, var)

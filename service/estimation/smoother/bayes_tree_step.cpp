@@ -188,7 +188,7 @@ void BayesTreeSmoother::stepDamped(const std::vector<VarId>& damped_vars, bool e
       }
       path = top_cliques_;
     }
-    if (lambda > params_.lambda_max) {
+    if (lambda > params_.lambda_max || attempt >= params_.max_tries) {
       // Alg. 1 raises an error here; a real-time service keeps the previous
       // estimate (new variables at their initial values) and says so. The
       // next update relinearizes every variable at that estimate, so the

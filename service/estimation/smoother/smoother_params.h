@@ -24,13 +24,13 @@ struct SmootherParams {
   /// variable kind: a 6-vector for poses ([rot; trans]) and biases ([accel;
   /// gyro]), a 3-vector for Vec3 variables; keyed by the key's symbol
   /// character. Symbols not listed use the default of their kind. Defaults
-  /// near GTSAM's 0.1: ten times tighter gave the same online error on the
-  /// 40 Hz walk (0.184 m) at 3-5x the re-elimination work.
+  /// near GTSAM's 0.1: twenty times tighter gave the same online error on
+  /// the 40 Hz walk (0.18-0.19 m) at 5-10x the re-elimination work.
   std::unordered_map<char, Vec6> relinearize_thresholds6;
   std::unordered_map<char, Vec3> relinearize_thresholds3;
-  Vec6 default_pose_threshold = (Vec6() << 0.05, 0.05, 0.05, 0.1, 0.1, 0.1).finished();
+  Vec6 default_pose_threshold = (Vec6() << 0.1, 0.1, 0.1, 0.2, 0.2, 0.2).finished();
   Vec6 default_bias_threshold = (Vec6() << 1e-2, 1e-2, 1e-2, 1e-3, 1e-3, 1e-3).finished();
-  Vec3 default_vec3_threshold = Vec3::Constant(0.1);
+  Vec3 default_vec3_threshold = Vec3::Constant(0.2);
   /// Variables introduced by the last this-many updates are relinearized at
   /// every update (their delta is rarely below threshold, and the robust
   /// weights of the range factors on the newest states must stay fresh).
@@ -38,16 +38,23 @@ struct SmootherParams {
   /// When any variable passes its threshold, relinearize every variable that
   /// moved, not just that one. A linearization point mixing fresh and stale
   /// states leaves large residuals at theta on the stiff IMU factors between
-  /// them (square-root information ~1e5), and the Gauss-Newton model's
-  /// neglected second-order terms grow with those residuals: steps then
-  /// increase the error (measured: 25% of updates on a clean 40 Hz walk with
-  /// per-variable relinearization, against ~0 with this).
-  bool relinearize_together = true;
+  /// them, and the Gauss-Newton model's neglected second-order terms change
+  /// the whole-graph error: with Acceptance::kGlobal that rejected 25% of
+  /// updates. With the default acceptance (kDampedFactors) mixed epochs cost
+  /// nothing, and relinearizing the whole window at once is the worst update
+  /// (18-30 ms on the 40 Hz walk), so the default is off.
+  bool relinearize_together = false;
   /// Upper bound on variables relinearized by threshold in one update (largest
   /// relative delta first; the rest wait for the next update): bounds the
   /// re-elimination after a large correction. 0 = unbounded. Ignored with
   /// relinearize_together (a partial set is what that option avoids).
   int max_relinearized_variables = 0;
+  /// Timed variables older than this (s, behind the newest) keep their
+  /// linearization point: relinearizing an old state re-eliminates every
+  /// clique from its own up to the root, so this bounds the worst update.
+  /// They are near the end of the lag and soon marginalized at that point
+  /// anyway. 0 = no limit.
+  double relinearize_max_age_s = 1.0;
 
   // --- Partial back-substitution -----------------------------------------
   /// Re-solve a clique only when a separator delta moved by more than this
@@ -81,6 +88,9 @@ struct SmootherParams {
   Acceptance acceptance = Acceptance::kDampedFactors;
   double lambda_increase = 10.0;
   double lambda_decrease = 0.1;
+  /// Bound on D-iSAM2 tries in one update (each re-solves the tree): past it
+  /// the previous estimate is kept, as at lambda_max. Bounds the worst update.
+  int max_tries = 12;
 
   // --- Dog-leg (RISE) -----------------------------------------------------
   double trust_radius_initial = 0.1;  ///< seed 000: initial delta 0.1
@@ -122,9 +132,11 @@ struct SmootherParams {
     if (!(lambda_initial >= lambda_min && lambda_initial <= lambda_max)) fail("lambda_initial", "must be in [lambda_min, lambda_max]");
     if (!(lambda_increase > 1.0)) fail("lambda_increase", "must be > 1");
     if (!(lambda_decrease > 0.0 && lambda_decrease < 1.0)) fail("lambda_decrease", "must be in (0, 1)");
+    if (max_tries < 1) fail("max_tries", "must be >= 1");
     if (!(trust_radius_initial > 0.0)) fail("trust_radius_initial", "must be > 0");
     if (!(trust_radius_min > 0.0 && trust_radius_min <= trust_radius_initial)) fail("trust_radius_min", "must be in (0, trust_radius_initial]");
     if (!(lag_s >= 0.0)) fail("lag_s", "must be >= 0");
+    if (!(relinearize_max_age_s >= 0.0)) fail("relinearize_max_age_s", "must be >= 0");
     if (!(rank_tolerance > 0.0 && rank_tolerance < 1.0)) fail("rank_tolerance", "must be in (0, 1)");
     if (!(regularization > 0.0)) fail("regularization", "must be > 0");
     auto nonnegative = [](const auto& v) { return (v.array() >= 0.0).all(); };

@@ -1,0 +1,303 @@
+#include "estimation/pipeline/init_alignment.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "estimation/noise/noise_model_factory.h"
+#include "estimation/pipeline/init_range_loss.h"
+
+namespace rilo {
+
+void AlignmentParams::validate() const {
+  auto fail = [](const char* field, const char* rule) {
+    throw std::invalid_argument(std::string("AlignmentParams.") + field + " " + rule);
+  };
+  if (!(range_sigma_m > 0.0) || !std::isfinite(range_sigma_m)) fail("range_sigma_m", "must be finite and > 0");
+  if (!(short_side_huber_k > 0.0)) fail("short_side_huber_k", "must be > 0");
+  if (!p_b_tag.allFinite()) fail("p_b_tag", "must be finite");
+  if (!(gravity_m_s2 > 0.0) || !std::isfinite(gravity_m_s2)) fail("gravity_m_s2", "must be finite and > 0");
+  if (!(accel_bias_sigma > 0.0)) fail("accel_bias_sigma", "must be > 0");
+  if (!(gyro_bias_sigma > 0.0)) fail("gyro_bias_sigma", "must be > 0");
+  if (!(vertical_velocity_sigma_m_s > 0.0)) fail("vertical_velocity_sigma_m_s", "must be > 0 (+inf disables)");
+  if (yaw_hypotheses < 1) fail("yaw_hypotheses", "must be >= 1");
+  if (max_iterations < 1) fail("max_iterations", "must be >= 1");
+  if (!(distinct_yaw_rad > 0.0)) fail("distinct_yaw_rad", "must be > 0");
+  band.validate("AlignmentParams.band");
+}
+
+namespace {
+
+using Vec15d = Eigen::Matrix<double, 15, 1>;
+using Mat15d = Eigen::Matrix<double, 15, 15>;
+using Mat3x15 = Eigen::Matrix<double, 3, 15>;
+
+// Unknowns, in this order: rotation (right perturbation of R_r), p_r, v_r, b_a, b_g.
+constexpr int kRot = 0, kPos = 3, kVel = 6, kBa = 9, kBg = 12;
+
+struct Obs {
+  Vec3 a;
+  double range_m;
+  const StrapdownDelta* delta;
+};
+
+struct State {
+  Mat3 R = Mat3::Identity();
+  Vec3 p = Vec3::Zero(), v = Vec3::Zero();
+  ImuBias b;
+};
+
+struct Problem {
+  std::vector<Obs> obs;
+  InitRangeLoss loss;
+  const AlignmentParams* params;
+  const GravityAlignment* gravity;
+  Vec3 g_w;
+};
+
+/// Antenna position at one range time and, when J is given, its Jacobian.
+Vec3 tagAt(const Problem& pr, const State& s, const Obs& o, Mat3x15* J) {
+  const StrapdownDelta& d = *o.delta;
+  const StrapdownDelta::Corrected c = d.corrected(s.b);
+  const Vec3& p_bt = pr.params->p_b_tag;
+  const Vec3 lever = c.dR * p_bt;
+  const Vec3 tag = s.p + s.v * d.dt_s + 0.5 * pr.g_w * d.dt_s * d.dt_s + s.R * (c.dp + lever);
+  if (J) {
+    J->setZero();
+    J->block<3, 3>(0, kRot) = -s.R * so3::hat(c.dp + lever);
+    J->block<3, 3>(0, kPos).setIdentity();
+    J->block<3, 3>(0, kVel) = d.dt_s * Mat3::Identity();
+    J->block<3, 3>(0, kBa) = s.R * d.dp_dba;
+    J->block<3, 3>(0, kBg) = s.R * (d.dp_dbg - c.dR * so3::hat(p_bt) * d.dR_dbg);
+  }
+  return tag;
+}
+
+struct Costs {
+  double total = 0.0;
+  double ranges = 0.0;
+};
+
+Costs costOf(const Problem& pr, const State& s) {
+  const AlignmentParams& P = *pr.params;
+  Costs c;
+  for (const Obs& o : pr.obs) {
+    const Vec3 tag = tagAt(pr, s, o, nullptr);
+    c.ranges += pr.loss.rho((o.range_m - (tag - o.a).norm()) / P.range_sigma_m);
+    const double rb = P.band.residual(tag.z());
+    c.total += 0.5 * rb * rb;
+  }
+  c.total += c.ranges;
+  c.total += 0.5 * (s.b.accel / P.accel_bias_sigma).squaredNorm();
+  c.total += 0.5 * (s.b.gyro / P.gyro_bias_sigma).squaredNorm();
+  c.total += 0.5 * ((s.R.transpose() * Vec3::UnitZ() - pr.gravity->up_b) / pr.gravity->tilt_sigma_rad).squaredNorm();
+  if (std::isfinite(P.vertical_velocity_sigma_m_s)) {
+    const double rz = s.v.z() / P.vertical_velocity_sigma_m_s;
+    c.total += 0.5 * rz * rz;
+  }
+  return c;
+}
+
+void linearize(const Problem& pr, const State& s, Mat15d& H, Vec15d& g) {
+  const AlignmentParams& P = *pr.params;
+  H.setZero();
+  g.setZero();
+  Mat3x15 J;
+  for (const Obs& o : pr.obs) {
+    const Vec3 tag = tagAt(pr, s, o, &J);
+    const Vec3 d = tag - o.a;
+    const double rho = d.norm();
+    if (rho < 1e-9) continue;
+    const double r = (o.range_m - rho) / P.range_sigma_m;
+    const Eigen::Matrix<double, 1, 15> Jr = -(d / rho).transpose() * J / P.range_sigma_m;
+    const double w = pr.loss.weight(r);
+    H.noalias() += w * Jr.transpose() * Jr;
+    g.noalias() += w * Jr.transpose() * r;
+    const double jb = P.band.derivative(tag.z());
+    if (jb != 0.0) {
+      const Eigen::Matrix<double, 1, 15> Jb = jb * J.row(2);
+      H.noalias() += Jb.transpose() * Jb;
+      g.noalias() += Jb.transpose() * P.band.residual(tag.z());
+    }
+  }
+  // Bias priors.
+  const double ia = 1.0 / P.accel_bias_sigma, ig = 1.0 / P.gyro_bias_sigma;
+  for (int k = 0; k < 3; ++k) {
+    H(kBa + k, kBa + k) += ia * ia;
+    g(kBa + k) += ia * ia * s.b.accel(k);
+    H(kBg + k, kBg + k) += ig * ig;
+    g(kBg + k) += ig * ig * s.b.gyro(k);
+  }
+  // Tilt prior: r = (R^T e_z - up_b) / sigma; under R Exp(phi), d(R^T e_z)/d phi = hat(R^T e_z).
+  const Vec3 up = s.R.transpose() * Vec3::UnitZ();
+  const double it = 1.0 / pr.gravity->tilt_sigma_rad;
+  const Mat3 Jt = it * so3::hat(up);
+  const Vec3 rt = it * (up - pr.gravity->up_b);
+  H.block<3, 3>(kRot, kRot) += Jt.transpose() * Jt;
+  g.segment<3>(kRot) += Jt.transpose() * rt;
+  if (std::isfinite(P.vertical_velocity_sigma_m_s)) {
+    const double iv = 1.0 / P.vertical_velocity_sigma_m_s;
+    H(kVel + 2, kVel + 2) += iv * iv;
+    g(kVel + 2) += iv * iv * s.v.z();
+  }
+}
+
+State retract(const State& s, const Vec15d& dx) {
+  State n;
+  n.R = so3::normalize(s.R * so3::exp(dx.segment<3>(kRot)));
+  n.p = s.p + dx.segment<3>(kPos);
+  n.v = s.v + dx.segment<3>(kVel);
+  n.b = ImuBias(s.b.accel + dx.segment<3>(kBa), s.b.gyro + dx.segment<3>(kBg));
+  return n;
+}
+
+struct Fit {
+  State s;
+  Costs cost;
+  Mat15d H = Mat15d::Zero();
+};
+
+Fit solve(const Problem& pr, const State& s0) {
+  Fit f;
+  f.s = s0;
+  f.cost = costOf(pr, f.s);
+  double lambda = 1e-4;
+  Vec15d g;
+  for (int it = 0; it < pr.params->max_iterations; ++it) {
+    linearize(pr, f.s, f.H, g);
+    bool accepted = false, converged = false;
+    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+      Mat15d A = f.H;
+      A.diagonal() += lambda * (f.H.diagonal().array() + 1e-9).matrix();
+      const Vec15d dx = A.ldlt().solve(-g);
+      if (!dx.allFinite()) {
+        lambda *= 10.0;
+        continue;
+      }
+      const State s1 = retract(f.s, dx);
+      const Costs c1 = costOf(pr, s1);
+      if (c1.total <= f.cost.total) {
+        converged = dx.cwiseAbs().maxCoeff() < 1e-6 || f.cost.total - c1.total < 1e-9 * (1.0 + f.cost.total);
+        f.s = s1;
+        f.cost = c1;
+        lambda = std::max(1e-12, lambda * 0.2);
+        accepted = true;
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!accepted || converged) break;
+  }
+  linearize(pr, f.s, f.H, g);
+  return f;
+}
+
+double wrapAngle(double a) { return std::remainder(a, 2.0 * M_PI); }
+
+}  // namespace
+
+AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<const RangeSample> ranges,
+                                   std::int64_t t_ref_ns, const std::vector<Vec3>& p_w_anchors,
+                                   const GravityAlignment& gravity, const Vec3& p_w_tag_guess,
+                                   const Vec3& v_w_guess, const AlignmentParams& params) {
+  AlignmentResult out;
+  out.t_ref_ns = t_ref_ns;
+  if (!gravity.valid) {
+    out.message = "no gravity alignment";
+    return out;
+  }
+  if (!p_w_tag_guess.allFinite() || !v_w_guess.allFinite()) {
+    out.message = "no finite position guess";
+    return out;
+  }
+  std::vector<const RangeSample*> used;
+  std::vector<std::int64_t> times;
+  for (const RangeSample& r : ranges) {
+    if (r.t_ns < t_ref_ns || r.anchor_id >= p_w_anchors.size() || !std::isfinite(r.range_m)) continue;
+    used.push_back(&r);
+    times.push_back(r.t_ns);
+  }
+  if (used.empty() || imu.empty()) {
+    out.message = "no ranges or no IMU samples";
+    return out;
+  }
+  // Ranges are in time order (the caller's buffer); keep the queries ascending regardless.
+  if (!std::is_sorted(times.begin(), times.end())) {
+    out.message = "ranges not in time order";
+    return out;
+  }
+  const std::vector<StrapdownDelta> deltas = integrateStrapdown(imu, t_ref_ns, times);
+
+  Problem pr;
+  pr.params = &params;
+  pr.gravity = &gravity;
+  pr.g_w = Vec3(0.0, 0.0, -params.gravity_m_s2);
+  pr.loss.long_side = params.long_side_loss;
+  if (!pr.loss.long_side) {
+    RangeNoiseParams np;
+    np.sigma_m = params.range_sigma_m;
+    pr.loss.long_side = makeRangeLoss("asymmetric", np);
+  }
+  pr.loss.short_side_k = params.short_side_huber_k;
+  pr.obs.reserve(used.size());
+  for (std::size_t j = 0; j < used.size(); ++j) pr.obs.push_back({p_w_anchors[used[j]->anchor_id], used[j]->range_m, &deltas[j]});
+  out.ranges = static_cast<int>(pr.obs.size());
+
+  std::vector<Fit> fits;
+  for (int k = 0; k < params.yaw_hypotheses; ++k) {
+    State s0;
+    s0.R = yawRotation(2.0 * M_PI * k / params.yaw_hypotheses) * gravity.R_w_b;
+    s0.p = p_w_tag_guess - s0.R * params.p_b_tag;
+    s0.v = v_w_guess;
+    fits.push_back(solve(pr, s0));
+    out.hypothesis_costs.push_back(fits.back().cost.total);
+  }
+  std::size_t best = 0;
+  for (std::size_t k = 1; k < fits.size(); ++k) {
+    if (fits[k].cost.total < fits[best].cost.total) best = k;
+  }
+  const Fit& f = fits[best];
+  if (!std::isfinite(f.cost.total) || !f.s.R.allFinite() || !f.s.p.allFinite() || !f.s.v.allFinite()) {
+    out.message = "alignment diverged";
+    return out;
+  }
+  const double yaw_best = yawOf(f.s.R);
+  for (std::size_t k = 0; k < fits.size(); ++k) {
+    if (k == best || !std::isfinite(fits[k].cost.total)) continue;
+    if (std::abs(wrapAngle(yawOf(fits[k].s.R) - yaw_best)) < params.distinct_yaw_rad) continue;
+    out.second_cost_gap = std::min(out.second_cost_gap, fits[k].cost.total - f.cost.total);
+  }
+
+  out.T_w_b = Pose3(f.s.R, f.s.p);
+  out.v_w = f.s.v;
+  out.bias = f.s.b;
+  out.cost = f.cost.total;
+  out.range_cost = f.cost.ranges;
+
+  const Eigen::SelfAdjointEigenSolver<Mat15d> eig(f.H);
+  if (eig.eigenvalues().minCoeff() > 1e-12) {
+    const Mat15d cov =
+        eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() * eig.eigenvectors().transpose();
+    // World-frame rotation perturbation: R Exp(phi) = Exp(R phi) R.
+    const Mat3 cov_rot_w = f.s.R * cov.block<3, 3>(kRot, kRot) * f.s.R.transpose();
+    out.yaw_sigma_rad = std::sqrt(std::max(0.0, cov_rot_w(2, 2)));
+    out.position_sigma_m = std::sqrt(std::max(0.0, cov.block<3, 3>(kPos, kPos).trace()));
+  }
+
+  // Excitation of the fitted track.
+  const Vec3 tag0 = out.T_w_b.transformFrom(params.p_b_tag);
+  for (std::size_t j = 0; j < pr.obs.size(); ++j) {
+    const StrapdownState st = out.at(deltas[j], params.gravity_m_s2);
+    const Vec3 tag = st.T_w_b.transformFrom(params.p_b_tag);
+    out.moved_m = std::max(out.moved_m, (tag - tag0).head<2>().norm());
+    out.horizontal_dv_m_s = std::max(out.horizontal_dv_m_s, (st.v_w - out.v_w).head<2>().norm());
+    const double r = (pr.obs[j].range_m - (tag - pr.obs[j].a).norm()) / params.range_sigma_m;
+    if (std::abs(r) <= 3.0) ++out.inliers;
+  }
+  out.valid = true;
+  return out;
+}
+
+}  // namespace rilo

@@ -1,0 +1,92 @@
+#pragma once
+// Coarse range-inertial alignment: the initializer's answer to "which way is
+// the device facing" (yaw is not observable from gravity).
+//
+// One strapdown integration of the raw IMU from the window start t_r
+// (init_strapdown.h) predicts the antenna at every range time from the
+// state at t_r (R_r, p_r, v_r) and a constant bias (b_a, b_g):
+//   tag(t_j) = p_r + v_r dt + g_w dt^2 / 2 + R_r dp_j(b) + R_r dR_j(b) p_b_tag
+// and a robust Levenberg-Marquardt fits those 15 unknowns to the ranges of
+// the window (loss of init_range_loss.h), with priors on the biases, on the
+// tilt (from gravity, with the gravity step's uncertainty), on the vertical
+// velocity (a walking person) and the height band. The yaw of R_r is not
+// observable until the device accelerates horizontally (starts walking,
+// turns): the fit is started from `yaw_hypotheses` yaws evenly spread around
+// the circle, the lowest cost wins, and the result reports the yaw's
+// marginal sigma and the cost gap to the best solution with a distinct yaw,
+// from which the initializer decides whether yaw is observable yet. This
+// replaces "direction of the multilaterated velocity vs the IMU-integrated
+// one": the same information, used in one consistent least-squares fit that
+// also works with sparse (1 Hz) ranging, where no velocity can be
+// differentiated from the fixes.
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "estimation/math/imu_bias.h"
+#include "estimation/math/pose3.h"
+#include "estimation/noise/robust_loss.h"
+#include "estimation/pipeline/init_gravity.h"
+#include "estimation/pipeline/init_height_band.h"
+#include "estimation/pipeline/init_strapdown.h"
+#include "hal/samples.h"
+
+namespace rilo {
+
+struct AlignmentParams {
+  double range_sigma_m = 0.15;           ///< LOS range std-dev (m)
+  RobustLossPtr long_side_loss;          ///< loss of too-long ranges; null: the asymmetric range loss at range_sigma_m
+  double short_side_huber_k = 3.0;       ///< Huber threshold of too-short ranges (sigmas)
+  Vec3 p_b_tag = Vec3::Zero();           ///< antenna lever arm, body frame (m)
+  double gravity_m_s2 = 9.81;
+  double accel_bias_sigma = 0.1;         ///< prior std-dev of the accelerometer bias (m/s^2)
+  double gyro_bias_sigma = 0.01;         ///< prior std-dev of the gyroscope bias (rad/s)
+  HeightBand band;                       ///< on the antenna height at every range time
+  /// Prior std-dev of the vertical velocity at t_r (m/s): a walking person's is
+  /// small; +inf disables it.
+  double vertical_velocity_sigma_m_s = 0.5;
+  int yaw_hypotheses = 8;                ///< starting yaws, evenly spread over 2 pi
+  int max_iterations = 50;               ///< per hypothesis
+  double distinct_yaw_rad = 0.5;         ///< solutions whose yaws differ by more than this are distinct
+
+  /// Throws std::invalid_argument naming the field.
+  void validate() const;
+};
+
+struct AlignmentResult {
+  bool valid = false;          ///< a finite solution exists (observability is judged by the caller)
+  std::string message;
+  std::int64_t t_ref_ns = 0;
+  Pose3 T_w_b;                 ///< body pose at t_ref
+  Vec3 v_w = Vec3::Zero();     ///< velocity at t_ref (m/s)
+  ImuBias bias;                ///< constant bias over the window
+  int ranges = 0;
+  int inliers = 0;             ///< |whitened residual| <= 3
+  double cost = std::numeric_limits<double>::infinity();  ///< robust cost incl. priors (whitened, ~chi^2/2)
+  double range_cost = std::numeric_limits<double>::infinity();  ///< robust cost of the ranges only
+  double yaw_sigma_rad = std::numeric_limits<double>::infinity();   ///< marginal sigma of the world yaw at t_r
+  double position_sigma_m = std::numeric_limits<double>::infinity();  ///< sqrt(trace) of p_r's covariance
+  double second_cost_gap = std::numeric_limits<double>::infinity();   ///< cost of the best solution with a distinct yaw minus cost
+  double moved_m = 0.0;            ///< largest horizontal distance of the fitted antenna track from its start (m)
+  double horizontal_dv_m_s = 0.0;  ///< largest horizontal velocity change over the window (m/s)
+  std::vector<double> hypothesis_costs;  ///< final cost per yaw hypothesis
+
+  /// The fitted model evaluated at one strapdown delta (from the same t_r).
+  StrapdownState at(const StrapdownDelta& d, double gravity_m_s2) const {
+    return propagate(d, T_w_b, v_w, bias, gravity_m_s2);
+  }
+};
+
+/// Fits the model above to `ranges` (those before t_ref_ns, with an unknown
+/// anchor or a non-finite value are skipped) given the IMU samples `imu`,
+/// the gravity alignment at t_ref (roll/pitch start and tilt prior), and a
+/// guess of the antenna position and velocity at t_ref (from multilateration).
+/// Never throws on data.
+AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<const RangeSample> ranges,
+                                   std::int64_t t_ref_ns, const std::vector<Vec3>& p_w_anchors,
+                                   const GravityAlignment& gravity, const Vec3& p_w_tag_guess,
+                                   const Vec3& v_w_guess, const AlignmentParams& params);
+
+}  // namespace rilo

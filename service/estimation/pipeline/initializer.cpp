@@ -1,0 +1,476 @@
+#include "estimation/pipeline/initializer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <stdexcept>
+
+#include "estimation/pipeline/init_format.h"
+#include "estimation/factors/prior_factors.h"
+#include "estimation/noise/noise_model_factory.h"
+#include "estimation/pipeline/range_imu_estimator.h"
+#include "estimation/solver/batch_lm.h"
+
+namespace rilo {
+
+using init_detail::strprintf;
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+std::int64_t toNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+double toS(std::int64_t ns) { return 1e-9 * static_cast<double>(ns); }
+
+/// Index of the IMU sample in effect at t (last one at or before t; 0 if none).
+std::size_t imuIndexAt(const std::vector<ImuSample>& imu, std::int64_t t_ns) {
+  auto it = std::upper_bound(imu.begin(), imu.end(), t_ns, [](std::int64_t t, const ImuSample& m) { return t < m.t_ns; });
+  return it == imu.begin() ? 0 : static_cast<std::size_t>(it - imu.begin()) - 1;
+}
+
+/// First range at or after t.
+std::size_t rangeIndexFrom(const std::vector<RangeSample>& ranges, std::int64_t t_ns) {
+  auto it = std::lower_bound(ranges.begin(), ranges.end(), t_ns,
+                             [](const RangeSample& r, std::int64_t t) { return r.t_ns < t; });
+  return static_cast<std::size_t>(it - ranges.begin());
+}
+
+}  // namespace
+
+const char* toString(InitState s) {
+  switch (s) {
+    case InitState::kWaitingForData: return "waiting for data";
+    case InitState::kTooFewAnchors: return "too few anchors";
+    case InitState::kPoorFix: return "poor fix";
+    case InitState::kNoGravity: return "no gravity";
+    case InitState::kYawUnobservable: return "yaw unobservable";
+    case InitState::kBatchRejected: return "batch rejected";
+    case InitState::kInitialized: return "initialized";
+  }
+  return "unknown";
+}
+
+void InitializerParams::validate() const {
+  auto fail = [](const char* field, const char* rule) {
+    throw std::invalid_argument(std::string("InitializerParams.") + field + " " + rule);
+  };
+  graph.imu.validate();
+  if (!(graph.range_noise.sigma_m > 0.0)) fail("graph.range_noise.sigma_m", "must be > 0");
+  if (!(min_window_s > 0.0)) fail("min_window_s", "must be > 0");
+  if (!(window_s >= min_window_s)) fail("window_s", "must be >= min_window_s");
+  if (!(max_window_s >= window_s)) fail("max_window_s", "must be >= window_s");
+  if (min_window_ranges < 0) fail("min_window_ranges", "must be >= 0");
+  if (min_alignment_ranges < 4) fail("min_alignment_ranges", "must be >= 4");
+  if (!(attempt_interval_s > 0.0)) fail("attempt_interval_s", "must be > 0");
+  if (!(fix_window_s > 0.0)) fail("fix_window_s", "must be > 0");
+  if (!(fix_max_window_s >= fix_window_s)) fail("fix_max_window_s", "must be >= fix_window_s");
+  if (!(max_alignment_yaw_sigma_rad > 0.0)) fail("max_alignment_yaw_sigma_rad", "must be > 0");
+  if (!(min_yaw_cost_gap >= 0.0)) fail("min_yaw_cost_gap", "must be >= 0");
+  if (!(max_alignment_cost_per_range > 0.0)) fail("max_alignment_cost_per_range", "must be > 0");
+  if (!(max_position_sigma_m > 0.0)) fail("max_position_sigma_m", "must be > 0");
+  if (!(max_yaw_sigma_rad > 0.0)) fail("max_yaw_sigma_rad", "must be > 0");
+  if (!(max_range_cost_per_range > 0.0)) fail("max_range_cost_per_range", "must be > 0");
+  if (!(max_imu_cost_per_factor > 0.0)) fail("max_imu_cost_per_factor", "must be > 0");
+  if (!(max_range_m > 0.0)) fail("max_range_m", "must be > 0");
+  if (!(zero_velocity_sigma_m_s > 0.0)) fail("zero_velocity_sigma_m_s", "must be > 0 (+inf disables)");
+  height_band.validate("InitializerParams.height_band");
+  fix.validate();
+  gravity.validate();
+  alignment.validate();
+  lm.validate();
+}
+
+Initializer::Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params)
+    : p_w_anchors_(std::move(p_w_anchors)), params_(std::move(params)) {
+  if (p_w_anchors_.empty()) throw std::invalid_argument("Initializer: p_w_anchors is empty");
+  for (const Vec3& a : p_w_anchors_) {
+    if (!a.allFinite()) throw std::invalid_argument("Initializer: p_w_anchors has a non-finite anchor");
+  }
+  // Shared settings come from the graph parameters.
+  const RangeImuGraphParams& g = params_.graph;
+  const RobustLossPtr asym = makeRangeLoss("asymmetric", g.range_noise);  // validates the noise params
+  params_.fix.sigma_m = g.range_noise.sigma_m;
+  params_.fix.long_side_loss = asym;
+  params_.fix.band = params_.height_band;
+  params_.alignment.range_sigma_m = g.range_noise.sigma_m;
+  params_.alignment.long_side_loss = asym;
+  params_.alignment.p_b_tag = g.p_b_tag;
+  params_.alignment.gravity_m_s2 = g.imu.gravity_m_s2;
+  params_.alignment.accel_bias_sigma = g.first_accel_bias_sigma;
+  params_.alignment.gyro_bias_sigma = g.first_gyro_bias_sigma;
+  params_.alignment.band = params_.height_band;
+  params_.validate();
+}
+
+void Initializer::setStatus(InitState s, std::string message) {
+  status_.state = s;
+  status_.message = std::move(message);
+}
+
+void Initializer::reset() {
+  imu_.clear();
+  ranges_.clear();
+  have_data_ = false;
+  data_start_ns_ = 0;
+  last_attempt_ns_ = 0;
+  attempted_ = false;
+  grow_window_ = false;
+  dropped_imu_ = dropped_ranges_ = 0;
+  status_ = InitStatus();
+  result_.reset();
+}
+
+void Initializer::addImu(const ImuSample& s) {
+  if (!s.accel_m_s2.allFinite() || !s.gyro_rad_s.allFinite() || (!imu_.empty() && s.t_ns <= imu_.back().t_ns)) {
+    ++dropped_imu_;
+    return;
+  }
+  if (!have_data_) {
+    have_data_ = true;
+    data_start_ns_ = s.t_ns;
+  }
+  imu_.push_back(s);
+  trim();
+}
+
+void Initializer::addRange(const RangeSample& r) {
+  if (r.anchor_id >= p_w_anchors_.size() || !std::isfinite(r.range_m) || r.range_m < 0.0 ||
+      r.range_m > params_.max_range_m || (!ranges_.empty() && r.t_ns < ranges_.back().t_ns)) {
+    ++dropped_ranges_;
+    return;
+  }
+  if (!have_data_) {
+    have_data_ = true;
+    data_start_ns_ = r.t_ns;
+  }
+  ranges_.push_back(r);
+}
+
+void Initializer::trim() {
+  // Keep max_window_s (plus the fix window, so the oldest window start still
+  // has its fix) behind the newest IMU sample; erase in chunks of >= 2 s.
+  if (imu_.empty()) return;
+  std::int64_t keep_from = imu_.back().t_ns - toNs(params_.max_window_s + params_.fix_max_window_s + 1.0);
+  if (result_) keep_from = std::min(keep_from, result_->state.t_ns);
+  if (imu_.front().t_ns + toNs(2.0) > keep_from) return;
+  const std::size_t i = imuIndexAt(imu_, keep_from);  // keep the sample in effect at keep_from
+  imu_.erase(imu_.begin(), imu_.begin() + static_cast<std::ptrdiff_t>(i));
+  const std::size_t k = rangeIndexFrom(ranges_, keep_from);
+  ranges_.erase(ranges_.begin(), ranges_.begin() + static_cast<std::ptrdiff_t>(k));
+}
+
+const InitResult& Initializer::result() const {
+  if (!result_) throw std::logic_error("Initializer::result: not initialized (" + status_.message + ")");
+  return *result_;
+}
+
+bool Initializer::process() {
+  if (initialized()) return true;
+  if (imu_.empty()) {
+    setStatus(InitState::kWaitingForData, ranges_.empty() ? "waiting: no samples" : "waiting: no IMU samples (ranges only)");
+    return false;
+  }
+  const std::int64_t t_now = imu_.back().t_ns;
+  const double span_s = toS(t_now - data_start_ns_);
+  if (span_s < params_.min_window_s) {
+    setStatus(InitState::kWaitingForData,
+              strprintf("waiting: %.1f s of data, need %.1f s", std::max(0.0, span_s), params_.min_window_s));
+    return false;
+  }
+  if (attempted_ && t_now - last_attempt_ns_ < toNs(params_.attempt_interval_s)) return false;
+  return attempt();
+}
+
+bool Initializer::attempt() {
+  if (initialized()) return true;
+  ++status_.attempts;
+  attempted_ = true;
+  last_attempt_ns_ = imu_.empty() ? 0 : imu_.back().t_ns;
+  status_.t_ns = last_attempt_ns_;
+  try {
+    return runAttempt();
+  } catch (const std::exception& e) {
+    // A data problem that slipped through a solver's checks: report, never throw.
+    setStatus(InitState::kBatchRejected, std::string("attempt failed: ") + e.what());
+    return false;
+  }
+}
+
+bool Initializer::runAttempt() {
+  const InitializerParams& P = params_;
+  if (imu_.empty()) {
+    setStatus(InitState::kWaitingForData, ranges_.empty() ? "waiting: no samples" : "waiting: no IMU samples (ranges only)");
+    return false;
+  }
+  if (ranges_.empty()) {
+    setStatus(InitState::kWaitingForData, "waiting: no ranges (IMU only)");
+    return false;
+  }
+  const std::int64_t t_now = imu_.back().t_ns;
+  const std::int64_t span = t_now - std::max(imu_.front().t_ns, data_start_ns_);
+  const std::size_t end = rangeIndexFrom(ranges_, t_now + 1);  // ranges the IMU covers
+
+  // The seed's window (shorter at first), grown for sparse ranging until it
+  // holds min_window_ranges; up to max_window_s once it proved too short for yaw.
+  const std::int64_t W_max = std::min(toNs(P.max_window_s), span);
+  std::int64_t W = std::min(toNs(P.window_s), span);
+  if (P.min_window_ranges > 0) {
+    if (end >= static_cast<std::size_t>(P.min_window_ranges)) {
+      W = std::max(W, std::min(W_max, t_now - ranges_[end - static_cast<std::size_t>(P.min_window_ranges)].t_ns));
+    } else {
+      W = W_max;
+    }
+  }
+  AlignedWindow aligned;
+  if (!grow_window_ || W >= W_max) {
+    aligned = alignWindow(W, t_now, end);
+    if (!aligned.ok && aligned.state == InitState::kYawUnobservable && W >= toNs(P.window_s) && W < toNs(P.max_window_s)) {
+      grow_window_ = true;  // the motion is too gentle for this window: take longer ones from now on
+    }
+  }
+  if (grow_window_ && !aligned.ok && W < W_max) {
+    aligned = alignWindow(W_max, t_now, end);
+    if (!aligned.ok) aligned.message += strprintf(" (window %.1f s)", toS(W_max));
+  }
+  if (!aligned.ok) {
+    setStatus(aligned.state, aligned.message);
+    return false;
+  }
+  return solveBatch(aligned, t_now);
+}
+
+Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std::int64_t t_now, std::size_t end) const {
+  const InitializerParams& P = params_;
+  AlignedWindow w;
+  w.end = end;
+  w.begin = rangeIndexFrom(ranges_, std::max({imu_.front().t_ns, data_start_ns_, t_now - window_ns}));
+  if (w.begin >= end) {
+    w.message = strprintf("waiting: no ranges in the last %.1f s", toS(window_ns));
+    return w;
+  }
+  const std::span<const RangeSample> window(ranges_.data() + w.begin, end - w.begin);
+  const std::int64_t t_w0 = window.front().t_ns;
+
+  std::set<std::uint32_t> heard;
+  for (const RangeSample& r : window) heard.insert(r.anchor_id);
+  const int needed = P.height_band.enabled ? std::min(3, P.fix.min_anchors) : P.fix.min_anchors;
+  if (static_cast<int>(heard.size()) < needed) {
+    w.state = InitState::kTooFewAnchors;
+    w.message = strprintf("waiting: %zu anchors heard, need %d", heard.size(), P.fix.min_anchors);
+    if (P.height_band.enabled && P.fix.min_anchors > 3) w.message += " (3 with the height band)";
+    return w;
+  }
+  if (static_cast<int>(window.size()) < P.min_alignment_ranges) {
+    w.message = strprintf("waiting: %zu ranges in the window, need %d", window.size(), P.min_alignment_ranges);
+    return w;
+  }
+  const std::size_t i0 = imuIndexAt(imu_, t_w0);
+  const std::span<const ImuSample> imu(imu_.data() + i0, imu_.size() - i0);
+
+  // 1. Multilateration near the window start (its own window grown until it
+  // holds enough anchors and ranges); if that fails, a little later.
+  TagFix first_fix;
+  bool have_fix = false;
+  for (int k = 0; k < 4 && !have_fix; ++k) {
+    const std::size_t f0 = rangeIndexFrom(ranges_, t_w0 + toNs(k * P.fix_window_s));
+    if (f0 >= end) break;
+    const std::int64_t t_fix = ranges_[f0].t_ns;
+    std::size_t f1 = f0;
+    for (double len = P.fix_window_s;; len = std::min(P.fix_max_window_s, 1.5 * len)) {
+      f1 = std::min(end, rangeIndexFrom(ranges_, t_fix + toNs(len)));
+      std::set<std::uint32_t> ids;
+      for (std::size_t j = f0; j < f1; ++j) ids.insert(ranges_[j].anchor_id);
+      const bool enough =
+          static_cast<int>(ids.size()) >= P.fix.min_anchors && static_cast<int>(f1 - f0) >= P.fix.min_ranges;
+      if (enough || len >= P.fix_max_window_s || f1 >= end) break;
+    }
+    w.fix = multilaterate(std::span<const RangeSample>(ranges_.data() + f0, f1 - f0), t_fix, p_w_anchors_, P.fix);
+    if (k == 0) first_fix = w.fix;
+    have_fix = w.fix.valid;
+  }
+  if (!have_fix) {
+    w.state = first_fix.anchors_heard < needed ? InitState::kTooFewAnchors : InitState::kPoorFix;
+    w.message = "waiting: " + first_fix.message;
+    return w;
+  }
+  const Vec3 p_tag_w0 = w.fix.p_w_tag + w.fix.v_w * toS(t_w0 - w.fix.t_ns);
+
+  // 2. Roll and pitch from gravity.
+  w.gravity = alignGravity(imu, t_w0, t_now, P.graph.imu.gravity_m_s2, P.gravity);
+  if (!w.gravity.valid) {
+    w.state = InitState::kNoGravity;
+    w.message = "waiting: " + w.gravity.message;
+    return w;
+  }
+
+  // 3. Yaw (and a first trajectory) by range-inertial alignment.
+  w.alignment = alignRangeInertial(imu, window, t_w0, p_w_anchors_, w.gravity, p_tag_w0, w.fix.v_w, P.alignment);
+  const AlignmentResult& a = w.alignment;
+  if (!a.valid) {
+    w.state = InitState::kPoorFix;
+    w.message = "waiting: alignment failed: " + a.message;
+    return w;
+  }
+  if (a.yaw_sigma_rad > P.max_alignment_yaw_sigma_rad || a.second_cost_gap < P.min_yaw_cost_gap) {
+    w.state = InitState::kYawUnobservable;
+    w.message = strprintf("yaw not observable yet: moved %.1f m, horizontal speed change %.2f m/s, yaw sigma %.1f deg",
+                          a.moved_m, a.horizontal_dv_m_s, a.yaw_sigma_rad * kRadToDeg);
+    if (std::isfinite(a.second_cost_gap)) {
+      w.message += strprintf(", another yaw fits almost as well (cost +%.1f)", a.second_cost_gap);
+    }
+    return w;
+  }
+  const double cost_per_range = a.range_cost / std::max(1, a.ranges);
+  if (cost_per_range > P.max_alignment_cost_per_range) {
+    w.state = InitState::kPoorFix;
+    w.message = strprintf("waiting: ranges disagree with the IMU motion (cost per range %.2f, %d of %d ranges inliers)",
+                          cost_per_range, a.inliers, a.ranges);
+    return w;
+  }
+  w.ok = true;
+  return w;
+}
+
+bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
+  const InitializerParams& P = params_;
+  const AlignmentResult& align = w.alignment;
+  const std::int64_t t_w0 = align.t_ref_ns;
+  const std::size_t i0 = imuIndexAt(imu_, t_w0);
+  const std::span<const ImuSample> imu(imu_.data() + i0, imu_.size() - i0);
+
+  // 4. The seed's batch over the window, every state started on the aligned track.
+  const std::vector<ImuSample> imu_vec(imu.begin(), imu.end());
+  std::vector<RangeSample> range_vec;
+  range_vec.reserve(w.end - w.begin);
+  for (std::size_t k = w.begin; k < w.end; ++k) {
+    if (ranges_[k].t_ns >= imu_vec.front().t_ns && ranges_[k].t_ns <= imu_vec.back().t_ns) range_vec.push_back(ranges_[k]);
+  }
+  if (range_vec.empty()) {
+    setStatus(InitState::kWaitingForData, "waiting: no ranges inside the IMU's time span");
+    return false;
+  }
+  const std::int64_t t_graph0 = range_vec.front().t_ns;
+  const StrapdownState s0 = align.at(integrateStrapdown(imu, t_w0, {t_graph0}).front(), P.graph.imu.gravity_m_s2);
+  InitWindow win;
+  win.graph = buildRangeImuGraph(imu_vec, range_vec, p_w_anchors_, s0.T_w_b, s0.v_w, P.graph);
+  const std::vector<StrapdownDelta> deltas = integrateStrapdown(imu, t_w0, win.graph.state_t_ns);
+  Values initial;
+  for (std::size_t i = 0; i < deltas.size(); ++i) {
+    const StrapdownState st = align.at(deltas[i], P.graph.imu.gravity_m_s2);
+    initial.insert(sym::X(i), st.T_w_b);
+    initial.insert(sym::V(i), st.v_w);
+    initial.insert(sym::B(i), align.bias);
+  }
+  for (Key l : win.graph.anchor_keys) initial.insert(l, p_w_anchors_.at(keyIndex(l)));
+  double still_s = 0.0;
+  if (std::isfinite(P.zero_velocity_sigma_m_s)) {
+    const std::vector<StillInterval> still = findStillIntervals(imu, t_graph0, t_now, P.gravity);
+    const std::vector<std::int64_t>& ts = win.graph.state_t_ns;
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < ts.size(); ++i) {
+      while (k < still.size() && still[k].t1_ns <= ts[i]) ++k;
+      if (k == still.size() || ts[i] < still[k].t0_ns) continue;
+      // The time this state stands for: half the intervals to its neighbours.
+      const std::int64_t before = i > 0 ? ts[i] - ts[i - 1] : 0, after = i + 1 < ts.size() ? ts[i + 1] - ts[i] : 0;
+      const double dt_s = std::max(1e-3, 0.5 * toS(before + after));
+      const Vec3 sigmas = Vec3::Constant(P.zero_velocity_sigma_m_s * std::sqrt(1.0 / dt_s));
+      win.graph.graph.emplace<PriorVec3Factor>(sym::V(i), Vec3(Vec3::Zero()), sigmas);
+    }
+    for (const StillInterval& iv : still) still_s += toS(iv.t1_ns - iv.t0_ns);
+  }
+
+  BatchLevenbergMarquardt lm(P.lm);
+  BatchLevenbergMarquardt::Output out = lm.optimize(win.graph.graph, initial);
+  // Factor layout of buildRangeImuGraph: 3 first-state priors, the IMU factors, the range factors, anchor priors.
+  const std::size_t n_states = win.graph.state_t_ns.size();
+  const std::size_t first_imu = 3, first_range = 3 + win.graph.imu_factors;
+  double imu_cost = 0.0, range_cost = 0.0;
+  for (std::size_t k = first_imu; k < first_range; ++k) imu_cost += win.graph.graph[k]->error(out.values);
+  for (std::size_t k = first_range; k < first_range + win.graph.range_factors; ++k) {
+    range_cost += win.graph.graph[k]->error(out.values);
+  }
+  const double range_cpr = range_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.range_factors));
+  const double imu_cpf = imu_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.imu_factors));
+  const Key x_last = sym::X(n_states - 1);
+  std::string cov_failure;
+  const std::optional<CovarianceBlock> cov = lm.marginalCovariance(x_last, &cov_failure);
+  const Pose3 T_last = out.values.pose(x_last);
+  double pos_sigma = std::numeric_limits<double>::infinity(), yaw_sigma = pos_sigma;
+  if (cov && cov->rows() == 6) {
+    pos_sigma = std::sqrt(std::max(0.0, cov->bottomRightCorner<3, 3>().trace()));
+    // World yaw: the right perturbation phi of R is R phi in the world frame.
+    const Mat3 cov_rot_w = T_last.R * cov->topLeftCorner<3, 3>() * T_last.R.transpose();
+    yaw_sigma = std::sqrt(std::max(0.0, cov_rot_w(2, 2)));
+  }
+  const Vec3 tag_last = T_last.transformFrom(P.graph.p_b_tag);
+  const std::string summary =
+      strprintf("batch over %.1f s (%zu states): ", toS(win.graph.state_t_ns.back() - t_graph0), n_states) +
+      strprintf("range cost %.2f, IMU cost %.3g per factor, sigma %.2f m, yaw sigma %.1f deg", range_cpr, imu_cpf,
+                pos_sigma, yaw_sigma * kRadToDeg);
+  std::string reject;
+  if (!out.result.converged()) {
+    reject = std::string("not converged (") + toString(out.result.status) + ")";
+  } else if (range_cpr > P.max_range_cost_per_range || imu_cpf > P.max_imu_cost_per_factor) {
+    reject = "cost too high";
+  } else if (!cov) {
+    reject = "covariance unavailable (" + cov_failure + ")";
+  } else if (!(pos_sigma <= P.max_position_sigma_m) || !(yaw_sigma <= P.max_yaw_sigma_rad)) {
+    reject = "state not determined well enough yet";
+  } else if (!P.height_band.contains(tag_last.z(), 3.0 * P.height_band.sigma_m)) {
+    reject = strprintf("tag height %.2f m outside the height band", tag_last.z());
+  }
+  if (!reject.empty()) {
+    setStatus(InitState::kBatchRejected, "waiting: " + reject + "; " + summary);
+    return false;
+  }
+
+  InitResult res;
+  res.state.index = n_states - 1;
+  res.state.t_ns = win.graph.state_t_ns.back();
+  res.state.T_w_b = T_last;
+  res.state.v_w = out.values.vec3(sym::V(n_states - 1));
+  res.state.bias = out.values.bias(sym::B(n_states - 1));
+  res.pose_covariance = *cov;
+  res.data_start_ns = data_start_ns_;
+  res.window_start_ns = t_graph0;
+  res.time_to_init_s = toS(t_now - data_start_ns_);
+  res.fix = w.fix;
+  res.gravity = w.gravity;
+  res.alignment = align;
+  res.lm = out.result;
+  res.range_cost_per_range = range_cpr;
+  res.imu_cost_per_factor = imu_cpf;
+  res.still_s = still_s;
+  if (P.keep_window) {
+    win.values = std::move(out.values);
+    res.window = std::move(win);
+  }
+  result_ = std::move(res);
+  setStatus(InitState::kInitialized, strprintf("initialized after %.1f s of data; ", result_->time_to_init_s) + summary);
+  return true;
+}
+
+int handOver(const Initializer& initializer, RangeImuEstimator& estimator) {
+  if (!initializer.initialized()) {
+    throw std::logic_error("handOver: the initializer is not initialized (" + initializer.status().message + ")");
+  }
+  if (estimator.stream().started()) throw std::logic_error("handOver: the estimator was already started");
+  const StateEstimate& s = initializer.result().state;
+  int updates = 0;
+  estimator.start(s.t_ns, s.T_w_b, s.v_w);
+  const std::vector<ImuSample>& imu = initializer.imuBuffer();
+  const std::vector<RangeSample>& ranges = initializer.rangeBuffer();
+  std::size_t i = imuIndexAt(imu, s.t_ns), r = rangeIndexFrom(ranges, s.t_ns);
+  while (i < imu.size() || r < ranges.size()) {
+    if (r < ranges.size() && (i >= imu.size() || ranges[r].t_ns <= imu[i].t_ns)) {
+      estimator.addRange(ranges[r++]);
+    } else {
+      estimator.addImu(imu[i++]);
+    }
+    updates += estimator.process();
+  }
+  return updates;
+}
+
+}  // namespace rilo

@@ -1,0 +1,238 @@
+#pragma once
+// Initialization without a known start (architecture "Estimation: Start-up",
+// seed 000 Sec. V: a batch solve over the first 10 s, handed to the
+// incremental smoother). Fed the same samples as the estimator, in time
+// order; once the state is observable it returns the newest state of a
+// batch-solved window (pose, velocity, bias) and the window itself.
+//
+// Each attempt (every attempt_interval_s of data once min_window_s is
+// buffered) works on the newest window of data (window_s, the seed's 10 s;
+// shorter at the first attempts; longer, up to max_window_s, when ranging is
+// sparse so that it holds min_window_ranges ranges):
+//  1. multilateration of the antenna at the window start (init_multilateration.h):
+//     robust, position + velocity over a short window (grown for sparse
+//     ranging), mirror solutions across the anchor plane resolved by the
+//     height band;
+//  2. roll and pitch from gravity (init_gravity.h): a still interval at the
+//     window start if there is one, else the gyro-compensated mean specific
+//     force over the whole window (motion averages out; the tilt prior of the
+//     next step is loosened accordingly);
+//  3. yaw by range-inertial alignment (init_alignment.h): one strapdown
+//     integration over the window, the window-start state and a constant bias
+//     fitted to all ranges from 8 yaw hypotheses; yaw is observable once its
+//     marginal sigma is small and no other yaw fits nearly as well (the device
+//     has accelerated horizontally: started walking, turned). Chosen over the
+//     "velocity direction vs IMU velocity" heuristic because it needs no
+//     velocity from differentiated fixes and so also works at 1 Hz ranging;
+//  4. the seed's batch: buildRangeImuGraph over the window with the first
+//     state's priors around the alignment, every state initialized from the
+//     aligned strapdown track, batch Levenberg-Marquardt; accepted when it
+//     converged, the range and IMU costs per factor are plausible, and the
+//     newest state's marginal position and yaw sigmas are small.
+// Data problems never throw: bad samples are dropped and counted, and
+// status() says why initialization is not possible yet.
+//
+// Memory: samples older than max_window_s (plus a margin) are dropped while
+// not initialized. After initialization every sample from the result's state
+// time on is kept for the hand-over (hand over promptly).
+// Single-threaded.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "estimation/graph/values.h"
+#include "estimation/pipeline/init_alignment.h"
+#include "estimation/pipeline/init_gravity.h"
+#include "estimation/pipeline/init_height_band.h"
+#include "estimation/pipeline/init_multilateration.h"
+#include "estimation/pipeline/range_imu_graph.h"
+#include "estimation/pipeline/range_imu_graph_stream.h"
+#include "estimation/solver/lm_params.h"
+#include "estimation/solver/lm_result.h"
+#include "hal/samples.h"
+
+namespace rilo {
+
+class RangeImuEstimator;
+
+struct InitializerParams {
+  /// The estimator's graph parameters (IMU model, range loss and noise, lever
+  /// arm, first-state priors): the batch window is built with them, and the
+  /// small solvers take sigma, lever arm, gravity and bias priors from them.
+  /// The small solvers always use the asymmetric range loss (robust to NLOS
+  /// whatever the graph's loss is).
+  RangeImuGraphParams graph;
+
+  double window_s = 10.0;          ///< batch window (s); seed 000 uses 10 s
+  double min_window_s = 3.0;       ///< first attempt once this much data is buffered (s)
+  double max_window_s = 30.0;      ///< sparse ranging: the window grows up to this to hold min_window_ranges (s)
+  int min_window_ranges = 40;      ///< ranges the window should hold (grown up to max_window_s for them)
+  int min_alignment_ranges = 12;   ///< fewer ranges in the window: wait
+  double attempt_interval_s = 0.5; ///< data time between attempts (s)
+
+  double fix_window_s = 1.0;       ///< multilateration window (s) ...
+  double fix_max_window_s = 8.0;   ///< ... grown up to this until it holds enough anchors and ranges (s)
+
+  HeightBand height_band;          ///< tag height band: default 0.5-2.0 m above the floor z = 0
+  /// Multilateration settings; sigma_m, long_side_loss and band are set from graph / height_band.
+  MultilaterationParams fix;
+  GravityParams gravity;
+  /// Alignment settings; range_sigma_m, long_side_loss, p_b_tag, gravity_m_s2,
+  /// the bias sigmas and band are set from graph / height_band.
+  AlignmentParams alignment;
+
+  // Observability gates of the alignment (step 3).
+  double max_alignment_yaw_sigma_rad = 0.14;  ///< yaw sigma at the window start (~8 deg)
+  double min_yaw_cost_gap = 8.0;              ///< a distinct yaw within this cost is still plausible
+  double max_alignment_cost_per_range = 3.0;  ///< else ranges and IMU disagree (wrong fix, bad data)
+
+  // Acceptance of the batch solve (step 4).
+  /// Newest state, sqrt(trace) of the position covariance (m). Catches an
+  /// unobservable position; at 1 Hz ranging the newest state's sigma is
+  /// 0.4-0.9 m by nature (one range per second), at 40 Hz ~0.15 m.
+  double max_position_sigma_m = 1.0;
+  double max_yaw_sigma_rad = 0.087;     ///< newest state, world yaw (~5 deg)
+  double max_range_cost_per_range = 2.5;  ///< mean robust cost of the range factors
+  double max_imu_cost_per_factor = 30.0;  ///< mean cost of the IMU factors
+  LmParams lm = defaultLmParams();
+  /// Zero-velocity updates: batch states inside a still interval of the IMU
+  /// (findStillIntervals) get a zero-velocity prior, sigma * sqrt(1 s / the
+  /// state's interval) per state (the same weight per second at any ranging
+  /// rate). What the IMU knows while the device rests: it pins the
+  /// accelerometer bias that NLOS ranges would otherwise bend into a height
+  /// drift. +inf disables.
+  double zero_velocity_sigma_m_s = 0.05;
+
+  double max_range_m = 500.0;  ///< ranges beyond this (or negative) are dropped as garbage (m)
+  bool keep_window = true;     ///< keep the solved window in the result
+
+  static LmParams defaultLmParams() {
+    LmParams p;
+    p.max_iterations = 50;
+    p.relative_error_tolerance = 1e-7;
+    p.record_trace = false;
+    return p;
+  }
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+enum class InitState {
+  kWaitingForData,   ///< not enough data buffered (no IMU, no ranges, too short)
+  kTooFewAnchors,    ///< fewer distinct anchors in the window than needed
+  kPoorFix,          ///< multilateration failed its quality checks, or ranges disagree with the IMU
+  kNoGravity,        ///< the accelerometer does not measure gravity
+  kYawUnobservable,  ///< the device has not accelerated horizontally enough yet
+  kBatchRejected,    ///< the batch solve failed its acceptance checks
+  kInitialized,
+};
+const char* toString(InitState s);
+
+struct InitStatus {
+  InitState state = InitState::kWaitingForData;
+  std::string message = "waiting: no samples";
+  std::int64_t t_ns = 0;  ///< data time of the last attempt
+  int attempts = 0;       ///< attempts so far (since construction or reset)
+};
+
+/// The batch-solved window, for a caller that seeds its smoother with it.
+struct InitWindow {
+  RangeImuGraph graph;  ///< as built (keys X/V/B(i) at graph.state_t_ns[i], anchors L(id))
+  Values values;        ///< the batch solution
+};
+
+struct InitResult {
+  StateEstimate state;              ///< the window's newest state (index within the window graph)
+  CovarianceBlock pose_covariance;  ///< marginal of state.T_w_b, tangent [rot; trans] (rad, m)
+  std::int64_t data_start_ns = 0;   ///< first accepted sample
+  std::int64_t window_start_ns = 0; ///< first state of the window
+  double time_to_init_s = 0.0;      ///< data time from data_start_ns to the successful attempt (s)
+  TagFix fix;
+  GravityAlignment gravity;
+  AlignmentResult alignment;
+  LmResult lm;
+  double range_cost_per_range = 0.0;
+  double imu_cost_per_factor = 0.0;
+  double still_s = 0.0;          ///< still time in the window (zero-velocity priors)
+  std::optional<InitWindow> window;  ///< with InitializerParams::keep_window
+};
+
+class Initializer {
+ public:
+  /// `p_w_anchors[id]` is the surveyed position of anchor id (m, world).
+  /// Throws std::invalid_argument for invalid params or anchors (not finite, none).
+  Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params = {});
+
+  /// Buffers a sample; never throws on data: a sample that is not finite, not
+  /// after the previous one (IMU), before the previous one (range), for an
+  /// unknown anchor or with an absurd range is dropped and counted.
+  void addImu(const ImuSample& sample);
+  void addRange(const RangeSample& sample);
+
+  /// Runs an attempt when one is due (every attempt_interval_s of IMU time
+  /// once min_window_s is buffered). Returns initialized().
+  bool process();
+  /// Runs an attempt now on what is buffered. Returns initialized().
+  bool attempt();
+
+  bool initialized() const { return status_.state == InitState::kInitialized; }
+  const InitStatus& status() const { return status_; }
+  /// Throws std::logic_error before initialization.
+  const InitResult& result() const;
+  /// Forgets everything (re-initialization after a failure).
+  void reset();
+
+  /// Buffered samples, in time order (the hand-over replays them).
+  const std::vector<ImuSample>& imuBuffer() const { return imu_; }
+  const std::vector<RangeSample>& rangeBuffer() const { return ranges_; }
+  std::size_t droppedImu() const { return dropped_imu_; }
+  std::size_t droppedRanges() const { return dropped_ranges_; }
+  const InitializerParams& params() const { return params_; }
+  const std::vector<Vec3>& anchors() const { return p_w_anchors_; }
+
+ private:
+  /// The fix, gravity and alignment of one window, or why it is not usable.
+  struct AlignedWindow {
+    bool ok = false;
+    InitState state = InitState::kWaitingForData;
+    std::string message;
+    std::size_t begin = 0, end = 0;  ///< ranges_[begin, end)
+    TagFix fix;
+    GravityAlignment gravity;
+    AlignmentResult alignment;
+  };
+
+  void setStatus(InitState s, std::string message);
+  void trim();
+  bool runAttempt();
+  AlignedWindow alignWindow(std::int64_t window_ns, std::int64_t t_now_ns, std::size_t end) const;
+  bool solveBatch(const AlignedWindow& w, std::int64_t t_now_ns);
+
+  std::vector<Vec3> p_w_anchors_;
+  InitializerParams params_;
+
+  std::vector<ImuSample> imu_;
+  std::vector<RangeSample> ranges_;
+  bool have_data_ = false;
+  std::int64_t data_start_ns_ = 0;
+  std::int64_t last_attempt_ns_ = 0;
+  bool attempted_ = false;
+  bool grow_window_ = false;  ///< window_s was not enough for yaw: use up to max_window_s
+  std::size_t dropped_imu_ = 0, dropped_ranges_ = 0;
+
+  InitStatus status_;
+  std::optional<InitResult> result_;
+};
+
+/// Hands an initialized Initializer over to an estimator that was not
+/// started: starts it at the result's state (time, pose, velocity) and
+/// replays every buffered sample from that time on (IMU from the sample in
+/// effect at it; ranges at or after it), in time order, then lets it
+/// process. Afterwards feed new samples to the estimator. Returns the number
+/// of smoother updates. Throws std::logic_error if the initializer is not
+/// initialized or the estimator was already started.
+int handOver(const Initializer& initializer, RangeImuEstimator& estimator);
+
+}  // namespace rilo

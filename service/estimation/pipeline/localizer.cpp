@@ -1,0 +1,154 @@
+#include "estimation/pipeline/localizer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "estimation/smoother/bayes_tree_smoother.h"
+
+namespace rilo {
+
+void LocalizerParams::validate() const {
+  auto fail = [](const char* field, const char* rule) {
+    throw std::invalid_argument(std::string("LocalizerParams.") + field + " " + rule);
+  };
+  if (!(max_speed_m_s > 0.0)) fail("max_speed_m_s", "must be > 0");
+  if (!(max_accel_bias_m_s2 > 0.0)) fail("max_accel_bias_m_s2", "must be > 0");
+  if (!(max_gyro_bias_rad_s > 0.0)) fail("max_gyro_bias_rad_s", "must be > 0");
+  if (!(max_imu_gap_s > 0.0)) fail("max_imu_gap_s", "must be > 0");
+  if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
+  smoother.validate();
+  init.validate();
+}
+
+SmootherParams::Method smootherMethodFromName(const std::string& name) {
+  if (name == "d-isam2") return SmootherParams::Method::kDamped;
+  if (name == "isam2") return SmootherParams::Method::kGaussNewton;
+  if (name == "dogleg") return SmootherParams::Method::kDogleg;
+  throw std::invalid_argument("unknown smoother '" + name + "' (expected d-isam2, isam2 or dogleg)");
+}
+
+const char* smootherMethodName(SmootherParams::Method method) {
+  switch (method) {
+    case SmootherParams::Method::kDamped: return "d-isam2";
+    case SmootherParams::Method::kGaussNewton: return "isam2";
+    case SmootherParams::Method::kDogleg: return "dogleg";
+  }
+  return "?";
+}
+
+Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
+    : p_w_anchors_(std::move(p_w_anchors)), params_(std::move(params)), initializer_(p_w_anchors_, params_.init) {
+  params_.validate();
+}
+
+void Localizer::addImu(const ImuSample& sample) {
+  if (have_imu_ && phase_ == Phase::kTracking &&
+      static_cast<double>(sample.t_ns - last_imu_ns_) * 1e-9 > params_.max_imu_gap_s) {
+    char why[96];
+    std::snprintf(why, sizeof why, "IMU silent for %.2f s", static_cast<double>(sample.t_ns - last_imu_ns_) * 1e-9);
+    fail(why);
+  }
+  have_imu_ = true;
+  last_imu_ns_ = sample.t_ns;
+  if (phase_ == Phase::kTracking) {
+    estimator_->addImu(sample);
+  } else {
+    initializer_.addImu(sample);
+  }
+}
+
+void Localizer::addRange(const RangeSample& sample) {
+  if (sample.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
+  if (phase_ == Phase::kTracking) {
+    estimator_->addRange(sample);
+  } else {
+    initializer_.addRange(sample);
+  }
+}
+
+int Localizer::process(std::vector<UpdateStats>* stats) {
+  if (phase_ == Phase::kInitializing) {
+    if (!initializer_.process()) return 0;
+    startTracking();
+  }
+  scratch_.clear();
+  const int updates = estimator_->process(&scratch_);
+  for (const UpdateStats& s : scratch_) {
+    if (stats) stats->push_back(s);
+    checkHealth(s);
+    if (phase_ != Phase::kTracking) break;
+  }
+  return updates;
+}
+
+void Localizer::finish() {
+  if (phase_ == Phase::kTracking) estimator_->finish();
+}
+
+void Localizer::startTracking() {
+  const InitResult& init = initializer_.result();
+  estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, params_.graph,
+                                                   std::make_unique<BayesTreeSmoother>(params_.smoother), params_.stream);
+  const std::int64_t t0 = init.state.t_ns;
+  estimator_->start(t0, init.state.T_w_b, init.state.v_w);
+  // Hand over what the initializer buffered after the start state, so no
+  // sample is lost: the IMU sample in effect at t0 first, then time order.
+  const auto& imu = initializer_.imuBuffer();
+  const auto& ranges = initializer_.rangeBuffer();
+  std::size_t i = 0;
+  while (i + 1 < imu.size() && imu[i + 1].t_ns <= t0) ++i;
+  std::size_t r = 0;
+  while (r < ranges.size() && ranges[r].t_ns <= t0) ++r;
+  while (i < imu.size() || r < ranges.size()) {
+    if (r < ranges.size() && (i >= imu.size() || ranges[r].t_ns <= imu[i].t_ns)) {
+      estimator_->addRange(ranges[r++]);
+    } else {
+      estimator_->addImu(imu[i++]);
+    }
+  }
+  phase_ = Phase::kTracking;
+  consecutive_rejections_ = 0;
+  ++initializations_;
+}
+
+void Localizer::checkHealth(const UpdateStats& stats) {
+  const StateEstimate& s = estimator_->latest();
+  const double t_s = static_cast<double>(s.t_ns) * 1e-9;
+  char why[128];
+  const double speed = s.v_w.norm();
+  const Vec6 b = s.bias.vector();
+  if (!std::isfinite(speed) || !s.T_w_b.p.allFinite() || !b.allFinite()) {
+    std::snprintf(why, sizeof why, "non-finite state at t=%.3f s", t_s);
+    fail(why);
+  } else if (speed > params_.max_speed_m_s) {
+    std::snprintf(why, sizeof why, "speed %.1f m/s at t=%.3f s (limit %.1f)", speed, t_s, params_.max_speed_m_s);
+    fail(why);
+  } else if (b.head<3>().cwiseAbs().maxCoeff() > params_.max_accel_bias_m_s2 ||
+             b.tail<3>().cwiseAbs().maxCoeff() > params_.max_gyro_bias_rad_s) {
+    std::snprintf(why, sizeof why, "implausible IMU bias (accel %.2f m/s^2, gyro %.3f rad/s) at t=%.3f s",
+                  b.head<3>().cwiseAbs().maxCoeff(), b.tail<3>().cwiseAbs().maxCoeff(), t_s);
+    fail(why);
+  } else if (!stats.step_accepted && ++consecutive_rejections_ >= params_.max_consecutive_rejections) {
+    std::snprintf(why, sizeof why, "%d updates in a row kept the previous estimate at t=%.3f s", consecutive_rejections_, t_s);
+    fail(why);
+  } else if (stats.step_accepted) {
+    consecutive_rejections_ = 0;
+  }
+}
+
+void Localizer::fail(std::string why) {
+  last_failure_ = std::move(why);
+  if (phase_ == Phase::kTracking) ++reinitializations_;
+  phase_ = Phase::kInitializing;
+  estimator_.reset();
+  initializer_.reset();
+}
+
+std::optional<CovarianceBlock> Localizer::latestPoseCovariance() {
+  if (!tracking()) return std::nullopt;
+  return estimator_->smoother().marginalCovariance(sym::X(estimator_->latest().index));
+}
+
+}  // namespace rilo

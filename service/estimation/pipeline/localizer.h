@@ -1,0 +1,90 @@
+#pragma once
+// The whole online pipeline for one device: initialization from scratch
+// (Initializer: multilateration, gravity alignment, batch window), hand-over
+// to the incremental estimator, failure detection, and re-initialization.
+// Used by rilod's estimator thread and by `rilo replay`; single-threaded, no
+// I/O. Samples go in time order per stream; estimates come out after
+// process().
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "estimation/graph/factor.h"
+#include "estimation/pipeline/initializer.h"
+#include "estimation/pipeline/range_imu_estimator.h"
+#include "estimation/smoother/smoother_params.h"
+
+namespace rilo {
+
+struct LocalizerParams {
+  RangeImuGraphParams graph;
+  SmootherParams smoother;           ///< method: D-iSAM2 (default), iSAM2, dog-leg
+  InitializerParams init;
+  RangeImuStreamOptions stream;
+  // Failure detection: any of these ends tracking and restarts initialization.
+  double max_speed_m_s = 10.0;       ///< a walking/running person stays well below
+  double max_accel_bias_m_s2 = 1.5;  ///< far beyond a BMI263's bias range
+  double max_gyro_bias_rad_s = 0.3;
+  double max_imu_gap_s = 1.0;        ///< IMU silence longer than this: the motion model is broken
+  int max_consecutive_rejections = 40;  ///< D-iSAM2 updates keeping the previous estimate in a row
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+/// Parses "d-isam2" | "isam2" | "dogleg" (throws std::invalid_argument otherwise).
+SmootherParams::Method smootherMethodFromName(const std::string& name);
+const char* smootherMethodName(SmootherParams::Method method);
+
+class Localizer {
+ public:
+  enum class Phase { kInitializing, kTracking };
+
+  /// `p_w_anchors[id]`: surveyed anchor positions (m, world).
+  Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params);
+
+  void addImu(const ImuSample& sample);
+  void addRange(const RangeSample& sample);
+  /// Runs what is ready: an initialization attempt, or smoother updates.
+  /// Appends one UpdateStats per smoother update when `stats` is given.
+  /// Returns the number of smoother updates.
+  int process(std::vector<UpdateStats>* stats = nullptr);
+  /// No more samples (end of a recording): lets the last ranges through.
+  void finish();
+
+  Phase phase() const { return phase_; }
+  bool tracking() const { return phase_ == Phase::kTracking; }
+  /// Newest smoothed state; valid while tracking.
+  const StateEstimate& latest() const { return estimator_->latest(); }
+  /// Marginal covariance of the newest pose, tangent [rot; trans], if available.
+  std::optional<CovarianceBlock> latestPoseCovariance();
+  const InitStatus& initStatus() const { return initializer_.status(); }
+  const RangeImuEstimator* estimator() const { return estimator_.get(); }
+
+  std::uint64_t initializations() const { return initializations_; }
+  std::uint64_t reinitializations() const { return reinitializations_; }
+  /// Why tracking last ended ("speed 14.2 m/s at t=12.3 s"), empty if never.
+  const std::string& lastFailure() const { return last_failure_; }
+
+ private:
+  void startTracking();
+  void checkHealth(const UpdateStats& stats);
+  void fail(std::string why);
+
+  std::vector<Vec3> p_w_anchors_;
+  LocalizerParams params_;
+  Phase phase_ = Phase::kInitializing;
+  Initializer initializer_;
+  std::unique_ptr<RangeImuEstimator> estimator_;
+  std::int64_t last_imu_ns_ = 0;
+  bool have_imu_ = false;
+  int consecutive_rejections_ = 0;
+  std::uint64_t initializations_ = 0;
+  std::uint64_t reinitializations_ = 0;
+  std::string last_failure_;
+  std::vector<UpdateStats> scratch_;
+};
+
+}  // namespace rilo

@@ -1,0 +1,99 @@
+// The online pipeline end to end on simulated walks: initialization from
+// scratch, tracking, failure detection and re-initialization.
+#include "estimation/pipeline/localizer.h"
+
+#include <gtest/gtest.h>
+
+#include "hal/sim/range_imu_scenario.h"
+#include "support/online_run.h"
+
+namespace rilo {
+namespace {
+
+LocalizerParams paramsFor(const sim::Scenario& s) {
+  LocalizerParams p;
+  p.graph = testing::graphParamsFor(s);
+  p.smoother.lag_s = 5.0;
+  p.init.window_s = 5.0;
+  return p;
+}
+
+struct FeedResult {
+  double mean_error_m = 0.0;
+  int tracked_updates = 0;
+  std::int64_t first_track_ns = -1;
+};
+
+/// Feeds the scenario in time order, dropping IMU samples in [gap_from, gap_to).
+FeedResult feed(const sim::Scenario& s, Localizer& localizer, std::int64_t gap_from_ns = -1, std::int64_t gap_to_ns = -1) {
+  FeedResult run;
+  std::size_t i = 0, r = 0;
+  double sum = 0.0;
+  while (i < s.imu.size() || r < s.ranges.size()) {
+    if (r < s.ranges.size() && (i >= s.imu.size() || s.ranges[r].t_ns <= s.imu[i].t_ns)) {
+      localizer.addRange(s.ranges[r++]);
+    } else {
+      const ImuSample& m = s.imu[i++];
+      if (m.t_ns >= gap_from_ns && m.t_ns < gap_to_ns) continue;
+      localizer.addImu(m);
+    }
+    if (localizer.process() > 0 && localizer.tracking()) {
+      if (run.first_track_ns < 0) run.first_track_ns = localizer.latest().t_ns;
+      sum += (localizer.latest().T_w_b.p - s.truthAt(localizer.latest().t_ns).T_w_b.p).norm();
+      ++run.tracked_updates;
+    }
+  }
+  run.mean_error_m = run.tracked_updates > 0 ? sum / run.tracked_updates : 0.0;
+  return run;
+}
+
+TEST(Localizer, InitializesFromScratchAndTracks) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 40.0;
+  sp.seed = 3;
+  const sim::Scenario s = sim::simulateScenario(sp);
+  Localizer localizer(s.p_w_anchors, paramsFor(s));
+  const FeedResult run = feed(s, localizer);
+  ASSERT_TRUE(localizer.tracking()) << localizer.initStatus().message;
+  EXPECT_EQ(localizer.initializations(), 1u);
+  EXPECT_EQ(localizer.reinitializations(), 0u) << localizer.lastFailure();
+  EXPECT_GT(run.tracked_updates, 400);
+  // The initializer waits until yaw and position are determined (18 s on
+  // this seed's slow start); it must not wait for ever.
+  EXPECT_LT(static_cast<double>(run.first_track_ns - s.imu.front().t_ns) * 1e-9, 25.0);
+  // Tracks without diverging. (Accuracy is measured by the issue 4 report:
+  // online error on these synthetic walks is 0.2-0.7 m today, see the notes.)
+  EXPECT_LT(run.mean_error_m, 1.0);
+  const auto cov = localizer.latestPoseCovariance();
+  ASSERT_TRUE(cov.has_value());
+  EXPECT_GT(cov->diagonal().tail<3>().minCoeff(), 0.0);
+  EXPECT_LT(cov->diagonal().tail<3>().maxCoeff(), 1.0);
+}
+
+TEST(Localizer, ImuBlackoutEndsTrackingAndItRecovers) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 45.0;
+  sp.seed = 4;
+  const sim::Scenario s = sim::simulateScenario(sp);
+  Localizer localizer(s.p_w_anchors, paramsFor(s));
+  const std::int64_t t0 = s.imu.front().t_ns;
+  feed(s, localizer, t0 + 20'000'000'000, t0 + 23'000'000'000);  // 3 s without IMU
+  EXPECT_EQ(localizer.reinitializations(), 1u);
+  EXPECT_NE(localizer.lastFailure().find("IMU silent"), std::string::npos) << localizer.lastFailure();
+  EXPECT_TRUE(localizer.tracking()) << "not re-initialized: " << localizer.initStatus().message;
+  EXPECT_EQ(localizer.initializations(), 2u);
+}
+
+TEST(Localizer, NamesTheSmoothers) {
+  EXPECT_EQ(smootherMethodFromName("d-isam2"), SmootherParams::Method::kDamped);
+  EXPECT_EQ(smootherMethodFromName("isam2"), SmootherParams::Method::kGaussNewton);
+  EXPECT_EQ(smootherMethodFromName("dogleg"), SmootherParams::Method::kDogleg);
+  EXPECT_STREQ(smootherMethodName(SmootherParams::Method::kDamped), "d-isam2");
+  EXPECT_THROW(smootherMethodFromName("gtsam"), std::invalid_argument);
+  LocalizerParams bad;
+  bad.max_speed_m_s = 0.0;
+  EXPECT_THROW(Localizer({Vec3::Zero()}, bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace rilo

@@ -1,0 +1,459 @@
+// The configuration schema: one reader per section, each opening its mapping
+// with the complete list of accepted keys (config_reader.h). Keys mirror the
+// struct fields, with the unit in the name where the struct uses another unit
+// (seconds in YAML, nanoseconds in the struct). config/README.md documents
+// every key; keep the three in step.
+#include "rilod/config.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "estimation/noise/noise_model_factory.h"
+#include "hal/recording/recording_reader.h"
+#include "rilod/config_hardware.h"
+#include "rilod/config_reader.h"
+
+namespace rilo {
+
+using config_detail::ConfigField;
+using config_detail::ConfigMap;
+using config_detail::ReadContext;
+
+namespace {
+
+constexpr double kHuge = std::numeric_limits<double>::max();
+
+// --- sources -----------------------------------------------------------------
+
+ReplaySourceConfig readReplay(const ConfigField& field) {
+  const ConfigMap m = field.map({"path", "pace", "speed", "loop", "shift_to_now"});
+  ReplaySourceConfig c;
+  c.path = m.require("path").path();
+  m.read("pace", c.pace, [](const ConfigField& f) {
+    return f.choice<ReplayPace>({{"real_time", ReplayPace::kRealTime},
+                                 {"as_fast_as_possible", ReplayPace::kAsFastAsPossible}});
+  });
+  m.read("speed", c.speed, [](const ConfigField& f) { return f.positive(1000.0); });
+  m.read("loop", c.loop, [](const ConfigField& f) { return f.boolean(); });
+  m.read("shift_to_now", c.shift_to_now, [](const ConfigField& f) { return f.boolean(); });
+  if (c.pace == ReplayPace::kAsFastAsPossible && m.has("speed") && c.speed != 1.0) {
+    m.require("speed").fail("speed applies to pace real_time only (pace is as_fast_as_possible)");
+  }
+  return c;
+}
+
+SourcesConfig readSources(const ConfigField& field, const std::vector<Anchor>& anchors) {
+  const ConfigMap m = field.map({"mode", "replay", "hardware"});
+  SourcesConfig c;
+  c.mode = m.require("mode").choice<SourceMode>({{"replay", SourceMode::kReplay}, {"hardware", SourceMode::kHardware}});
+  // A section of the other mode is still checked (a file that loads is valid
+  // as a whole), except that its responders need not be surveyed anchors.
+  if (auto f = m.get("replay")) c.replay = readReplay(*f);
+  if (auto f = m.get("hardware")) {
+    c.hardware = config_detail::readHardware(*f, c.mode == SourceMode::kHardware ? &anchors : nullptr);
+  }
+  if (c.mode == SourceMode::kReplay && !m.has("replay")) {
+    m.require("replay");  // throws: mode replay needs its section
+  }
+  if (c.mode == SourceMode::kHardware && !m.has("hardware")) m.require("hardware");
+  return c;
+}
+
+// --- anchors -----------------------------------------------------------------
+
+Anchor readAnchor(const ConfigField& field) {
+  const ConfigMap m = field.map({"id", "x", "y", "z", "kind", "sigma"});
+  Anchor a;
+  a.id = m.require("id").integerAs<std::uint32_t>();
+  a.p_w_anchor.x() = m.require("x").number(-1e6, 1e6);
+  a.p_w_anchor.y() = m.require("y").number(-1e6, 1e6);
+  a.p_w_anchor.z() = m.require("z").number(-1e6, 1e6);
+  m.read("kind", a.kind, [](const ConfigField& f) {
+    return f.choice<AnchorKind>({{"uwb", AnchorKind::kUwb}, {"ultrasonic", AnchorKind::kUltrasonic}});
+  });
+  if (auto f = m.get("sigma")) a.sigma_m = f->number(0.0, 100.0);
+  return a;
+}
+
+std::string readWholeFile(const std::filesystem::path& path, const ConfigField& where) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) where.fail("cannot open anchors file '" + path.string() + "': " + std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) where.fail("cannot read anchors file '" + path.string() + "'");
+  return text.str();
+}
+
+void readAnchors(const ConfigField& field, ServiceConfig& config) {
+  if (field.node().IsSequence()) {
+    for (const ConfigField& item : field.sequence()) config.anchors.push_back(readAnchor(item));
+    // Repeated ids: point at the second one.
+    const auto items = field.sequence();
+    for (std::size_t i = 0; i < config.anchors.size(); ++i) {
+      for (std::size_t j = 0; j < i; ++j) {
+        if (config.anchors[i].id == config.anchors[j].id) {
+          items[i].fail("anchor id " + std::to_string(config.anchors[i].id) + " repeats " + items[j].keyPath());
+        }
+      }
+    }
+  } else if (field.node().IsMap()) {
+    const ConfigMap m = field.map({"file"});
+    const ConfigField file = m.require("file");
+    config.anchors_file = file.path();
+    const std::string text = readWholeFile(config.anchors_file, file);
+    ReadReport report;
+    try {
+      config.anchors = recording::parseAnchors(text, config.anchors_file.string(), report);
+    } catch (const RecordingError& e) {
+      file.fail(std::string("bad anchors file: ") + e.what());
+    }
+  } else {
+    field.fail("expected a list of anchors ({id, x, y, z} items) or a mapping {file: anchors.csv}, got " +
+               field.describe());
+  }
+  const auto uwb = std::count_if(config.anchors.begin(), config.anchors.end(),
+                                 [](const Anchor& a) { return a.kind == AnchorKind::kUwb; });
+  if (uwb < 3) {
+    field.fail("at least 3 UWB anchors are needed (4 not all in one plane for an unambiguous 3D fix), got " +
+               std::to_string(uwb));
+  }
+}
+
+// --- imu ---------------------------------------------------------------------
+
+ImuParams readImu(const ConfigField& field) {
+  const ConfigMap m = field.map({"gyro_noise_density", "accel_noise_density", "gyro_bias_random_walk",
+                                 "accel_bias_random_walk", "gyro_bias_tau_s", "accel_bias_tau_s",
+                                 "integration_noise_density", "gravity_m_s2"});
+  ImuParams p;
+  auto density = [](const ConfigField& f) { return f.positive(1.0); };
+  m.read("gyro_noise_density", p.gyro_noise_density, density);
+  m.read("accel_noise_density", p.accel_noise_density, density);
+  m.read("gyro_bias_random_walk", p.gyro_bias_random_walk, density);
+  m.read("accel_bias_random_walk", p.accel_bias_random_walk, density);
+  auto tau = [](const ConfigField& f) {
+    const double t = f.number(0.0, kHuge, /*allow_inf=*/true);
+    if (!(t > 0.0)) f.fail("expected a correlation time > 0 s (.inf for a random walk), got " + f.node().Scalar());
+    return t;
+  };
+  m.read("gyro_bias_tau_s", p.gyro_bias_tau_s, tau);
+  m.read("accel_bias_tau_s", p.accel_bias_tau_s, tau);
+  m.read("integration_noise_density", p.integration_noise_density, density);
+  m.read("gravity_m_s2", p.gravity_m_s2, [](const ConfigField& f) { return f.number(9.7, 9.9); });
+  try {
+    p.validate();
+  } catch (const std::invalid_argument& e) {
+    field.fail(e.what());
+  }
+  return p;
+}
+
+// --- estimator ---------------------------------------------------------------
+
+void readRelinearization(const ConfigField& field, SmootherParams& s) {
+  const ConfigMap m = field.map({"skip", "rotation_rad", "position_m", "velocity_m_s", "anchor_m",
+                                 "accel_bias_m_s2", "gyro_bias_rad_s", "together", "max_variables",
+                                 "recent_updates", "wildfire_threshold"});
+  auto threshold = [](const ConfigField& f) { return f.number(0.0, 1e3); };
+  m.read("skip", s.relinearize_skip, [](const ConfigField& f) { return f.integerAs<int>(1, 1000); });
+  if (auto f = m.get("rotation_rad")) s.default_pose_threshold.head<3>().setConstant(threshold(*f));
+  if (auto f = m.get("position_m")) s.default_pose_threshold.tail<3>().setConstant(threshold(*f));
+  if (auto f = m.get("velocity_m_s")) s.default_vec3_threshold.setConstant(threshold(*f));
+  if (auto f = m.get("anchor_m")) s.relinearize_thresholds3['l'] = Vec3::Constant(threshold(*f));
+  if (auto f = m.get("accel_bias_m_s2")) s.default_bias_threshold.head<3>().setConstant(threshold(*f));
+  if (auto f = m.get("gyro_bias_rad_s")) s.default_bias_threshold.tail<3>().setConstant(threshold(*f));
+  m.read("together", s.relinearize_together, [](const ConfigField& f) { return f.boolean(); });
+  m.read("max_variables", s.max_relinearized_variables,
+         [](const ConfigField& f) { return f.integerAs<int>(0, 1'000'000); });
+  m.read("recent_updates", s.always_relinearize_recent_updates,
+         [](const ConfigField& f) { return f.integerAs<int>(0, 1000); });
+  m.read("wildfire_threshold", s.wildfire_threshold, threshold);
+}
+
+void readDamping(const ConfigField& field, SmootherParams& s) {
+  const ConfigMap m = field.map({"lambda_initial", "lambda_min", "lambda_max", "lambda_increase",
+                                 "lambda_decrease", "widen", "acceptance"});
+  auto lambda = [](const ConfigField& f) { return f.positive(1e20); };
+  m.read("lambda_initial", s.lambda_initial, lambda);
+  m.read("lambda_min", s.lambda_min, lambda);
+  m.read("lambda_max", s.lambda_max, lambda);
+  m.read("lambda_increase", s.lambda_increase, [](const ConfigField& f) { return f.number(1.0, 1e6); });
+  m.read("lambda_decrease", s.lambda_decrease, [](const ConfigField& f) { return f.number(0.0, 1.0); });
+  m.read("widen", s.widen_damping, [](const ConfigField& f) { return f.boolean(); });
+  m.read("acceptance", s.acceptance, [](const ConfigField& f) {
+    return f.choice<SmootherParams::Acceptance>({{"damped_factors", SmootherParams::Acceptance::kDampedFactors},
+                                                 {"global", SmootherParams::Acceptance::kGlobal}});
+  });
+}
+
+void readTrustRegion(const ConfigField& field, SmootherParams& s) {
+  const ConfigMap m = field.map({"initial", "min"});
+  m.read("initial", s.trust_radius_initial, [](const ConfigField& f) { return f.positive(1e6); });
+  m.read("min", s.trust_radius_min, [](const ConfigField& f) { return f.positive(1e6); });
+}
+
+void readRange(const ConfigField& field, EstimatorConfig& e) {
+  const ConfigMap m = field.map({"noise_model", "sigma_m", "huber_k", "cauchy_c", "nlos_scale_m", "nlos_weight",
+                                 "lever_arm_m", "same_state_window_s", "max_state_interval_s", "max_wait_s"});
+  RangeImuGraphParams& g = e.graph;
+  if (auto f = m.get("noise_model")) {
+    const std::string name = f->string();
+    const auto& names = rangeLossNames();
+    if (std::find(names.begin(), names.end(), name) == names.end()) {
+      std::string list;
+      for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+      f->fail("expected one of " + list + ", got '" + name + "'");
+    }
+    g.range_loss = name;
+  }
+  m.read("sigma_m", g.range_noise.sigma_m, [](const ConfigField& f) { return f.positive(100.0); });
+  m.read("huber_k", g.range_noise.huber_k, [](const ConfigField& f) { return f.positive(100.0); });
+  m.read("cauchy_c", g.range_noise.cauchy_c, [](const ConfigField& f) { return f.positive(100.0); });
+  if (auto f = m.get("nlos_scale_m")) g.range_noise.nlos_scale_m = f->positive(100.0);
+  m.read("nlos_weight", g.range_noise.nlos_weight, [](const ConfigField& f) { return f.number(0.0, 0.5); });
+  m.read("lever_arm_m", g.p_b_tag, [](const ConfigField& f) {
+    const Vec3 v = f.vec3();
+    if (v.norm() > 5.0) f.fail("expected a lever arm of at most 5 m, got " + std::to_string(v.norm()) + " m");
+    return v;
+  });
+  m.read("same_state_window_s", g.same_state_window_ns, [](const ConfigField& f) { return f.secondsAsNs(0.0, 1.0); });
+  m.read("max_state_interval_s", g.max_state_interval_ns,
+         [](const ConfigField& f) { return f.secondsAsNs(1e-3, 60.0); });
+  m.read("max_wait_s", e.stream.max_range_wait_ns, [](const ConfigField& f) { return f.secondsAsNs(1e-3, 600.0); });
+  if (e.stream.max_range_wait_ns < g.max_state_interval_ns) {
+    (m.has("max_wait_s") ? m.require("max_wait_s") : field)
+        .fail("max_wait_s must be >= max_state_interval_s (" + std::to_string(g.max_state_interval_ns * 1e-9) + " s)");
+  }
+  try {
+    (void)makeRangeLoss(g.range_loss, g.range_noise);
+  } catch (const std::invalid_argument& e2) {
+    field.fail(e2.what());
+  }
+}
+
+EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
+  const ConfigMap m = field.map({"smoother", "lag_s", "relinearization", "damping", "trust_region", "range",
+                                 "anchors_as_variables", "anchor_sigma_m", "init"});
+  m.read("smoother", e.smoother.method, [](const ConfigField& f) {
+    return f.choice<SmootherParams::Method>({{"d-isam2", SmootherParams::Method::kDamped},
+                                             {"isam2", SmootherParams::Method::kGaussNewton},
+                                             {"dogleg", SmootherParams::Method::kDogleg}});
+  });
+  m.read("lag_s", e.smoother.lag_s, [](const ConfigField& f) {
+    const double lag = f.number(0.0, 3600.0);
+    if (!(lag > 0.0)) f.fail("expected a lag > 0 s (the service must bound its memory), got " + f.node().Scalar());
+    return lag;
+  });
+  if (auto f = m.get("relinearization")) readRelinearization(*f, e.smoother);
+  if (auto f = m.get("damping")) readDamping(*f, e.smoother);
+  if (auto f = m.get("trust_region")) readTrustRegion(*f, e.smoother);
+  if (auto f = m.get("range")) readRange(*f, e);
+  m.read("anchors_as_variables", e.graph.anchors_as_variables, [](const ConfigField& f) { return f.boolean(); });
+  m.read("anchor_sigma_m", e.graph.anchor_sigma_m, [](const ConfigField& f) { return f.positive(100.0); });
+  if (auto f = m.get("init")) {
+    const ConfigMap init = f->map({"window_s"});
+    init.read("window_s", e.init_window_s, [](const ConfigField& w) { return w.number(0.5, 600.0); });
+  }
+  try {
+    e.smoother.validate();
+  } catch (const std::invalid_argument& ex) {
+    // "SmootherParams.lambda_max must be >= lambda_min": point at the damping
+    // or trust_region section when the field belongs there.
+    const std::string what = ex.what();
+    const bool damping = what.find("lambda") != std::string::npos;
+    const bool trust = what.find("trust_radius") != std::string::npos;
+    if (damping && m.has("damping")) m.require("damping").fail(what);
+    if (trust && m.has("trust_region")) m.require("trust_region").fail(what);
+    field.fail(what);
+  }
+  return e;
+}
+
+// --- dds ---------------------------------------------------------------------
+
+std::string readTopicName(const ConfigField& f) {
+  const std::string name = f.string();
+  const bool chars_ok = std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '/';
+  });
+  if (!chars_ok || name.front() == '/' || name.back() == '/' || name.find("//") != std::string::npos) {
+    f.fail("expected a DDS topic name of letters, digits, '_' and inner '/' (ROS 2: \"rt/<ros name>\"), got '" +
+           name + "'");
+  }
+  return name;
+}
+
+std::string readFrameId(const ConfigField& f) {
+  const std::string id = f.string();
+  if (std::any_of(id.begin(), id.end(), [](char c) { return c == ' ' || c == '\t' || c == '\n'; })) {
+    f.fail("expected a frame id without whitespace, got '" + id + "'");
+  }
+  return id;
+}
+
+DdsConfig readDds(const ConfigField& field) {
+  const ConfigMap m = field.map({"domain", "loopback_only", "cyclone_config_file", "topics", "frames"});
+  DdsConfig c;
+  m.read("domain", c.domain_id, [](const ConfigField& f) { return f.integerAs<std::uint32_t>(0, 232); });
+  m.read("loopback_only", c.loopback_only, [](const ConfigField& f) { return f.boolean(); });
+  if (auto f = m.get("cyclone_config_file")) {
+    c.cyclone_config_file = f->path();
+    if (c.loopback_only) f->fail("give either loopback_only: true or cyclone_config_file, not both");
+  }
+  if (auto f = m.get("topics")) {
+    const ConfigMap t = f->map({"odometry", "pose", "status"});
+    t.read("odometry", c.topics.odometry, readTopicName);
+    t.read("pose", c.topics.pose, readTopicName);
+    t.read("status", c.topics.status, readTopicName);
+    if (c.topics.odometry == c.topics.pose || c.topics.odometry == c.topics.status ||
+        c.topics.pose == c.topics.status) {
+      f->fail("the odometry, pose and status topics must have different names");
+    }
+  }
+  if (auto f = m.get("frames")) {
+    const ConfigMap fr = f->map({"world", "body"});
+    fr.read("world", c.frames.world, readFrameId);
+    fr.read("body", c.frames.body, readFrameId);
+    if (c.frames.world == c.frames.body) f->fail("world and body frame ids must differ");
+  }
+  return c;
+}
+
+// --- recording, realtime, status, watchdog -------------------------------------
+
+RecordingConfig readRecording(const ConfigField& field) {
+  const ConfigMap m = field.map({"enabled", "directory", "flush_interval_s", "sync"});
+  RecordingConfig c;
+  m.read("enabled", c.enabled, [](const ConfigField& f) { return f.boolean(); });
+  m.read("directory", c.directory, [](const ConfigField& f) { return f.path(); });
+  m.read("flush_interval_s", c.flush_interval_ns, [](const ConfigField& f) { return f.secondsAsNs(0.001, 60.0); });
+  m.read("sync", c.sync, [](const ConfigField& f) { return f.boolean(); });
+  return c;
+}
+
+void readThread(const ConfigField& field, ThreadRealtimeSettings& t) {
+  const ConfigMap m = field.map({"name", "priority", "cpus"});
+  if (auto f = m.get("name")) {
+    t.name = f->string();
+    if (t.name.size() > 15) f->fail("expected a thread name of at most 15 characters (Linux), got '" + t.name + "'");
+  }
+  m.read("priority", t.fifo_priority, [](const ConfigField& f) { return f.integerAs<int>(0, 99); });
+  if (auto f = m.get("cpus")) {
+    t.cpus.clear();
+    for (const ConfigField& cpu : f->sequence()) {
+      const int index = cpu.integerAs<int>(0, 1023);
+      if (std::find(t.cpus.begin(), t.cpus.end(), index) != t.cpus.end()) {
+        cpu.fail("CPU " + std::to_string(index) + " is listed twice");
+      }
+      t.cpus.push_back(index);
+    }
+  }
+}
+
+RealtimeConfig readRealtime(const ConfigField& field) {
+  const ConfigMap m = field.map({"lock_memory", "heap_reserve_mb", "stack_prefault_kb", "queue_capacity", "threads"});
+  RealtimeConfig c;
+  m.read("lock_memory", c.process.lock_memory, [](const ConfigField& f) { return f.boolean(); });
+  m.read("heap_reserve_mb", c.process.heap_reserve_bytes,
+         [](const ConfigField& f) { return f.integerAs<std::size_t>(0, 4096) << 20; });
+  m.read("stack_prefault_kb", c.process.stack_prefault_bytes,
+         [](const ConfigField& f) { return f.integerAs<std::size_t>(0, 7 * 1024) << 10; });
+  m.read("queue_capacity", c.queue_capacity, [](const ConfigField& f) { return f.integerAs<std::size_t>(16, 1u << 22); });
+  if (auto f = m.get("threads")) {
+    const ConfigMap t = f->map({"imu_source", "uwb_source", "replay_source", "publisher", "estimator", "recorder"});
+    if (auto g = t.get("imu_source")) readThread(*g, c.imu_source);
+    if (auto g = t.get("uwb_source")) readThread(*g, c.uwb_source);
+    if (auto g = t.get("replay_source")) readThread(*g, c.replay_source);
+    if (auto g = t.get("publisher")) readThread(*g, c.publisher);
+    if (auto g = t.get("estimator")) readThread(*g, c.estimator);
+    if (auto g = t.get("recorder")) readThread(*g, c.recorder);
+  }
+  return c;
+}
+
+StatusConfig readStatus(const ConfigField& field) {
+  const ConfigMap m = field.map({"period_s", "imu_timeout_s", "range_timeout_s"});
+  StatusConfig c;
+  m.read("period_s", c.period_ns, [](const ConfigField& f) { return f.secondsAsNs(0.01, 3600.0); });
+  m.read("imu_timeout_s", c.imu_timeout_ns, [](const ConfigField& f) { return f.secondsAsNs(0.001, 60.0); });
+  m.read("range_timeout_s", c.range_timeout_ns, [](const ConfigField& f) { return f.secondsAsNs(0.01, 600.0); });
+  return c;
+}
+
+WatchdogConfig readWatchdog(const ConfigField& field) {
+  const ConfigMap m = field.map({"enabled", "heartbeat_timeout_s", "startup_grace_s"});
+  WatchdogConfig c;
+  m.read("enabled", c.enabled, [](const ConfigField& f) { return f.boolean(); });
+  m.read("heartbeat_timeout_s", c.heartbeat_timeout_ns,
+         [](const ConfigField& f) { return f.secondsAsNs(0.01, 600.0); });
+  m.read("startup_grace_s", c.startup_grace_ns, [](const ConfigField& f) { return f.secondsAsNs(0.0, 3600.0); });
+  return c;
+}
+
+ServiceConfig readRoot(const ConfigField& root_field, const std::filesystem::path& file) {
+  if (root_field.isNull()) root_field.fail("the configuration is empty (expected a mapping with sources and anchors)");
+  const ConfigMap root = root_field.map(
+      {"sources", "anchors", "imu", "estimator", "dds", "recording", "realtime", "status", "watchdog"});
+  ServiceConfig c;
+  c.file = file;
+  // Anchors first: the hardware section refers to them.
+  const ConfigField sources = root.require("sources");
+  readAnchors(root.require("anchors"), c);
+  c.sources = readSources(sources, c.anchors);
+  if (auto f = root.get("imu")) c.estimator.graph.imu = readImu(*f);
+  if (auto f = root.get("estimator")) c.estimator = readEstimator(*f, c.estimator);
+  if (auto f = root.get("dds")) c.dds = readDds(*f);
+  if (auto f = root.get("recording")) c.recording = readRecording(*f);
+  if (auto f = root.get("realtime")) c.realtime = readRealtime(*f);
+  if (auto f = root.get("status")) c.status = readStatus(*f);
+  if (auto f = root.get("watchdog")) c.watchdog = readWatchdog(*f);
+  return c;
+}
+
+}  // namespace
+
+ServiceConfig parseServiceConfig(std::string_view yaml, const std::filesystem::path& file) {
+  const std::filesystem::path absolute = std::filesystem::absolute(file).lexically_normal();
+  const ReadContext context{file.string(), absolute.parent_path()};
+  YAML::Node doc;
+  try {
+    doc = YAML::Load(std::string(yaml));
+  } catch (const YAML::Exception& e) {
+    config_detail::failAt(context, "", e.mark, "not valid YAML: " + e.msg);
+  }
+  return readRoot(ConfigField(doc, "", &context), absolute);
+}
+
+ServiceConfig loadServiceConfig(const std::filesystem::path& file) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec)) {
+    throw ConfigError(file.string(), "", 0, 0, "is a directory, expected a YAML configuration file");
+  }
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    throw ConfigError(file.string(), "", 0, 0, std::string("cannot open the configuration file: ") + std::strerror(errno));
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw ConfigError(file.string(), "", 0, 0, "cannot read the configuration file");
+  return parseServiceConfig(text.str(), file);
+}
+
+std::string_view toString(SourceMode mode) { return mode == SourceMode::kReplay ? "replay" : "hardware"; }
+std::string_view toString(ReplayPace pace) {
+  return pace == ReplayPace::kRealTime ? "real_time" : "as_fast_as_possible";
+}
+std::string_view smootherName(SmootherParams::Method method) {
+  switch (method) {
+    case SmootherParams::Method::kDamped: return "d-isam2";
+    case SmootherParams::Method::kGaussNewton: return "isam2";
+    case SmootherParams::Method::kDogleg: return "dogleg";
+  }
+  return "unknown";
+}
+
+}  // namespace rilo

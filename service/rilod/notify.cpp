@@ -1,0 +1,136 @@
+#include "rilod/notify.h"
+
+#include <systemd/sd-daemon.h>
+#include <time.h>
+
+#include <cstdlib>
+#include <stdexcept>
+#include <string>
+
+namespace rilo::notify {
+
+namespace {
+
+constexpr std::size_t kMaxStatusBytes = 1000;
+
+std::int64_t monotonicNs() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+std::string statusLine(std::string_view text) {
+  std::string line = "STATUS=";
+  const std::size_t n = text.size() < kMaxStatusBytes ? text.size() : kMaxStatusBytes;
+  for (std::size_t i = 0; i < n; ++i) {
+    const char c = text[i];
+    line += (c == '\n' || c == '\r' || c == '\0') ? ' ' : c;
+  }
+  return line;
+}
+
+}  // namespace
+
+bool enabled() noexcept {
+  const char* socket = std::getenv("NOTIFY_SOCKET");
+  return socket != nullptr && socket[0] != '\0';
+}
+
+int send(std::string_view state) noexcept {
+  if (!enabled()) return 0;
+  try {
+    return sd_notify(0, std::string(state).c_str());
+  } catch (...) {  // std::bad_alloc: nothing sent
+    return -12;    // -ENOMEM
+  }
+}
+
+int ready() noexcept { return send("READY=1"); }
+int stopping() noexcept { return send("STOPPING=1"); }
+int watchdog() noexcept { return send("WATCHDOG=1"); }
+
+int status(std::string_view text) noexcept {
+  if (!enabled()) return 0;
+  try {
+    return send(statusLine(text));
+  } catch (...) {
+    return -12;
+  }
+}
+
+int readyWithStatus(std::string_view text) noexcept {
+  if (!enabled()) return 0;
+  try {
+    return send("READY=1\n" + statusLine(text));
+  } catch (...) {
+    return -12;
+  }
+}
+
+std::optional<std::chrono::microseconds> watchdogInterval() noexcept {
+  std::uint64_t usec = 0;
+  if (sd_watchdog_enabled(0, &usec) <= 0 || usec == 0) return std::nullopt;
+  return std::chrono::microseconds(static_cast<std::int64_t>(usec));
+}
+
+// --- WatchdogPinger -------------------------------------------------------------
+
+WatchdogPinger::WatchdogPinger(const Heartbeat& heartbeat, WatchdogPingerOptions options)
+    : heartbeat_(heartbeat), options_(std::move(options)), period_(options_.interval / 2) {
+  if (options_.interval.count() <= 1) {
+    throw std::invalid_argument("WatchdogPinger: interval must be > 1 us, got " +
+                                std::to_string(options_.interval.count()) + " us");
+  }
+  if (options_.heartbeat_max_age_ns <= 0) {
+    throw std::invalid_argument("WatchdogPinger: heartbeat_max_age_ns must be > 0");
+  }
+  if (options_.startup_grace_ns < 0) throw std::invalid_argument("WatchdogPinger: startup_grace_ns must be >= 0");
+  if (!options_.now_ns) options_.now_ns = monotonicNs;
+  if (!options_.ping) options_.ping = [] { return watchdog(); };
+  thread_ = std::thread([this] { run(); });
+}
+
+WatchdogPinger::~WatchdogPinger() { stop(); }
+
+void WatchdogPinger::stop() noexcept {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_requested_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable() && thread_.get_id() != std::this_thread::get_id()) thread_.join();
+}
+
+void WatchdogPinger::run() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  const std::int64_t start_ns = options_.now_ns();
+  while (!stop_requested_) {
+    // Read the clock before the heartbeat: a beat stamped later counts as fresh.
+    const std::int64_t now = options_.now_ns();
+    const bool in_grace = heartbeat_.count() == 0 && now - start_ns < options_.startup_grace_ns;
+    const bool alive = in_grace || heartbeat_.isAlive(now, options_.heartbeat_max_age_ns);
+    if (alive) {
+      options_.ping();
+      pings_.fetch_add(1, std::memory_order_release);
+    } else {
+      skipped_.fetch_add(1, std::memory_order_release);
+    }
+    stalled_.store(!alive, std::memory_order_release);
+    checks_.fetch_add(1, std::memory_order_release);
+    wake_.wait_for(lock, period_, [this] { return stop_requested_; });
+  }
+}
+
+std::unique_ptr<WatchdogPinger> startWatchdogIfRequested(const Heartbeat& heartbeat,
+                                                         std::int64_t heartbeat_max_age_ns,
+                                                         std::int64_t startup_grace_ns) {
+  const auto interval = watchdogInterval();
+  if (!interval) return nullptr;
+  WatchdogPingerOptions options;
+  options.interval = *interval;
+  options.heartbeat_max_age_ns = heartbeat_max_age_ns;
+  options.startup_grace_ns = startup_grace_ns;
+  return std::make_unique<WatchdogPinger>(heartbeat, std::move(options));
+}
+
+}  // namespace rilo::notify

@@ -1,0 +1,151 @@
+// rilod end to end: the real daemon replays the committed office recording
+// and publishes over real Cyclone DDS on loopback; this process subscribes
+// like any ROS 2 node would and checks what arrives.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "dds/participant.h"
+#include "dds/subscriber.h"
+#include "hal/recording/recording_reader.h"
+#include "service_test_support.h"
+
+namespace rilo {
+namespace {
+
+using namespace std::chrono_literals;
+
+std::uint32_t testDomain() { return 100 + static_cast<std::uint32_t>(::getpid() % 130); }
+
+/// The default configuration, pointed at the demo recording by absolute
+/// path, on a private loopback domain, with recording times kept (so poses
+/// can be compared with the recording's ground truth).
+std::string configText(const std::string& pace, double speed) {
+  const std::string rec = (testing::sourceDir() / "tests" / "data" / "office-demo").string();
+  return "sources:\n  mode: replay\n  replay:\n    path: " + rec + "\n    pace: " + pace + "\n    speed: " +
+         std::to_string(speed) + "\n    shift_to_now: false\n" +
+         "anchors:\n  file: " + rec + "/anchors.csv\n" +
+         "estimator:\n  smoother: d-isam2\n  range:\n    lever_arm_m: [0.06, 0.0, 0.10]\n" +
+         "dds:\n  domain: " + std::to_string(testDomain()) + "\n  loopback_only: true\n";
+}
+
+pid_t startRilod(const std::filesystem::path& config, double duration_s) {
+  const std::string exe = (testing::binaryDir() / "rilod").string();
+  const std::string cfg = config.string();
+  const std::string dur = std::to_string(duration_s);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::execl(exe.c_str(), exe.c_str(), "--config", cfg.c_str(), "--duration", dur.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  return pid;
+}
+
+int waitExit(pid_t pid, std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  int status = 0;
+  while (std::chrono::steady_clock::now() < end) {
+    if (::waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    std::this_thread::sleep_for(10ms);
+  }
+  ::kill(pid, SIGKILL);
+  ::waitpid(pid, &status, 0);
+  return -1;
+}
+
+TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {
+  testing::TempDir dir("rilod-e2e");
+  testing::writeFile(dir / "rilod.yaml", configText("real_time", 3.0));
+  dds::ParticipantOptions po;
+  po.domain_id = testDomain();
+  po.config_xml = dds::loopbackConfigXml();
+  dds::Participant participant(po);
+  dds::Subscriber subscriber(participant);
+
+  const pid_t pid = startRilod(dir / "rilod.yaml", 40.0);
+  ASSERT_GT(pid, 0);
+  std::vector<dds::OdometryMessage> odometry;
+  std::vector<dds::PoseMessage> poses;
+  std::vector<dds::StatusMessage> status;
+  int code = -2;
+  const auto end = std::chrono::steady_clock::now() + 60s;
+  while (std::chrono::steady_clock::now() < end) {
+    subscriber.waitForData(100ms);
+    subscriber.takeOdometry(odometry);
+    subscriber.takePose(poses);
+    subscriber.takeStatus(status);
+    int st = 0;
+    if (::waitpid(pid, &st, WNOHANG) == pid) {
+      code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+      break;
+    }
+  }
+  if (code == -2) code = waitExit(pid, 1000ms);
+  EXPECT_EQ(code, 0) << "rilod exit code";
+
+  // 45 s of data at 3x: initialization takes ~10 s of data, then odometry
+  // at the IMU rate (best effort: allow losses) and a pose per ranging state.
+  EXPECT_GT(odometry.size(), 5000u);
+  EXPECT_GT(poses.size(), 300u);
+  ASSERT_FALSE(status.empty());
+  bool saw_tracking = false;
+  for (const auto& s : status) saw_tracking |= s.state_name == "tracking" || s.state_name == "degraded";
+  EXPECT_TRUE(saw_tracking);
+  ASSERT_FALSE(poses.empty());
+  EXPECT_EQ(poses.front().frame_id, "map");
+
+  // Smoothed poses against the recording's ground truth (no alignment: the
+  // anchors fix the frame).
+  const Recording rec = readRecording(testing::sourceDir() / "tests" / "data" / "office-demo");
+  double sum = 0.0, sum_h = 0.0;
+  int n = 0;
+  for (const auto& p : poses) {
+    auto it = std::lower_bound(rec.groundtruth.begin(), rec.groundtruth.end(), p.stamp_ns,
+                               [](const GroundTruthPose& g, std::int64_t t) { return g.t_ns < t; });
+    if (it == rec.groundtruth.end()) continue;
+    sum += (it->p_w_b - p.p_w_b).norm();
+    sum_h += (it->p_w_b - p.p_w_b).head<2>().norm();
+    ++n;
+  }
+  ASSERT_GT(n, 100);
+  // A pipe check, not the accuracy benchmark (rilo-bench and the issue 4
+  // report measure that): the demo office is harsh (74% of ranges NLOS, all
+  // anchors above the tag), and the height is its weak direction.
+  EXPECT_LT(sum_h / n, 1.0) << "mean horizontal error over " << n << " poses (3D " << sum / n << ")";
+  EXPECT_LT(sum / n, 2.5) << "mean 3D error over " << n << " poses";
+  std::printf("rilod e2e: %d poses, mean error %.3f m (horizontal %.3f m)\n", n, sum / n, sum_h / n);
+  // Odometry stamps increase (IMU rate extrapolation, one clock).
+  for (std::size_t i = 1; i < odometry.size(); ++i) ASSERT_GT(odometry[i].stamp_ns, odometry[i - 1].stamp_ns);
+}
+
+TEST(RilodEndToEnd, SigtermStopsCleanlyWithinOneSecond) {
+  testing::TempDir dir("rilod-term");
+  testing::writeFile(dir / "rilod.yaml", configText("real_time", 1.0));
+  const pid_t pid = startRilod(dir / "rilod.yaml", 60.0);
+  ASSERT_GT(pid, 0);
+  std::this_thread::sleep_for(3s);  // up and replaying
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_EQ(::kill(pid, SIGTERM), 0);
+  const int code = waitExit(pid, 3000ms);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(code, 0);
+  EXPECT_LT(seconds, 1.0);
+}
+
+TEST(RilodEndToEnd, BadConfigurationExitsWithACodeAndNoCrash) {
+  testing::TempDir dir("rilod-bad");
+  testing::writeFile(dir / "rilod.yaml", "sources:\n  mode: replay\n  replay:\n    path: /nonexistent\nestimator:\n  smother: x\n");
+  const pid_t pid = startRilod(dir / "rilod.yaml", 5.0);
+  EXPECT_EQ(waitExit(pid, 5000ms), 2);
+}
+
+}  // namespace
+}  // namespace rilo

@@ -380,6 +380,7 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     for (const StillInterval& iv : still) still_s += toS(iv.t1_ns - iv.t0_ns);
   }
 
+  ++status_.batch_solves;
   BatchLevenbergMarquardt lm(P.lm);
   BatchLevenbergMarquardt::Output out = lm.optimize(win.graph.graph, initial);
   // Factor layout of buildRangeImuGraph: 3 first-state priors, the IMU factors, the range factors, anchor priors.

@@ -6,9 +6,12 @@
 // batch-solved window (pose, velocity, bias) and the window itself.
 //
 // Each attempt (every attempt_interval_s of data once min_window_s is
-// buffered) works on the newest window of data (window_s, the seed's 10 s;
-// shorter at the first attempts; longer, up to max_window_s, when ranging is
-// sparse so that it holds min_window_ranges ranges):
+// buffered) works on the newest window of data: window_s (the seed's 10 s;
+// all the data at the first attempts), grown when ranging is sparse so that
+// it holds min_window_ranges ranges, and grown up to max_window_s once
+// window_s proved too short for yaw (a smooth walk: 0.2-0.4 m/s^2 of
+// horizontal acceleration separate yaw from the accelerometer bias and tilt
+// only after 15-20 s; a start from rest or a gait with steps does it in 3-4 s):
 //  1. multilateration of the antenna at the window start (init_multilateration.h):
 //     robust, position + velocity over a short window (grown for sparse
 //     ranging), mirror solutions across the anchor plane resolved by the
@@ -26,9 +29,13 @@
 //     velocity from differentiated fixes and so also works at 1 Hz ranging;
 //  4. the seed's batch: buildRangeImuGraph over the window with the first
 //     state's priors around the alignment, every state initialized from the
-//     aligned strapdown track, batch Levenberg-Marquardt; accepted when it
+//     aligned strapdown track, zero-velocity priors on the states inside
+//     still intervals of the IMU, batch Levenberg-Marquardt; accepted when it
 //     converged, the range and IMU costs per factor are plausible, and the
 //     newest state's marginal position and yaw sigmas are small.
+// Known limit (architecture "Known hard cases"): with 25 % persistent NLOS
+// the window's height can be off by 0.3-0.9 m while the horizontal error
+// stays below 0.3 m; the estimator started at the true state shows the same.
 // Data problems never throw: bad samples are dropped and counted, and
 // status() says why initialization is not possible yet.
 //
@@ -66,7 +73,9 @@ struct InitializerParams {
 
   double window_s = 10.0;          ///< batch window (s); seed 000 uses 10 s
   double min_window_s = 3.0;       ///< first attempt once this much data is buffered (s)
-  double max_window_s = 30.0;      ///< sparse ranging: the window grows up to this to hold min_window_ranges (s)
+  /// The window grows up to this for sparse ranging (to hold
+  /// min_window_ranges) and when window_s was too short for yaw (s).
+  double max_window_s = 30.0;
   int min_window_ranges = 40;      ///< ranges the window should hold (grown up to max_window_s for them)
   int min_alignment_ranges = 12;   ///< fewer ranges in the window: wait
   double attempt_interval_s = 0.5; ///< data time between attempts (s)
@@ -94,7 +103,10 @@ struct InitializerParams {
   double max_position_sigma_m = 1.0;
   double max_yaw_sigma_rad = 0.087;     ///< newest state, world yaw (~5 deg)
   double max_range_cost_per_range = 2.5;  ///< mean robust cost of the range factors
-  double max_imu_cost_per_factor = 30.0;  ///< mean cost of the IMU factors
+  /// Mean cost of the IMU factors. At a sound optimum it is ~1e-3 (the
+  /// per-state velocities and biases absorb the IMU noise); large values mean
+  /// the states could not follow the IMU (time gaps, a broken model).
+  double max_imu_cost_per_factor = 30.0;
   LmParams lm = defaultLmParams();
   /// Zero-velocity updates: batch states inside a still interval of the IMU
   /// (findStillIntervals) get a zero-velocity prior, sigma * sqrt(1 s / the
@@ -135,6 +147,7 @@ struct InitStatus {
   std::string message = "waiting: no samples";
   std::int64_t t_ns = 0;  ///< data time of the last attempt
   int attempts = 0;       ///< attempts so far (since construction or reset)
+  int batch_solves = 0;   ///< attempts that got as far as the batch solve (the expensive step)
 };
 
 /// The batch-solved window, for a caller that seeds its smoother with it.

@@ -88,26 +88,11 @@ void Localizer::finish() {
 }
 
 void Localizer::startTracking() {
-  const InitResult& init = initializer_.result();
   estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, params_.graph,
                                                    std::make_unique<BayesTreeSmoother>(params_.smoother), params_.stream);
-  const std::int64_t t0 = init.state.t_ns;
-  estimator_->start(t0, init.state.T_w_b, init.state.v_w);
-  // Hand over what the initializer buffered after the start state, so no
-  // sample is lost: the IMU sample in effect at t0 first, then time order.
-  const auto& imu = initializer_.imuBuffer();
-  const auto& ranges = initializer_.rangeBuffer();
-  std::size_t i = 0;
-  while (i + 1 < imu.size() && imu[i + 1].t_ns <= t0) ++i;
-  std::size_t r = 0;
-  while (r < ranges.size() && ranges[r].t_ns <= t0) ++r;
-  while (i < imu.size() || r < ranges.size()) {
-    if (r < ranges.size() && (i >= imu.size() || ranges[r].t_ns <= imu[i].t_ns)) {
-      estimator_->addRange(ranges[r++]);
-    } else {
-      estimator_->addImu(imu[i++]);
-    }
-  }
+  // Starts at the initializer's state and replays what it buffered after
+  // it, so no sample is lost.
+  handOver(initializer_, *estimator_);
   phase_ = Phase::kTracking;
   consecutive_rejections_ = 0;
   ++initializations_;

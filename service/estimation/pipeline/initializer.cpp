@@ -459,7 +459,7 @@ int handOver(const Initializer& initializer, RangeImuEstimator& estimator) {
   if (estimator.stream().started()) throw std::logic_error("handOver: the estimator was already started");
   const StateEstimate& s = initializer.result().state;
   int updates = 0;
-  estimator.start(s.t_ns, s.T_w_b, s.v_w);
+  estimator.start(s.t_ns, s.T_w_b, s.v_w, s.bias);  // the batch's bias too: the hand-over loses nothing
   const std::vector<ImuSample>& imu = initializer.imuBuffer();
   const std::vector<RangeSample>& ranges = initializer.rangeBuffer();
   std::size_t i = imuIndexAt(imu, s.t_ns), r = rangeIndexFrom(ranges, s.t_ns);

@@ -10,8 +10,9 @@ RangeImuEstimator::RangeImuEstimator(std::vector<Vec3> p_w_anchors, const RangeI
   if (!smoother_) throw std::invalid_argument("RangeImuEstimator: null smoother");
 }
 
-UpdateStats RangeImuEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess) {
-  return absorb(stream_.start(t0_ns, T_w_b0_guess, v_w0_guess));
+UpdateStats RangeImuEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
+                                     const ImuBias& bias0_guess) {
+  return absorb(stream_.start(t0_ns, T_w_b0_guess, v_w0_guess, bias0_guess));
 }
 
 int RangeImuEstimator::process(std::vector<UpdateStats>* stats) {

@@ -19,7 +19,8 @@ class RangeImuEstimator {
                     std::unique_ptr<Smoother> smoother, RangeImuStreamOptions stream_options = {});
 
   /// Opens state 0 at t0_ns around the given guess and absorbs its priors.
-  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess);
+  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
+                    const ImuBias& bias0_guess = ImuBias());
   void addImu(const ImuSample& sample) { stream_.addImu(sample); }
   void addRange(const RangeSample& sample) { stream_.addRange(sample); }
   /// No more samples: lets the last ranging group through.

@@ -73,7 +73,8 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
   }
 }
 
-GraphIncrement RangeImuGraphStream::start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess) {
+GraphIncrement RangeImuGraphStream::start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
+                                          const ImuBias& bias0_guess) {
   if (started_) throw std::logic_error("RangeImuGraphStream::start: already started");
   if (!allFinite(T_w_b0_guess) || !v_w0_guess.allFinite()) {
     throw std::invalid_argument("RangeImuGraphStream::start: T_w_b0_guess and v_w0_guess must be finite");
@@ -83,10 +84,10 @@ GraphIncrement RangeImuGraphStream::start(std::int64_t t0_ns, const Pose3& T_w_b
   inc.factors.emplace<PriorVec3Factor>(sym::V(0), v_w0_guess, Vec3(Vec3::Constant(params_.first_velocity_sigma_m_s)));
   Vec6 bias_sigmas;
   bias_sigmas << Vec3::Constant(params_.first_accel_bias_sigma), Vec3::Constant(params_.first_gyro_bias_sigma);
-  inc.factors.emplace<PriorBiasFactor>(sym::B(0), ImuBias(), bias_sigmas);
+  inc.factors.emplace<PriorBiasFactor>(sym::B(0), bias0_guess, bias_sigmas);
   inc.values.insert(sym::X(0), T_w_b0_guess);
   inc.values.insert(sym::V(0), v_w0_guess);
-  inc.values.insert(sym::B(0), ImuBias());
+  inc.values.insert(sym::B(0), bias0_guess);
   inc.key_times_ns = {{sym::X(0), t0_ns}, {sym::V(0), t0_ns}, {sym::B(0), t0_ns}};
   inc.new_state = true;
   inc.state_index = 0;

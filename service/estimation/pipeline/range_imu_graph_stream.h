@@ -151,7 +151,8 @@ class RangeImuGraphStream {
   /// kept from t0 on (ranges before t0 are dropped, see droppedRanges()).
   /// Throws std::logic_error if already started, std::invalid_argument on a
   /// non-finite guess.
-  GraphIncrement start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess);
+  GraphIncrement start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
+                       const ImuBias& bias0_guess = ImuBias());
 
   /// Throws std::invalid_argument if t_ns does not increase or a value is not
   /// finite; std::logic_error after finish().

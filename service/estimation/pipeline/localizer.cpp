@@ -53,7 +53,7 @@ void Localizer::addImu(const ImuSample& sample) {
   have_imu_ = true;
   last_imu_ns_ = sample.t_ns;
   if (phase_ == Phase::kTracking) {
-    estimator_->addImu(sample);
+    guarded([&] { estimator_->addImu(sample); });
   } else {
     initializer_.addImu(sample);
   }
@@ -62,7 +62,7 @@ void Localizer::addImu(const ImuSample& sample) {
 void Localizer::addRange(const RangeSample& sample) {
   if (sample.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
   if (phase_ == Phase::kTracking) {
-    estimator_->addRange(sample);
+    guarded([&] { estimator_->addRange(sample); });
   } else {
     initializer_.addRange(sample);
   }
@@ -72,9 +72,12 @@ int Localizer::process(std::vector<UpdateStats>* stats) {
   if (phase_ == Phase::kInitializing) {
     if (!initializer_.process()) return 0;
     startTracking();
+    if (phase_ != Phase::kTracking) return 0;
   }
   scratch_.clear();
-  const int updates = estimator_->process(&scratch_);
+  int updates = 0;
+  guarded([&] { updates = estimator_->process(&scratch_); });
+  if (phase_ != Phase::kTracking) return updates;
   for (const UpdateStats& s : scratch_) {
     if (stats) stats->push_back(s);
     checkHealth(s);
@@ -84,7 +87,19 @@ int Localizer::process(std::vector<UpdateStats>* stats) {
 }
 
 void Localizer::finish() {
-  if (phase_ == Phase::kTracking) estimator_->finish();
+  if (phase_ == Phase::kTracking) guarded([&] { estimator_->finish(); });
+}
+
+template <typename F>
+void Localizer::guarded(F&& f) {
+  // A diverged state can make the estimator refuse its input (a bias so
+  // large that one preintegration window rotates more than it supports):
+  // that is a tracking failure to recover from, never a crash.
+  try {
+    f();
+  } catch (const std::exception& e) {
+    fail(std::string("estimator error: ") + e.what());
+  }
 }
 
 void Localizer::startTracking() {
@@ -92,8 +107,9 @@ void Localizer::startTracking() {
                                                    std::make_unique<BayesTreeSmoother>(params_.smoother), params_.stream);
   // Starts at the initializer's state and replays what it buffered after
   // it, so no sample is lost.
-  handOver(initializer_, *estimator_);
   phase_ = Phase::kTracking;
+  guarded([&] { handOver(initializer_, *estimator_); });
+  if (phase_ != Phase::kTracking) return;
   consecutive_rejections_ = 0;
   ++initializations_;
 }

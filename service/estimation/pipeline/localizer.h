@@ -72,6 +72,8 @@ class Localizer {
   void startTracking();
   void checkHealth(const UpdateStats& stats);
   void fail(std::string why);
+  template <typename F>
+  void guarded(F&& f);
 
   std::vector<Vec3> p_w_anchors_;
   LocalizerParams params_;

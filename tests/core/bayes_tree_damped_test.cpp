@@ -58,6 +58,7 @@ std::string errorIncreases(bool loops, double perturbation_scale, int* updates_s
       SmootherParams params;
       params.acceptance = SmootherParams::Acceptance::kGlobal;
       params.relinearize_max_age_s = 0.0;
+      params.widen_damping = true;
       BayesTreeSmoother smoother(params);
       for (const Increment& inc : makeSchedule(g, rng, fo)) {
         const UpdateStats st = smoother.update(inc.factors, inc.values, inc.timestamps);

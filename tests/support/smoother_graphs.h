@@ -38,6 +38,7 @@ inline SmootherParams exactParams(SmootherParams::Method method) {
   // damped tests check; the service's default is kDampedFactors.
   p.acceptance = SmootherParams::Acceptance::kGlobal;
   p.relinearize_max_age_s = 0.0;  // reference checks relinearize every state
+  p.widen_damping = true;         // what kGlobal needs
   p.wildfire_threshold = 0.0;
   p.always_relinearize_recent_updates = 0;
   p.default_pose_threshold.setConstant(1e9);
@@ -54,6 +55,7 @@ inline SmootherParams relinearizingParams(SmootherParams::Method method, double 
   // damped tests check; the service's default is kDampedFactors.
   p.acceptance = SmootherParams::Acceptance::kGlobal;
   p.relinearize_max_age_s = 0.0;  // reference checks relinearize every state
+  p.widen_damping = true;         // what kGlobal needs
   p.wildfire_threshold = 0.0;
   p.default_pose_threshold.setConstant(threshold);
   p.default_bias_threshold.setConstant(threshold);

@@ -145,7 +145,6 @@ int Service::run(const std::atomic<bool>& stop) {
 
 void Service::estimatorLoop() {
   std::vector<UpdateStats> stats;
-  std::vector<std::int64_t> quiet_since(lanes_.size(), 0);
   const auto silence_ns = static_cast<std::int64_t>(options_.sensor_silence_s * 1e9);
   std::vector<bool> silent(lanes_.size(), false);
   int init_attempts_seen = 0;
@@ -182,6 +181,9 @@ void Service::estimatorLoop() {
     }
     SourceLane& lane = *lanes_[static_cast<std::size_t>(oldest)];
     lane.has_pending = false;
+    // Before the sample: adding one can already end tracking (IMU silence).
+    const bool was_tracking = localizer_.tracking();
+    const std::uint64_t reinit_before = localizer_.reinitializations();
     if (const auto* imu = std::get_if<ImuSample>(&lane.pending)) {
       localizer_.addImu(*imu);
     } else if (const auto* range = std::get_if<RangeSample>(&lane.pending)) {
@@ -189,8 +191,6 @@ void Service::estimatorLoop() {
     } else {
       continue;  // TDoA / ultrasonic: not used by the range-IMU estimator
     }
-    const bool was_tracking = localizer_.tracking();
-    const std::uint64_t reinit_before = localizer_.reinitializations();
     stats.clear();
     const auto t_start = std::chrono::steady_clock::now();
     const int updates = localizer_.process(&stats);

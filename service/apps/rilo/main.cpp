@@ -7,6 +7,7 @@
 
 #include "demo.h"
 #include "listen.h"
+#include "replay_command.h"
 #include "sim_command.h"
 
 int main(int argc, char** argv) {
@@ -22,6 +23,7 @@ int main(int argc, char** argv) {
   demo_cmd->add_option("--noise", demo.noise_models, "Range noise models to compare")->capture_default_str();
 
   rilo::tool::addSimCommand(app);
+  rilo::tool::addReplayCommand(app);
   rilo::tool::addListenCommand(app);
 
   CLI11_PARSE(app, argc, argv);

@@ -62,6 +62,11 @@ class Localizer {
   std::optional<CovarianceBlock> latestPoseCovariance();
   const InitStatus& initStatus() const { return initializer_.status(); }
   const RangeImuEstimator* estimator() const { return estimator_.get(); }
+  /// The smoothed trajectory so far (see RangeImuEstimator::drainSmoothed);
+  /// nothing while initializing.
+  void drainSmoothed(std::vector<RangeImuEstimator::TimedPose>& out, bool all = false) {
+    if (estimator_) estimator_->drainSmoothed(out, all);
+  }
 
   std::uint64_t initializations() const { return initializations_; }
   std::uint64_t reinitializations() const { return reinitializations_; }

@@ -27,7 +27,10 @@ int RangeImuEstimator::process(std::vector<UpdateStats>* stats) {
 
 UpdateStats RangeImuEstimator::absorb(const GraphIncrement& increment) {
   timestamps_.clear();
-  for (const auto& [key, t_ns] : increment.key_times_ns) timestamps_[key] = t_ns;
+  for (const auto& [key, t_ns] : increment.key_times_ns) {
+    timestamps_[key] = t_ns;
+    if (keySymbol(key) == 'x') state_times_[keyIndex(key)] = t_ns;
+  }
   const UpdateStats stats = smoother_->update(increment.factors, increment.values, timestamps_);
   const std::uint64_t i = stream_.lastStateIndex();
   latest_.index = i;
@@ -36,6 +39,24 @@ UpdateStats RangeImuEstimator::absorb(const GraphIncrement& increment) {
   latest_.v_w = std::get<Vec3>(smoother_->estimate(sym::V(i)));
   latest_.bias = std::get<ImuBias>(smoother_->estimate(sym::B(i)));
   return stats;
+}
+
+void RangeImuEstimator::drainSmoothed(std::vector<TimedPose>& out, bool all) {
+  drained_.clear();
+  smoother_->drainMarginalized(drained_);
+  for (const auto& [key, value] : drained_) {
+    if (keySymbol(key) != 'x') continue;
+    const auto it = state_times_.find(keyIndex(key));
+    if (it == state_times_.end()) continue;
+    out.push_back({it->second, std::get<Pose3>(value)});
+    state_times_.erase(it);
+  }
+  if (all) {
+    for (const auto& [index, t_ns] : state_times_) {
+      if (smoother_->exists(sym::X(index))) out.push_back({t_ns, std::get<Pose3>(smoother_->estimate(sym::X(index)))});
+    }
+    state_times_.clear();
+  }
 }
 
 }  // namespace rilo

@@ -4,6 +4,7 @@
 // smoother (which absorbs them); after every increment the newest state's
 // estimate seeds the next IMU prediction and preintegration.
 // Single-threaded: the estimation thread owns it.
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -32,6 +33,15 @@ class RangeImuEstimator {
 
   /// Smoothed estimate of the newest state (valid after start()).
   const StateEstimate& latest() const { return latest_; }
+
+  struct TimedPose {
+    std::int64_t t_ns = 0;
+    Pose3 T_w_b;
+  };
+  /// Appends the final poses of the states that left the smoother's window
+  /// since the last call (the smoothed trajectory), in time order; with
+  /// `all`, also every state still in the window (at the end of the data).
+  void drainSmoothed(std::vector<TimedPose>& out, bool all = false);
   Smoother& smoother() { return *smoother_; }
   const Smoother& smoother() const { return *smoother_; }
   const RangeImuGraphStream& stream() const { return stream_; }
@@ -43,6 +53,8 @@ class RangeImuEstimator {
   std::unique_ptr<Smoother> smoother_;
   StateEstimate latest_;
   KeyTimestamps timestamps_;  // scratch
+  std::map<std::uint64_t, std::int64_t> state_times_;  // states in the window: index -> t_ns
+  std::vector<std::pair<Key, Variable>> drained_;      // scratch
 };
 
 }  // namespace rilo

@@ -266,7 +266,10 @@ void BayesTreeSmoother::marginalize(const std::vector<VarId>& marginalizable, Up
     }
     freeClique(c);
   }
+  // Callers that never drain must not grow memory without bound.
+  if (marginalized_.size() > kMaxUndrainedMarginalized) marginalized_.clear();
   for (VarId v : marginalizable) {
+    marginalized_.emplace_back(vars_[v].key, estimate_.at(vars_[v].key));
     removeVar(v);
     ++stats.variables_marginalized;
   }

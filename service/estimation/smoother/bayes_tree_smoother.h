@@ -46,6 +46,10 @@ class BayesTreeSmoother final : public Smoother {
   bool exists(Key key) const override;
   std::optional<CovarianceBlock> marginalCovariance(Key key, std::string* failure = nullptr) override;
   double error() const override { return error_at_estimate_; }
+  void drainMarginalized(std::vector<std::pair<Key, Variable>>& out) override {
+    out.insert(out.end(), std::make_move_iterator(marginalized_.begin()), std::make_move_iterator(marginalized_.end()));
+    marginalized_.clear();
+  }
 
   const SmootherParams& params() const { return params_; }
 
@@ -78,6 +82,7 @@ class BayesTreeSmoother final : public Smoother {
   using CliqueId = int;
   static constexpr int kNone = -1;
   // Bounds on the diagonal that scales the D-iSAM2 damping (as GTSAM's LM).
+  static constexpr std::size_t kMaxUndrainedMarginalized = 100'000;
   static constexpr double kMinDampingDiagonal = 1e-6;
   static constexpr double kMaxDampingDiagonal = 1e32;
 
@@ -233,6 +238,7 @@ class BayesTreeSmoother final : public Smoother {
   // Step scratch and undo log
   std::vector<VarId> changed_vars_;
   std::vector<std::pair<VarId, Vec6>> undo_delta_;
+  std::vector<std::pair<Key, Variable>> marginalized_;  // final estimates, until drained
   std::vector<std::pair<FactorId, double>> undo_error_;
   std::uint64_t undo_stamp_ = 0;      // VarSlot::logged == undo_stamp_: in the undo log
   bool step_is_delta_ = true;        // dog-leg: the applied step equals delta everywhere

@@ -72,6 +72,10 @@ class Smoother {
 
   /// Nonlinear error of all current factors (marginals included) at the estimate.
   virtual double error() const = 0;
+  /// Moves the final estimates of the variables marginalized since the last
+  /// call into `out` (appended, in marginalization order): the smoothed
+  /// trajectory of a fixed-lag smoother. Nothing for smoothers without lag.
+  virtual void drainMarginalized(std::vector<std::pair<Key, Variable>>& out) { (void)out; }
 };
 
 }  // namespace rilo

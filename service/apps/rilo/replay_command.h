@@ -1,0 +1,31 @@
+#pragma once
+// `rilo replay REC --out DIR`: runs the online pipeline (Localizer:
+// initialization, smoother, recovery) over a recording as fast as possible,
+// deterministically, and writes what the service would have published
+// (online.tum), the smoothed trajectory (smoothed.tum), per-update timing
+// (timing.csv) and summary.json (APE against the ground truth if the
+// recording has one, timing statistics, re-initializations).
+#include <string>
+
+namespace CLI {
+class App;
+}
+
+namespace rilo::tool {
+
+struct ReplayOptions {
+  std::string recording;
+  std::string out;
+  std::string smoother = "d-isam2";   ///< d-isam2 | isam2 | dogleg
+  std::string noise = "asymmetric";   ///< gaussian | huber | cauchy | asymmetric
+  double range_hz = 0.0;              ///< thin ranges to this total rate (0: keep all)
+  double lag_s = 5.0;
+};
+
+/// Returns the process exit code (0 ok, 1 failure with the message on stderr).
+int runReplay(const ReplayOptions& options);
+
+/// Registers the `replay` subcommand. Link: rilo_estimation, rilo_recording.
+void addReplayCommand(CLI::App& app);
+
+}  // namespace rilo::tool

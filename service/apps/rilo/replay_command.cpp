@@ -12,25 +12,18 @@
 #include <vector>
 
 #include "estimation/pipeline/localizer.h"
+#include "estimation/pipeline/trajectory_error.h"
 #include "hal/recording/recording_reader.h"
 
 namespace rilo::tool {
 
 namespace {
 
-struct ErrorStats {
-  std::size_t count = 0;
-  double mean = 0.0, median = 0.0, rmse = 0.0, max = 0.0, horizontal_mean = 0.0, vertical_mean = 0.0;
-};
-
-/// Position error against the ground truth pose nearest in time (no
-/// alignment: the anchors fix the frame). Poses without truth within 50 ms
-/// are skipped.
-ErrorStats positionError(const std::vector<RangeImuEstimator::TimedPose>& poses,
-                         const std::vector<GroundTruthPose>& truth) {
-  ErrorStats s;
-  std::vector<double> e;
-  double sum_sq = 0.0, sum_h = 0.0, sum_v = 0.0;
+/// Estimated positions paired with the ground truth nearest in time (within
+/// 50 ms; no alignment: the anchors fix the frame).
+PositionErrorStats positionError(const std::vector<RangeImuEstimator::TimedPose>& poses,
+                                 const std::vector<GroundTruthPose>& truth) {
+  std::vector<Vec3> p_est, p_true;
   for (const auto& p : poses) {
     auto it = std::lower_bound(truth.begin(), truth.end(), p.t_ns,
                                [](const GroundTruthPose& g, std::int64_t t) { return g.t_ns < t; });
@@ -38,23 +31,10 @@ ErrorStats positionError(const std::vector<RangeImuEstimator::TimedPose>& poses,
       --it;
     }
     if (it == truth.end() || std::abs(it->t_ns - p.t_ns) > 50'000'000) continue;
-    const Vec3 d = p.T_w_b.p - it->p_w_b;
-    e.push_back(d.norm());
-    sum_sq += d.squaredNorm();
-    sum_h += d.head<2>().norm();
-    sum_v += std::abs(d.z());
+    p_est.push_back(p.T_w_b.p);
+    p_true.push_back(it->p_w_b);
   }
-  s.count = e.size();
-  if (e.empty()) return s;
-  const double n = static_cast<double>(e.size());
-  for (double x : e) s.mean += x / n;
-  s.rmse = std::sqrt(sum_sq / n);
-  s.max = *std::max_element(e.begin(), e.end());
-  std::nth_element(e.begin(), e.begin() + static_cast<std::ptrdiff_t>(e.size() / 2), e.end());
-  s.median = e[e.size() / 2];
-  s.horizontal_mean = sum_h / n;
-  s.vertical_mean = sum_v / n;
-  return s;
+  return positionErrorStats(p_est, p_true);
 }
 
 void writeTum(const std::filesystem::path& file, const std::vector<RangeImuEstimator::TimedPose>& poses) {
@@ -70,12 +50,13 @@ void writeTum(const std::filesystem::path& file, const std::vector<RangeImuEstim
   if (!out) throw std::runtime_error("cannot write " + file.string());
 }
 
-std::string statsJson(const ErrorStats& s) {
+std::string statsJson(const PositionErrorStats& s) {
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "{\"poses\": %zu, \"mean_m\": %.4f, \"median_m\": %.4f, \"rmse_m\": %.4f, \"max_m\": %.4f, "
                 "\"horizontal_mean_m\": %.4f, \"vertical_mean_m\": %.4f}",
-                s.count, s.mean, s.median, s.rmse, s.max, s.horizontal_mean, s.vertical_mean);
+                s.ape_3d.count, s.ape_3d.mean, s.ape_3d.median, s.ape_3d.rmse, s.ape_3d.max, s.ape_horizontal.mean,
+                s.ape_vertical.mean);
   return buf;
 }
 
@@ -176,11 +157,11 @@ int runReplay(const ReplayOptions& o) {
               o.recording.c_str(), o.smoother.c_str(), o.noise.c_str(), update_ms.size(), mean_ms, max_ms,
               wall_s > 0.0 ? data_s / wall_s : 0.0, static_cast<unsigned long long>(localizer.reinitializations()));
   if (!rec.groundtruth.empty()) {
-    const ErrorStats a = positionError(online, rec.groundtruth), b = positionError(smoothed, rec.groundtruth);
-    std::printf("  APE online   mean %.3f m, median %.3f, rmse %.3f, max %.3f (horizontal %.3f, vertical %.3f)\n", a.mean,
-                a.median, a.rmse, a.max, a.horizontal_mean, a.vertical_mean);
-    std::printf("  APE smoothed mean %.3f m, median %.3f, rmse %.3f, max %.3f (horizontal %.3f, vertical %.3f)\n", b.mean,
-                b.median, b.rmse, b.max, b.horizontal_mean, b.vertical_mean);
+    for (const auto& [label, poses] : {std::pair{"online  ", &online}, std::pair{"smoothed", &smoothed}}) {
+      const PositionErrorStats e = positionError(*poses, rec.groundtruth);
+      std::printf("  APE %s mean %.3f m, median %.3f, rmse %.3f, max %.3f (horizontal %.3f, vertical %.3f)\n", label,
+                  e.ape_3d.mean, e.ape_3d.median, e.ape_3d.rmse, e.ape_3d.max, e.ape_horizontal.mean, e.ape_vertical.mean);
+    }
   }
   std::printf("  wrote %s/{online.tum,smoothed.tum,timing.csv,summary.json}\n", o.out.c_str());
   return 0;

@@ -5,11 +5,7 @@
 
 namespace rilo::hal {
 
-std::int64_t MonotonicClock::nowNs() const noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+std::int64_t MonotonicClock::nowNs() const noexcept { return monotonicNowNs(); }
 
 void MonotonicClock::sleepForNs(std::int64_t duration_ns) noexcept {
   if (duration_ns <= 0) return;

@@ -3,8 +3,16 @@
 // emulator tests (so tests of timeouts and back-off run instantly and
 // deterministically).
 #include <cstdint>
+#include <ctime>
 
 namespace rilo::hal {
+
+/// CLOCK_MONOTONIC now (ns): the one clock of the system.
+inline std::int64_t monotonicNowNs() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
 
 class Clock {
  public:

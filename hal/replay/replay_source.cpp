@@ -8,16 +8,11 @@
 #include <stdexcept>
 #include <utility>
 
+#include "hal/bus/clock.h"
 #include "hal/recording/recording_reader.h"
 
 namespace rilo {
 namespace {
-
-std::int64_t monotonicNowNs() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 void monotonicSleepUntil(std::int64_t wake_ns) {
   timespec ts{};
@@ -50,7 +45,7 @@ void ReplaySource::checkOptions() const {
   if (options_.max_sleep_ns <= 0) throw std::invalid_argument("ReplayOptions.max_sleep_ns must be > 0");
 }
 
-std::int64_t ReplaySource::now() const { return options_.now_ns ? options_.now_ns() : monotonicNowNs(); }
+std::int64_t ReplaySource::now() const { return options_.now_ns ? options_.now_ns() : hal::monotonicNowNs(); }
 
 void ReplaySource::sleepUntil(std::int64_t wake_ns) const {
   if (options_.sleep_until_ns) {

@@ -7,17 +7,13 @@
 #include <stdexcept>
 #include <string>
 
+#include "hal/bus/clock.h"
+
 namespace rilo::notify {
 
 namespace {
 
 constexpr std::size_t kMaxStatusBytes = 1000;
-
-std::int64_t monotonicNs() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::string statusLine(std::string_view text) {
   std::string line = "STATUS=";
@@ -85,7 +81,7 @@ WatchdogPinger::WatchdogPinger(const Heartbeat& heartbeat, WatchdogPingerOptions
     throw std::invalid_argument("WatchdogPinger: heartbeat_max_age_ns must be > 0");
   }
   if (options_.startup_grace_ns < 0) throw std::invalid_argument("WatchdogPinger: startup_grace_ns must be >= 0");
-  if (!options_.now_ns) options_.now_ns = monotonicNs;
+  if (!options_.now_ns) options_.now_ns = hal::monotonicNowNs;
   if (!options_.ping) options_.ping = [] { return watchdog(); };
   thread_ = std::thread([this] { run(); });
 }

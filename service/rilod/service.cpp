@@ -6,18 +6,13 @@
 #include <ctime>
 #include <thread>
 
+#include "hal/bus/clock.h"
 #include "estimation/math/so3.h"
 #include "runtime/spsc_queue.h"
 
 namespace rilo {
 
 namespace {
-
-std::int64_t monotonicNs() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::int64_t sampleTime(const Sample& s) {
   return std::visit([](const auto& v) { return v.t_ns; }, s);
@@ -42,7 +37,7 @@ class Service::LaneSink final : public SampleSink {
  public:
   LaneSink(Service& service, SourceLane& lane) : service_(service), lane_(lane) {}
   void push(const Sample& sample) noexcept override {
-    lane_.last_sample_wall_ns.store(monotonicNs(), std::memory_order_relaxed);
+    lane_.last_sample_wall_ns.store(hal::monotonicNowNs(), std::memory_order_relaxed);
     if (!pushOrWait(lane_.samples, sample)) service_.counters_.queue_overflows.add();
     if (const auto* imu = std::get_if<ImuSample>(&sample)) {
       service_.counters_.imu_samples.add();
@@ -111,7 +106,7 @@ int Service::run(const std::atomic<bool>& stop) {
         const SourceEnd end = sources_[i]->run(*sink, stop_sources_);
         if (end == SourceEnd::kFailed) source_failed_.store(true);
       } catch (const std::exception& e) {
-        sink->fault(SourceFault{monotonicNs(), sources_[i]->describe(), e.what(), true});
+        sink->fault(SourceFault{hal::monotonicNowNs(), sources_[i]->describe(), e.what(), true});
       }
       lanes_[i]->ended.store(true, std::memory_order_release);
     });
@@ -125,9 +120,9 @@ int Service::run(const std::atomic<bool>& stop) {
   }
 
   const auto period_ns = static_cast<std::int64_t>(options_.status_period_s * 1e9);
-  std::int64_t next_status_ns = monotonicNs();
+  std::int64_t next_status_ns = hal::monotonicNowNs();
   while (!stop.load() && !estimator_done_.load()) {
-    const std::int64_t now = monotonicNs();
+    const std::int64_t now = hal::monotonicNowNs();
     if (now >= next_status_ns) {
       publishStatus(now);
       next_status_ns = now + period_ns;
@@ -139,7 +134,7 @@ int Service::run(const std::atomic<bool>& stop) {
   stop_threads_.store(true);
   estimator.join();
   publisher.join();
-  publishStatus(monotonicNs());
+  publishStatus(hal::monotonicNowNs());
   return source_failed_.load() ? 1 : 0;
 }
 
@@ -149,7 +144,7 @@ void Service::estimatorLoop() {
   std::vector<bool> silent(lanes_.size(), false);
   int init_attempts_seen = 0;
   for (;;) {
-    const std::int64_t now = monotonicNs();
+    const std::int64_t now = hal::monotonicNowNs();
     estimator_beat_.beat(now);
     // Take the oldest pending sample across sources. A live source with
     // nothing pending holds the merge back (it may still deliver an older
@@ -266,7 +261,7 @@ void Service::publisherLoop() {
   NavigationState smoothed;
   ImuSample imu;
   while (!stop_threads_.load(std::memory_order_relaxed)) {
-    publisher_beat_.beat(monotonicNs());
+    publisher_beat_.beat(hal::monotonicNowNs());
     if (smoothed_.readIfNewer(smoothed, smoothed_version)) predictor_.onSmoothed(smoothed);
     bool any = false;
     for (auto& lane : lanes_) {

@@ -17,6 +17,7 @@
 #include "dds/conversions.h"
 #include "dds/participant.h"
 #include "dds/subscriber.h"
+#include "hal/bus/clock.h"
 
 namespace rilo::tool {
 namespace {
@@ -26,13 +27,6 @@ extern "C" void onStopSignal(int) { g_stop = 1; }
 
 constexpr int kExitSetupError = 1;
 constexpr int kExitTimeout = 2;
-
-/// rilo's one clock: stamps are CLOCK_MONOTONIC ns of the publishing device.
-std::int64_t monotonicNowNs() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 /// Rate of one topic from its stamps over the last second.
 class RateMeter {
@@ -266,7 +260,7 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
   std::fflush(stdout);
 }
 
-double latencyMs(std::int64_t stamp_ns) { return static_cast<double>(monotonicNowNs() - stamp_ns) * 1e-6; }
+double latencyMs(std::int64_t stamp_ns) { return static_cast<double>(hal::monotonicNowNs() - stamp_ns) * 1e-6; }
 
 }  // namespace
 

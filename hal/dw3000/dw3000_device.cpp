@@ -7,6 +7,7 @@
 
 #include "hal/dw3000/clock_offset.h"
 #include "hal/dw3000/registers.h"
+#include "hal/dw3000/text.h"
 #include "hal/dw3000/timestamp.h"
 
 namespace rilo::dw3000 {
@@ -23,19 +24,6 @@ class Dw3000Category final : public std::error_category {
     return "unknown dw3000 error";
   }
 };
-
-std::string hex32(std::uint32_t v) {
-  char text[16];
-  std::snprintf(text, sizeof text, "0x%08X", v);
-  return text;
-}
-
-std::string msText(std::int64_t ns) {
-  char text[32];
-  const double ms = static_cast<double>(ns) * 1e-6;
-  std::snprintf(text, sizeof text, ms >= 1.0 ? "%.0f ms" : "%.3g ms", ms);
-  return text;
-}
 
 std::uint32_t le32(const std::uint8_t* p) {
   return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |

@@ -6,22 +6,10 @@
 #include <exception>
 
 #include "hal/dw3000/registers.h"
+#include "hal/dw3000/text.h"
 
 namespace rilo::dw3000 {
 namespace {
-
-std::string hex32(std::uint32_t v) {
-  char text[16];
-  std::snprintf(text, sizeof text, "0x%08X", v);
-  return text;
-}
-
-std::string msText(std::int64_t ns) {
-  char text[32];
-  const double ms = static_cast<double>(ns) * 1e-6;
-  std::snprintf(text, sizeof text, ms >= 1.0 ? "%.0f ms" : "%.3g ms", ms);
-  return text;
-}
 
 /// Names of the RX error / timeout bits set in `st` ("RXPHE|RXFCE").
 std::string rxBitNames(std::uint32_t st) {

@@ -10,33 +10,9 @@
 #include <string_view>
 
 #include "hal/recording/recording_error.h"
+#include "support/temp_dir.h"
 
 namespace rilo::testing {
-
-/// Fresh empty folder under the system temp dir, removed on destruction.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::string name = info != nullptr ? std::string(info->test_suite_name()) + "_" + info->name() : "x";
-    path_ = std::filesystem::temp_directory_path() /
-            ("rilo_rec_" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + "_" + name);
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const std::filesystem::path& path() const { return path_; }
-  std::filesystem::path operator/(std::string_view name) const { return path_ / name; }
-
- private:
-  std::filesystem::path path_;
-};
 
 inline void writeText(const std::filesystem::path& p, std::string_view text) {
   std::ofstream f(p, std::ios::binary | std::ios::trunc);

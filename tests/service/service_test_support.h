@@ -6,11 +6,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+
+#include "support/temp_dir.h"
 
 namespace rilo::testing {
 
@@ -23,35 +24,6 @@ inline std::filesystem::path sourceDir() {
 
 /// The folder of the running test binary (build/bin: rilod and rilo live there too).
 inline std::filesystem::path binaryDir() { return std::filesystem::read_symlink("/proc/self/exe").parent_path(); }
-
-/// A fresh folder under the system temp dir, removed with its content.
-class TempDir {
- public:
-  explicit TempDir(std::string_view tag = "rilo-service-test") {
-    std::random_device rd;
-    for (int attempt = 0; attempt < 100; ++attempt) {
-      const auto candidate = std::filesystem::temp_directory_path() /
-                             (std::string(tag) + "-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
-      if (std::filesystem::create_directory(candidate)) {
-        path_ = candidate;
-        return;
-      }
-    }
-    throw std::runtime_error("TempDir: cannot create a temporary folder");
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  const std::filesystem::path& path() const { return path_; }
-  std::filesystem::path operator/(const std::filesystem::path& p) const { return path_ / p; }
-
- private:
-  std::filesystem::path path_;
-};
 
 inline void writeFile(const std::filesystem::path& path, std::string_view text) {
   std::filesystem::create_directories(path.parent_path());

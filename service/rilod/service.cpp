@@ -251,8 +251,10 @@ NavigationState Service::navigationState() {
     n.pose_covariance.bottomLeftCorner<3, 3>() = n.pose_covariance.topRightCorner<3, 3>().transpose();
     n.pose_covariance.bottomRightCorner<3, 3>() = c.topLeftCorner<3, 3>();
   }
+  // Linear velocity from the smoother; the body rate's uncertainty is the
+  // gyro's, which the output predictor fills per sample.
   n.twist_covariance.setIdentity();
-  n.twist_covariance.topLeftCorner<3, 3>() *= 0.01;  // refined per sample by the output predictor's model
+  if (const auto cov = localizer_.latestVelocityCovariance()) n.twist_covariance.topLeftCorner<3, 3>() = *cov;
   return n;
 }
 

@@ -70,6 +70,11 @@ TEST(Localizer, InitializesFromScratchAndTracks) {
   ASSERT_TRUE(cov.has_value());
   EXPECT_GT(cov->diagonal().tail<3>().minCoeff(), 0.0);
   EXPECT_LT(cov->diagonal().tail<3>().maxCoeff(), 1.0);
+  const auto v_cov = localizer.latestVelocityCovariance();
+  ASSERT_TRUE(v_cov.has_value());
+  ASSERT_EQ(v_cov->rows(), 3);
+  EXPECT_GT(v_cov->diagonal().minCoeff(), 0.0);
+  EXPECT_LT(v_cov->diagonal().maxCoeff(), 1.0);
 }
 
 TEST(Localizer, ImuBlackoutEndsTrackingAndItRecovers) {

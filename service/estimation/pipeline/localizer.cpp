@@ -152,4 +152,9 @@ std::optional<CovarianceBlock> Localizer::latestPoseCovariance() {
   return estimator_->smoother().marginalCovariance(sym::X(estimator_->latest().index));
 }
 
+std::optional<CovarianceBlock> Localizer::latestVelocityCovariance() {
+  if (!tracking()) return std::nullopt;
+  return estimator_->smoother().marginalCovariance(sym::V(estimator_->latest().index));
+}
+
 }  // namespace rilo

@@ -60,6 +60,8 @@ class Localizer {
   const StateEstimate& latest() const { return estimator_->latest(); }
   /// Marginal covariance of the newest pose, tangent [rot; trans], if available.
   std::optional<CovarianceBlock> latestPoseCovariance();
+  /// Marginal covariance of the newest velocity (world, m^2/s^2), if available.
+  std::optional<CovarianceBlock> latestVelocityCovariance();
   const InitStatus& initStatus() const { return initializer_.status(); }
   const RangeImuEstimator* estimator() const { return estimator_.get(); }
   /// The smoothed trajectory so far (see RangeImuEstimator::drainSmoothed);

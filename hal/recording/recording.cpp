@@ -47,4 +47,14 @@ const Vec3* Recording::findTagLeverArm(std::uint32_t tag_id) const {
   return nullptr;
 }
 
+std::vector<Vec3> uwbAnchorsById(const std::vector<Anchor>& anchors) {
+  std::vector<Vec3> p_w_anchors;
+  for (const Anchor& a : anchors) {
+    if (a.kind != AnchorKind::kUwb) continue;
+    if (p_w_anchors.size() <= a.id) p_w_anchors.resize(a.id + 1, Vec3::Constant(1e6));
+    p_w_anchors[a.id] = a.p_w_anchor;
+  }
+  return p_w_anchors;
+}
+
 }  // namespace rilo

@@ -50,6 +50,11 @@ std::string_view toString(RangingKind kind);
 std::optional<RangingKind> rangingKindFromString(std::string_view text);
 /// "uwb", "ultrasonic" (the spellings of anchors.csv).
 std::string_view toString(AnchorKind kind);
+/// Surveyed UWB anchor positions indexed by anchor id, as the estimators take
+/// them. Ids without a UWB anchor hold a far-away placeholder (1e6 m), which no
+/// range can reference: the recording reader and rilod's config reject ranges
+/// to unknown anchors.
+std::vector<Vec3> uwbAnchorsById(const std::vector<Anchor>& anchors);
 std::optional<AnchorKind> anchorKindFromString(std::string_view text);
 
 /// meta.yaml. Optional members are absent when the file does not give them.

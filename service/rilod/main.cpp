@@ -91,16 +91,7 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   }
   for (const auto& s : sources) spdlog::info("source: {}", s->describe());
 
-  // Anchors by id.
-  std::vector<rilo::Vec3> p_w_anchors;
-  for (const rilo::Anchor& a : cfg.anchors) {
-    if (a.kind != rilo::AnchorKind::kUwb) continue;
-    if (p_w_anchors.size() <= a.id) p_w_anchors.resize(a.id + 1, rilo::Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
-    p_w_anchors[a.id] = a.p_w_anchor;
-  }
-  for (std::size_t id = 0; id < p_w_anchors.size(); ++id) {
-    if (!p_w_anchors[id].allFinite()) p_w_anchors[id] = rilo::Vec3(1e6, 1e6, 1e6);  // id gap: never heard in practice
-  }
+  const std::vector<rilo::Vec3> p_w_anchors = rilo::uwbAnchorsById(cfg.anchors);
 
   // Recording (optional): a tee in front of every source.
   std::unique_ptr<rilo::Recorder> recorder;

@@ -7,6 +7,8 @@
 // recording has one, timing statistics, re-initializations).
 #include <string>
 
+#include "evaluation/replay_run.h"
+
 namespace CLI {
 class App;
 }
@@ -16,16 +18,13 @@ namespace rilo::tool {
 struct ReplayOptions {
   std::string recording;
   std::string out;
-  std::string smoother = "d-isam2";   ///< d-isam2 | isam2 | dogleg
-  std::string noise = "asymmetric";   ///< gaussian | huber | cauchy | asymmetric
-  double range_hz = 0.0;              ///< thin ranges to this total rate (0: keep all)
-  double lag_s = 5.0;
+  ReplaySettings settings;
 };
 
 /// Returns the process exit code (0 ok, 1 failure with the message on stderr).
 int runReplay(const ReplayOptions& options);
 
-/// Registers the `replay` subcommand. Link: rilo_estimation, rilo_recording.
+/// Registers the `replay` subcommand. Link: rilo_evaluation.
 void addReplayCommand(CLI::App& app);
 
 }  // namespace rilo::tool

@@ -1,0 +1,110 @@
+#include "evaluation/replay_run.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace rilo {
+
+namespace {
+
+ImuParams imuParamsFrom(const RecordingMeta& meta) {
+  ImuParams imu;
+  imu.gravity_m_s2 = meta.gravity_m_s2;
+  if (meta.gyro_noise_density) imu.gyro_noise_density = *meta.gyro_noise_density;
+  if (meta.accel_noise_density) imu.accel_noise_density = *meta.accel_noise_density;
+  if (meta.gyro_bias_random_walk) imu.gyro_bias_random_walk = *meta.gyro_bias_random_walk;
+  if (meta.accel_bias_random_walk) imu.accel_bias_random_walk = *meta.accel_bias_random_walk;
+  imu.gyro_bias_tau_s = ImuParams::kRandomWalk;
+  imu.accel_bias_tau_s = ImuParams::kRandomWalk;
+  return imu;
+}
+
+}  // namespace
+
+LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s) {
+  LocalizerParams lp;
+  lp.graph.imu = imuParamsFrom(rec.meta);
+  lp.graph.p_b_tag = rec.meta.uwb_lever_arm_m;
+  lp.graph.range_loss = s.noise;
+  if (s.range_sigma_m) lp.graph.range_noise.sigma_m = *s.range_sigma_m;
+  if (s.nlos_scale_m) lp.graph.range_noise.nlos_scale_m = *s.nlos_scale_m;
+  if (s.nlos_weight) lp.graph.range_noise.nlos_weight = *s.nlos_weight;
+  lp.smoother.method = smootherMethodFromName(s.smoother);
+  lp.smoother.lag_s = s.lag_s;
+  return lp;
+}
+
+PositionErrorStats positionErrorAgainst(const std::vector<RangeImuEstimator::TimedPose>& poses,
+                                        const std::vector<GroundTruthPose>& truth, std::int64_t max_dt_ns) {
+  std::vector<Vec3> p_est, p_true;
+  for (const auto& p : poses) {
+    auto it = std::lower_bound(truth.begin(), truth.end(), p.t_ns,
+                               [](const GroundTruthPose& g, std::int64_t t) { return g.t_ns < t; });
+    if (it != truth.begin() &&
+        (it == truth.end() || std::abs(std::prev(it)->t_ns - p.t_ns) < std::abs(it->t_ns - p.t_ns))) {
+      --it;
+    }
+    if (it == truth.end() || std::abs(it->t_ns - p.t_ns) > max_dt_ns) continue;
+    p_est.push_back(p.T_w_b.p);
+    p_true.push_back(it->p_w_b);
+  }
+  return positionErrorStats(p_est, p_true);
+}
+
+ReplayResult replayRecording(const Recording& rec, const ReplaySettings& settings) {
+  if (rec.imu.empty() || rec.ranges.empty()) {
+    throw std::runtime_error(rec.meta.name + ": needs imu.csv and range.csv samples");
+  }
+  if (!(settings.range_hz >= 0.0)) throw std::invalid_argument("replay: range_hz must be >= 0");
+  Localizer localizer(uwbAnchorsById(rec.anchors), localizerParamsFor(rec, settings));
+
+  ReplayResult out;
+  std::vector<UpdateStats> stats;
+  const double min_range_dt_ns = settings.range_hz > 0.0 ? 1e9 / settings.range_hz : 0.0;
+  std::int64_t last_kept_range_ns = std::numeric_limits<std::int64_t>::min() / 2;
+  const std::size_t total = rec.imu.size() + rec.ranges.size();
+  const std::size_t progress_every = std::max<std::size_t>(1, total / 100);
+  const auto wall_start = std::chrono::steady_clock::now();
+  std::size_t i = 0, r = 0;
+  while (i < rec.imu.size() || r < rec.ranges.size()) {
+    if (settings.progress && (i + r) % progress_every == 0) {
+      settings.progress(static_cast<double>(i + r) / static_cast<double>(total));
+    }
+    if (r < rec.ranges.size() && (i >= rec.imu.size() || rec.ranges[r].t_ns <= rec.imu[i].t_ns)) {
+      const RangeSample& range = rec.ranges[r++];
+      if (static_cast<double>(range.t_ns - last_kept_range_ns) < min_range_dt_ns) continue;  // rate thinning
+      last_kept_range_ns = range.t_ns;
+      ++out.ranges_used;
+      localizer.addRange(range);
+    } else {
+      localizer.addImu(rec.imu[i++]);
+    }
+    stats.clear();
+    if (localizer.process(&stats) == 0 || !localizer.tracking()) continue;
+    const StateEstimate& s = localizer.latest();
+    out.online.push_back({s.t_ns, s.T_w_b});
+    for (const UpdateStats& u : stats) out.updates.push_back({s.t_ns, u});
+    localizer.drainSmoothed(out.smoothed);
+  }
+  localizer.finish();
+  localizer.process();
+  localizer.drainSmoothed(out.smoothed, true);
+  out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  if (settings.progress) settings.progress(1.0);
+  std::sort(out.smoothed.begin(), out.smoothed.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
+
+  out.data_s = static_cast<double>(rec.imu.back().t_ns - rec.imu.front().t_ns) * 1e-9;
+  out.initializations = localizer.initializations();
+  out.reinitializations = localizer.reinitializations();
+  out.last_failure = localizer.lastFailure();
+  if (!rec.groundtruth.empty()) {
+    out.ape_online = positionErrorAgainst(out.online, rec.groundtruth);
+    out.ape_smoothed = positionErrorAgainst(out.smoothed, rec.groundtruth);
+  }
+  return out;
+}
+
+}  // namespace rilo

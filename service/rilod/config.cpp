@@ -237,7 +237,8 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
 
 EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
   const ConfigMap m = field.map({"smoother", "lag_s", "relinearization", "damping", "trust_region", "range",
-                                 "anchors_as_variables", "anchor_sigma_m", "init"});
+                                 "anchors_as_variables", "anchor_sigma_m", "init", "height_band",
+                                 "vertical_speed_sigma_m_s"});
   m.read("smoother", e.smoother.method, [](const ConfigField& f) {
     return f.choice<SmootherParams::Method>({{"d-isam2", SmootherParams::Method::kDamped},
                                              {"isam2", SmootherParams::Method::kGaussNewton},
@@ -258,6 +259,20 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     const ConfigMap init = f->map({"window_s"});
     init.read("window_s", e.init_window_s, [](const ConfigField& w) { return w.number(0.5, 600.0); });
   }
+  if (auto f = m.get("height_band")) {
+    const ConfigMap band = f->map({"enabled", "floor_z_m", "min_height_m", "max_height_m", "sigma_m"});
+    band.read("enabled", e.height_band.enabled, [](const ConfigField& b) { return b.boolean(); });
+    band.read("floor_z_m", e.height_band.floor_z_m, [](const ConfigField& b) { return b.number(-1e4, 1e4); });
+    band.read("min_height_m", e.height_band.min_height_m, [](const ConfigField& b) { return b.number(-100.0, 100.0); });
+    band.read("max_height_m", e.height_band.max_height_m, [](const ConfigField& b) { return b.number(-100.0, 100.0); });
+    band.read("sigma_m", e.height_band.sigma_m, [](const ConfigField& b) { return b.positive(100.0); });
+    try {
+      e.height_band.validate("height_band");
+    } catch (const std::invalid_argument& ex) {
+      f->fail(ex.what());
+    }
+  }
+  m.read("vertical_speed_sigma_m_s", e.vertical_speed_sigma_m_s, [](const ConfigField& f) { return f.number(0.0, 100.0); });
   try {
     e.smoother.validate();
   } catch (const std::invalid_argument& ex) {

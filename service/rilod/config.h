@@ -123,6 +123,11 @@ struct EstimatorConfig {
   /// Start-up: batch solve over this many seconds of data before the
   /// incremental smoother takes over (seed 000: 10 s).
   double init_window_s = 10.0;
+  /// Tag height band above the floor (a wearable's height; see
+  /// estimation/pipeline/init_height_band.h): initialization and every state.
+  HeightBand height_band;
+  /// Zero vertical-speed prior on every state (m/s std-dev; 0 = none).
+  double vertical_speed_sigma_m_s = 0.0;
 };
 
 // --- output, recording, run-time ---------------------------------------------

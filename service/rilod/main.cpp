@@ -112,6 +112,13 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   so.localizer.smoother = cfg.estimator.smoother;
   so.localizer.stream = cfg.estimator.stream;
   so.localizer.init.window_s = cfg.estimator.init_window_s;
+  so.localizer.height_band = cfg.estimator.height_band;
+  so.localizer.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
+  if (so.localizer.height_band.enabled && !so.localizer.height_band.plausibleFor(p_w_anchors)) {
+    spdlog::warn("estimator.height_band: the anchors do not look mounted 1-6 m above a floor at z = {:.2f} m; the band is off "
+                 "(set estimator.height_band.floor_z_m to the floor height in the anchors' frame)",
+                 so.localizer.height_band.floor_z_m);
+  }
   so.participant.domain_id = cfg.dds.domain_id;
   if (cfg.dds.loopback_only) so.participant.config_xml = rilo::dds::loopbackConfigXml();
   if (!cfg.dds.cyclone_config_file.empty()) so.participant.config_xml = "file://" + cfg.dds.cyclone_config_file.string();

@@ -6,6 +6,7 @@
 
 #include <cstdio>
 
+#include "hal/sim/office_scenario.h"
 #include "hal/sim/range_imu_scenario.h"
 #include "support/online_run.h"
 
@@ -118,6 +119,64 @@ TEST(Localizer, NamesTheSmoothers) {
   LocalizerParams bad;
   bad.max_speed_m_s = 0.0;
   EXPECT_THROW(Localizer({Vec3::Zero()}, bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace rilo
+
+namespace rilo {
+namespace {
+
+// Architecture, "poor vertical geometry": anchors 2.0-2.8 m up, the tag at
+// ~1.35 m and mostly NLOS (too long) ranges pull the height down. The
+// deployment's height band must keep tracked states near a wearer's height.
+TEST(Localizer, HeightBandHoldsTheTrackedHeightUnderNlos) {
+  sim::OfficeScenarioParams op;
+  op.seed = 2;
+  op.duration_s = 40.0;
+  const sim::Scenario s = sim::simulateOfficeScenario(op);
+  auto vertical_error = [&](bool band_on) {
+    LocalizerParams p = paramsFor(s);
+    p.height_band.min_height_m = 1.0;
+    p.height_band.max_height_m = 1.8;
+    p.track_height_band = band_on;
+    Localizer localizer(s.p_w_anchors, p);
+    EXPECT_TRUE(localizer.heightBandNote().empty()) << localizer.heightBandNote();
+    double sum = 0.0;
+    int n = 0;
+    std::size_t i = 0, r = 0;
+    while (i < s.imu.size() || r < s.ranges.size()) {
+      if (r < s.ranges.size() && (i >= s.imu.size() || s.ranges[r].t_ns <= s.imu[i].t_ns)) {
+        localizer.addRange(s.ranges[r++]);
+      } else {
+        localizer.addImu(s.imu[i++]);
+      }
+      if (localizer.process() > 0 && localizer.tracking()) {
+        sum += std::abs(localizer.latest().T_w_b.p.z() - s.truthAt(localizer.latest().t_ns).T_w_b.p.z());
+        ++n;
+      }
+    }
+    EXPECT_GT(n, 100);
+    return n > 0 ? sum / n : 1e9;
+  };
+  const double with_band = vertical_error(true);
+  const double without = vertical_error(false);
+  std::printf("mean vertical error: %.3f m with the band, %.3f m without\n", with_band, without);
+  EXPECT_LT(with_band, 0.45);
+  EXPECT_LT(with_band, 0.8 * without);
+}
+
+TEST(Localizer, DropsAHeightBandThatDoesNotFitTheAnchors) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 2.0;
+  const sim::Scenario s = sim::simulateScenario(sp);
+  std::vector<Vec3> anchors = s.p_w_anchors;
+  for (Vec3& a : anchors) a.z() -= 10.0;  // a frame whose floor is nowhere near z = 0
+  Localizer localizer(anchors, paramsFor(s));
+  EXPECT_FALSE(localizer.params().height_band.enabled);
+  EXPECT_FALSE(localizer.params().graph.height_band.enabled);
+  EXPECT_FALSE(localizer.params().init.height_band.enabled);
+  EXPECT_NE(localizer.heightBandNote().find("height band off"), std::string::npos);
 }
 
 }  // namespace

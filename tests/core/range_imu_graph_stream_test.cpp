@@ -666,3 +666,68 @@ TEST(RangeImuGraphStream, BuffersStayBoundedOverALongFeed) {
 
 }  // namespace
 }  // namespace rilo
+
+namespace rilo {
+namespace {
+
+TEST(RangeImuGraphStream, MotionPriorsOnEveryStateWhenEnabled) {
+  const sim::Scenario s = makeScenario(3.0);
+  RangeImuGraphParams gp = graphParams(s);
+  gp.height_band = HeightBand();  // 0.9-1.9 m above the floor
+  gp.height_band.floor_z_m = -1.0;
+  gp.vertical_speed_sigma_m_s = 0.3;
+  std::size_t states = 0;
+  const IncrementHook hook = [&](const GraphIncrement& inc, const RangeImuGraphStream&) {
+    if (!inc.new_state) return;
+    ++states;
+    int bands = 0, vertical = 0;
+    for (const FactorPtr& f : inc.factors) {
+      if (const auto* b = dynamic_cast<const HeightBandFactor*>(f.get())) {
+        ++bands;
+        EXPECT_EQ(b->keys()[0], sym::X(inc.state_index));
+        // The band is on the tag; the factor holds the body, an upright lever arm below it.
+        EXPECT_DOUBLE_EQ(b->zMin(), -0.1 - gp.p_b_tag.z());
+        EXPECT_DOUBLE_EQ(b->zMax(), 0.9 - gp.p_b_tag.z());
+        EXPECT_DOUBLE_EQ(b->sigma(), gp.height_band.sigma_m);
+      }
+      const auto* v = dynamic_cast<const PriorVec3Factor*>(f.get());
+      if (v != nullptr && f->keys()[0] == sym::V(inc.state_index) && v->sqrtInformation()(0, 0) < 1e-3) {
+        ++vertical;  // horizontal speed left free; state 0's own velocity prior holds all axes
+        EXPECT_TRUE(v->prior().isZero());
+        EXPECT_DOUBLE_EQ(v->sqrtInformation()(2, 2), 1.0 / 0.3);
+      }
+    }
+    EXPECT_EQ(bands, 1) << "state " << inc.state_index;
+    EXPECT_EQ(vertical, 1) << "state " << inc.state_index;
+  };
+  feedStream(s, s.ranges, gp, RangeImuStreamOptions(), Feed(), hook);
+  EXPECT_GT(states, 10u);
+}
+
+TEST(RangeImuGraphStream, RejectsBadMotionPriors) {
+  const sim::Scenario s = makeScenario(1.0);
+  RangeImuGraphParams gp = graphParams(s);
+  gp.vertical_speed_sigma_m_s = -1.0;
+  EXPECT_THROW(RangeImuGraphStream(s.p_w_anchors, gp), std::invalid_argument);
+  gp.vertical_speed_sigma_m_s = 0.0;
+  gp.height_band = HeightBand();
+  gp.height_band.max_height_m = 0.1;  // below min_height_m
+  EXPECT_THROW(RangeImuGraphStream(s.p_w_anchors, gp), std::invalid_argument);
+}
+
+TEST(HeightBand, PlausibleOnlyWhenTheAnchorsSitAboveItsFloor) {
+  HeightBand band;  // floor z = 0
+  const std::vector<Vec3> wall_mounted = {Vec3(0, 0, 2.5), Vec3(10, 0, 2.1), Vec3(0, 8, 2.8), Vec3(1e6, 1e6, 1e6)};
+  EXPECT_TRUE(band.plausibleFor(wall_mounted));
+  // A headset frame: the origin at eye height, the anchors around it.
+  const std::vector<Vec3> headset_frame = {Vec3(0, 0, 0.9), Vec3(10, 0, 0.5), Vec3(0, 8, -0.3)};
+  EXPECT_FALSE(band.plausibleFor(headset_frame));
+  band.floor_z_m = -1.6;  // ... unless the floor is given in that frame
+  EXPECT_TRUE(band.plausibleFor(headset_frame));
+  const std::vector<Vec3> below_floor = {Vec3(0, 0, 2.5), Vec3(10, 0, 2.1), Vec3(0, 8, -1.0)};
+  EXPECT_FALSE(HeightBand().plausibleFor(below_floor));
+  EXPECT_FALSE(HeightBand().plausibleFor(std::vector<Vec3>{}));
+}
+
+}  // namespace
+}  // namespace rilo

@@ -124,6 +124,8 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "  anchors_as_variables: false\n"
       "  anchor_sigma_m: 0.05\n"
       "  init: {window_s: 7.5}\n"
+      "  height_band: {enabled: true, floor_z_m: -0.3, min_height_m: 1.0, max_height_m: 1.6, sigma_m: 0.05}\n"
+      "  vertical_speed_sigma_m_s: 0.4\n"
       "dds:\n"
       "  domain: 42\n"
       "  cyclone_config_file: cyclone.xml\n"
@@ -191,6 +193,12 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_FALSE(g.anchors_as_variables);
   EXPECT_DOUBLE_EQ(g.anchor_sigma_m, 0.05);
   EXPECT_DOUBLE_EQ(c.estimator.init_window_s, 7.5);
+  EXPECT_TRUE(c.estimator.height_band.enabled);
+  EXPECT_DOUBLE_EQ(c.estimator.height_band.floor_z_m, -0.3);
+  EXPECT_DOUBLE_EQ(c.estimator.height_band.min_height_m, 1.0);
+  EXPECT_DOUBLE_EQ(c.estimator.height_band.max_height_m, 1.6);
+  EXPECT_DOUBLE_EQ(c.estimator.height_band.sigma_m, 0.05);
+  EXPECT_DOUBLE_EQ(c.estimator.vertical_speed_sigma_m_s, 0.4);
 
   EXPECT_EQ(c.dds.domain_id, 42u);
   EXPECT_EQ(c.dds.cyclone_config_file, (dir_ / "cyclone.xml").lexically_normal());
@@ -522,6 +530,9 @@ std::vector<BadCase> badCases() {
        "estimator.relinearization.skip", "[1, 1000]", 11},
       {"trust_radius_order", valid("estimator:\n  trust_region: {initial: 0.1, min: 1.0}\n"), "estimator.trust_region",
        "trust_radius_min", 11},
+      {"height_band_inverted", valid("estimator:\n  height_band: {min_height_m: 1.5, max_height_m: 1.0}\n"),
+       "estimator.height_band", "max_height_m must be > min_height_m", 11},
+      {"height_band_unknown_key", valid("estimator:\n  height_band: {floor: 0}\n"), "estimator.height_band", "unknown key 'floor'", 11},
       {"init_window_tiny", valid("estimator:\n  init: {window_s: 0.1}\n"), "estimator.init.window_s", "[0.5, 600]",
        11},
       // dds

@@ -4,18 +4,28 @@
 // height weakly observable and the mirror solution on the other side of the
 // anchor plane fits the ranges too). Used by the initializer as a one-sided
 // penalty: zero inside the band, (z - bound) / sigma outside it.
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace rilo {
 
 struct HeightBand {
   bool enabled = true;
   double floor_z_m = 0.0;     ///< floor height in the world frame (m, z up)
-  double min_height_m = 0.5;  ///< lowest tag height above the floor (m)
-  double max_height_m = 2.0;  ///< highest tag height above the floor (m)
+  // A wearable on a person who walks, stands or sits: chest height when
+  // seated (~1.0 m) to head height when standing (~1.8 m), with a margin.
+  double min_height_m = 0.9;  ///< lowest tag height above the floor (m)
+  double max_height_m = 1.9;  ///< highest tag height above the floor (m)
   double sigma_m = 0.1;       ///< softness of the band's edges (m)
+
+  static HeightBand off() {
+    HeightBand b;
+    b.enabled = false;
+    return b;
+  }
 
   double minZ() const { return floor_z_m + min_height_m; }
   double maxZ() const { return floor_z_m + max_height_m; }
@@ -35,6 +45,25 @@ struct HeightBand {
   }
   bool contains(double z_m, double margin_m = 0.0) const {
     return !enabled || (z_m >= minZ() - margin_m && z_m <= maxZ() + margin_m);
+  }
+
+  /// Whether the band's floor fits the surveyed anchors, i.e. the anchors'
+  /// frame has its floor where the band assumes (recordings in a frame with
+  /// another origin, such as a headset's first pose, would be pulled to a
+  /// wrong height): none more than 0.5 m below the floor and their median
+  /// 1-6 m above it, as wall, ceiling or desk mounts are. Placeholders of
+  /// unused ids (|coordinate| >= 1e5 m) are ignored.
+  template <class Vec3List>
+  bool plausibleFor(const Vec3List& p_w_anchors) const {
+    std::vector<double> heights;
+    for (const auto& p : p_w_anchors) {
+      if (!(std::abs(p.x()) < 1e5 && std::abs(p.y()) < 1e5 && std::abs(p.z()) < 1e5)) continue;
+      heights.push_back(p.z() - floor_z_m);
+    }
+    if (heights.empty()) return false;
+    std::sort(heights.begin(), heights.end());
+    const double median = heights[heights.size() / 2];
+    return heights.front() >= -0.5 && median >= 1.0 && median <= 6.0;
   }
 
   /// Throws std::invalid_argument naming the field.

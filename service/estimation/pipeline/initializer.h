@@ -83,7 +83,7 @@ struct InitializerParams {
   double fix_window_s = 1.0;       ///< multilateration window (s) ...
   double fix_max_window_s = 8.0;   ///< ... grown up to this until it holds enough anchors and ranges (s)
 
-  HeightBand height_band;          ///< tag height band: default 0.5-2.0 m above the floor z = 0
+  HeightBand height_band;          ///< tag height band (a wearable: 0.9-1.9 m above the floor z = 0)
   /// Multilateration settings; sigma_m, long_side_loss and band are set from graph / height_band.
   MultilaterationParams fix;
   GravityParams gravity;

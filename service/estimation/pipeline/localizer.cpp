@@ -18,6 +18,8 @@ void LocalizerParams::validate() const {
   if (!(max_gyro_bias_rad_s > 0.0)) fail("max_gyro_bias_rad_s", "must be > 0");
   if (!(max_imu_gap_s > 0.0)) fail("max_imu_gap_s", "must be > 0");
   if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
+  height_band.validate("LocalizerParams.height_band");
+  if (!(vertical_speed_sigma_m_s >= 0.0 && std::isfinite(vertical_speed_sigma_m_s))) fail("vertical_speed_sigma_m_s", "must be finite and >= 0");
   smoother.validate();
   init.validate();
 }
@@ -38,8 +40,30 @@ const char* smootherMethodName(SmootherParams::Method method) {
   return "?";
 }
 
+namespace {
+
+/// The single height band and vertical speed settings pushed into the parts;
+/// a band whose floor does not fit the anchors is dropped (see plausibleFor).
+LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors, std::string& note) {
+  if (p.height_band.enabled && !p.height_band.plausibleFor(p_w_anchors)) {
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "height band off: the anchors do not look mounted 1-6 m above a floor at z = %.2f m", p.height_band.floor_z_m);
+    note = text;
+    p.height_band.enabled = false;
+  }
+  p.init.height_band = p.height_band;
+  p.graph.height_band = p.track_height_band ? p.height_band : HeightBand::off();
+  p.graph.vertical_speed_sigma_m_s = p.vertical_speed_sigma_m_s;
+  return p;
+}
+
+}  // namespace
+
 Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
-    : p_w_anchors_(std::move(p_w_anchors)), params_(std::move(params)), initializer_(p_w_anchors_, params_.init) {
+    : p_w_anchors_(std::move(p_w_anchors)),
+      params_(resolved(std::move(params), p_w_anchors_, height_band_note_)),
+      initializer_(p_w_anchors_, params_.init) {
   params_.validate();
 }
 

@@ -23,6 +23,13 @@ struct LocalizerParams {
   SmootherParams smoother;           ///< method: D-iSAM2 (default), iSAM2, dog-leg
   InitializerParams init;
   RangeImuStreamOptions stream;
+  /// What the deployment knows about the tag's height: used by the initializer
+  /// and, when track_height_band is set, on every tracked state (overrides
+  /// init.height_band and graph.height_band).
+  HeightBand height_band;
+  bool track_height_band = true;
+  /// Vertical speed prior on every tracked state (m/s; 0: none), see RangeImuGraphParams.
+  double vertical_speed_sigma_m_s = 0.0;
   // Failure detection: any of these ends tracking and restarts initialization.
   double max_speed_m_s = 10.0;       ///< a walking/running person stays well below
   double max_accel_bias_m_s2 = 1.5;  ///< far beyond a BMI263's bias range
@@ -72,6 +79,10 @@ class Localizer {
 
   std::uint64_t initializations() const { return initializations_; }
   std::uint64_t reinitializations() const { return reinitializations_; }
+  /// Why the configured height band was dropped (empty when in use or never configured).
+  const std::string& heightBandNote() const { return height_band_note_; }
+  /// The parameters in effect (after the height band was resolved).
+  const LocalizerParams& params() const { return params_; }
   /// Why tracking last ended ("speed 14.2 m/s at t=12.3 s"), empty if never.
   const std::string& lastFailure() const { return last_failure_; }
 
@@ -83,6 +94,7 @@ class Localizer {
   void guarded(F&& f);
 
   std::vector<Vec3> p_w_anchors_;
+  std::string height_band_note_;  // before params_: filled while params_ is resolved
   LocalizerParams params_;
   Phase phase_ = Phase::kInitializing;
   Initializer initializer_;

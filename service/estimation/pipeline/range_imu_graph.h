@@ -13,6 +13,7 @@
 #include "estimation/graph/factor.h"
 #include "estimation/imu/imu_params.h"
 #include "estimation/noise/noise_model_factory.h"
+#include "estimation/pipeline/init_height_band.h"
 #include "hal/samples.h"
 
 namespace rilo {
@@ -33,6 +34,13 @@ struct RangeImuGraphParams {
   double first_velocity_sigma_m_s = 1.0;
   double first_accel_bias_sigma = 0.1;   ///< m/s^2
   double first_gyro_bias_sigma = 0.01;   ///< rad/s
+  // What a walking wearer's motion tells about height (architecture: poor
+  // vertical geometry). Both off here; the Localizer turns them on.
+  /// Soft band on the tag height of every state (HeightBandFactor on the body
+  /// height, shifted by the lever arm's z for an upright wearer).
+  HeightBand height_band = HeightBand::off();
+  /// Std-dev of a zero-mean prior on each state's vertical velocity (m/s); 0: none.
+  double vertical_speed_sigma_m_s = 0.0;
 };
 
 struct RangeImuGraph {

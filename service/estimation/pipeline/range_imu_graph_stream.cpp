@@ -65,6 +65,10 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
     throw std::invalid_argument(where + "range_noise.sigma_m must be positive and finite");
   }
   if (!params_.p_b_tag.allFinite()) throw std::invalid_argument(where + "p_b_tag must be finite");
+  params_.height_band.validate("RangeImuGraphStream: height_band");
+  if (!(std::isfinite(params_.vertical_speed_sigma_m_s) && params_.vertical_speed_sigma_m_s >= 0.0)) {
+    throw std::invalid_argument(where + "vertical_speed_sigma_m_s must be finite and >= 0");
+  }
   if (params_.anchors_as_variables && !(std::isfinite(params_.anchor_sigma_m) && params_.anchor_sigma_m > 0.0)) {
     throw std::invalid_argument(where + "anchor_sigma_m must be positive and finite");
   }
@@ -85,6 +89,7 @@ GraphIncrement RangeImuGraphStream::start(std::int64_t t0_ns, const Pose3& T_w_b
   Vec6 bias_sigmas;
   bias_sigmas << Vec3::Constant(params_.first_accel_bias_sigma), Vec3::Constant(params_.first_gyro_bias_sigma);
   inc.factors.emplace<PriorBiasFactor>(sym::B(0), bias0_guess, bias_sigmas);
+  addMotionPriors(0, inc);
   inc.values.insert(sym::X(0), T_w_b0_guess);
   inc.values.insert(sym::V(0), v_w0_guess);
   inc.values.insert(sym::B(0), bias0_guess);
@@ -229,6 +234,7 @@ GraphIncrement RangeImuGraphStream::emitState(const StateEstimate& previous) {
   addRangeFactors(0, carry_ranges_, sym::X(i - 1), inc);
   addRangeFactors(carry_ranges_, s.n_ranges, sym::X(i), inc);
   addAnchorPriors(inc);
+  addMotionPriors(i, inc);
 
   const PreintegratedImu::NavState nav = pim_.predict(previous.T_w_b, previous.v_w, previous.bias);
   inc.values.insert(sym::X(i), nav.T_w_b);
@@ -259,6 +265,18 @@ GraphIncrement RangeImuGraphStream::emitCarriedRanges() {
   ranges_.pop_front(carry_ranges_);
   carry_ranges_ = 0;
   return inc;
+}
+
+void RangeImuGraphStream::addMotionPriors(std::uint64_t i, GraphIncrement& inc) const {
+  const HeightBand& band = params_.height_band;
+  if (band.enabled) {
+    inc.factors.emplace<HeightBandFactor>(sym::X(i), band.minZ() - params_.p_b_tag.z(), band.maxZ() - params_.p_b_tag.z(),
+                                          band.sigma_m);
+  }
+  if (params_.vertical_speed_sigma_m_s > 0.0) {
+    // Horizontal speed is free (1e4 m/s std-dev); only v_z is held near zero.
+    inc.factors.emplace<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(1e4, 1e4, params_.vertical_speed_sigma_m_s));
+  }
 }
 
 void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const {

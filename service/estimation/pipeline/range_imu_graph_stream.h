@@ -119,7 +119,8 @@ struct GraphIncrement {
   /// New factors, in this order: the priors on X0, V0, B0 (state 0 only); the
   /// combined IMU factor into the new state (new states i > 0); `range_factors`
   /// range factors in arrival order (late ones on the previous state first);
-  /// one survey prior per new_anchor_keys entry (anchors as variables only).
+  /// one survey prior per new_anchor_keys entry (anchors as variables only);
+  /// the new state's motion priors (height band, vertical speed) when enabled.
   FactorGraph factors;
   Values values;  ///< initial values of every new key (new state's X, V, B; new anchors)
   std::vector<std::pair<Key, std::int64_t>> key_times_ns;  ///< time of every new state key (X, V, B); anchors have none
@@ -197,6 +198,8 @@ class RangeImuGraphStream {
   bool carryClosed() const;
   GraphIncrement emitState(const StateEstimate& previous);
   GraphIncrement emitCarriedRanges();
+  /// Adds state i's height band and vertical speed priors (when enabled).
+  void addMotionPriors(std::uint64_t i, GraphIncrement& inc) const;
   /// Adds ranges_[first, first + n) on state key x, noting anchors new to the graph.
   void addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const;
   void addAnchorPriors(GraphIncrement& inc) const;

@@ -32,26 +32,14 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.range_sigma_m) lp.graph.range_noise.sigma_m = *s.range_sigma_m;
   if (s.nlos_scale_m) lp.graph.range_noise.nlos_scale_m = *s.nlos_scale_m;
   if (s.nlos_weight) lp.graph.range_noise.nlos_weight = *s.nlos_weight;
+  if (s.height_band) lp.track_height_band = *s.height_band;
+  if (s.floor_z_m) lp.height_band.floor_z_m = *s.floor_z_m;
+  if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;
+  if (s.max_height_m) lp.height_band.max_height_m = *s.max_height_m;
+  if (s.vertical_speed_sigma_m_s) lp.vertical_speed_sigma_m_s = *s.vertical_speed_sigma_m_s;
   lp.smoother.method = smootherMethodFromName(s.smoother);
   lp.smoother.lag_s = s.lag_s;
   return lp;
-}
-
-PositionErrorStats positionErrorAgainst(const std::vector<RangeImuEstimator::TimedPose>& poses,
-                                        const std::vector<GroundTruthPose>& truth, std::int64_t max_dt_ns) {
-  std::vector<Vec3> p_est, p_true;
-  for (const auto& p : poses) {
-    auto it = std::lower_bound(truth.begin(), truth.end(), p.t_ns,
-                               [](const GroundTruthPose& g, std::int64_t t) { return g.t_ns < t; });
-    if (it != truth.begin() &&
-        (it == truth.end() || std::abs(std::prev(it)->t_ns - p.t_ns) < std::abs(it->t_ns - p.t_ns))) {
-      --it;
-    }
-    if (it == truth.end() || std::abs(it->t_ns - p.t_ns) > max_dt_ns) continue;
-    p_est.push_back(p.T_w_b.p);
-    p_true.push_back(it->p_w_b);
-  }
-  return positionErrorStats(p_est, p_true);
 }
 
 ReplayResult replayRecording(const Recording& rec, const ReplaySettings& settings) {

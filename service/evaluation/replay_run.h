@@ -12,6 +12,7 @@
 
 #include "estimation/pipeline/localizer.h"
 #include "estimation/pipeline/trajectory_error.h"
+#include "evaluation/trajectory_metrics.h"  // positionErrorAgainst
 #include "hal/recording/recording.h"
 
 namespace rilo {
@@ -25,6 +26,11 @@ struct ReplaySettings {
   std::optional<double> range_sigma_m;  ///< LOS range std-dev (m)
   std::optional<double> nlos_scale_m;   ///< half-Cauchy scale of the NLOS excess (m)
   std::optional<double> nlos_weight;    ///< prior NLOS probability
+  // Height knowledge (unset: LocalizerParams defaults).
+  std::optional<bool> height_band;             ///< soft tag height band on tracked states
+  std::optional<double> floor_z_m;             ///< floor height in the world frame (m)
+  std::optional<double> min_height_m, max_height_m;  ///< band above the floor (m)
+  std::optional<double> vertical_speed_sigma_m_s;    ///< vertical speed prior (m/s; 0 none)
   /// Called now and then with the fraction of samples consumed (progress bars).
   std::function<void(double)> progress;
 };
@@ -59,11 +65,5 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
 /// recording when it has no IMU or range samples, std::invalid_argument on bad
 /// settings.
 ReplayResult replayRecording(const Recording& rec, const ReplaySettings& settings);
-
-/// Estimated positions paired with the ground truth nearest in time (within
-/// `max_dt_ns`; no alignment: the anchors fix the frame).
-PositionErrorStats positionErrorAgainst(const std::vector<RangeImuEstimator::TimedPose>& poses,
-                                        const std::vector<GroundTruthPose>& truth,
-                                        std::int64_t max_dt_ns = 50'000'000);
 
 }  // namespace rilo

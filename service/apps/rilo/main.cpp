@@ -6,6 +6,7 @@
 #include <exception>
 
 #include "demo.h"
+#include "eval_command.h"
 #include "listen.h"
 #include "replay_command.h"
 #include "sim_command.h"
@@ -24,6 +25,7 @@ int main(int argc, char** argv) {
 
   rilo::tool::addSimCommand(app);
   rilo::tool::addReplayCommand(app);
+  rilo::tool::addEvalCommand(app);
   rilo::tool::addListenCommand(app);
 
   CLI11_PARSE(app, argc, argv);

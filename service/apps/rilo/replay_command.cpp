@@ -10,24 +10,12 @@
 #include <vector>
 
 #include "evaluation/replay_run.h"
+#include "evaluation/tum.h"
 #include "hal/recording/recording_reader.h"
 
 namespace rilo::tool {
 
 namespace {
-
-void writeTum(const std::filesystem::path& file, const std::vector<RangeImuEstimator::TimedPose>& poses) {
-  std::ofstream out(file);
-  out << "# t_s x y z qx qy qz qw (TUM; world frame of the anchors)\n";
-  char line[256];
-  for (const auto& p : poses) {
-    const Eigen::Quaterniond q(p.T_w_b.R);
-    std::snprintf(line, sizeof line, "%.9f %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", static_cast<double>(p.t_ns) * 1e-9,
-                  p.T_w_b.p.x(), p.T_w_b.p.y(), p.T_w_b.p.z(), q.x(), q.y(), q.z(), q.w());
-    out << line;
-  }
-  if (!out) throw std::runtime_error("cannot write " + file.string());
-}
 
 std::string statsJson(const PositionErrorStats& s) {
   char buf[320];
@@ -112,6 +100,12 @@ void addReplayCommand(CLI::App& app) {
       ->check(CLI::Range(0.001, 100.0));
   cmd->add_option("--nlos-weight", options->settings.nlos_weight, "Prior NLOS probability (asymmetric model)")
       ->check(CLI::Range(0.001, 0.499));
+  cmd->add_option("--height-band", options->settings.height_band, "Soft tag height band on tracked states (true/false)");
+  cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");
+  cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");
+  cmd->add_option("--max-height", options->settings.max_height_m, "Highest tag height above the floor (m)");
+  cmd->add_option("--vertical-speed-sigma", options->settings.vertical_speed_sigma_m_s,
+                  "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none)")->check(CLI::Range(0.0, 100.0));
   cmd->callback([options] {
     int code = 1;
     try {

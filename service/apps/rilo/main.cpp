@@ -9,6 +9,7 @@
 #include "eval_command.h"
 #include "listen.h"
 #include "replay_command.h"
+#include "report_command.h"
 #include "sim_command.h"
 
 int main(int argc, char** argv) {
@@ -25,6 +26,7 @@ int main(int argc, char** argv) {
 
   rilo::tool::addSimCommand(app);
   rilo::tool::addReplayCommand(app);
+  rilo::tool::addReportCommand(app);
   rilo::tool::addEvalCommand(app);
   rilo::tool::addListenCommand(app);
 

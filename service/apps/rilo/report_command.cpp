@@ -1,0 +1,221 @@
+#include "report_command.h"
+
+#include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+#include "evaluation/report.h"
+#include "evaluation/report_markdown.h"
+
+namespace rilo::tool {
+namespace {
+
+std::string formatDuration(double s) {
+  const long total = static_cast<long>(s + 0.5);
+  char buf[32];
+  if (total >= 3600) {
+    std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", total / 3600, (total / 60) % 60, total % 60);
+  } else {
+    std::snprintf(buf, sizeof buf, "%ld:%02ld", total / 60, total % 60);
+  }
+  return buf;
+}
+
+/// "[#####.....] 12/64 runs, 1:05 elapsed, ~2:10 left" on stderr: rewritten in
+/// place on a terminal, one line per 10 % otherwise (logs).
+class ProgressBar {
+ public:
+  explicit ProgressBar(std::string what) : what_(std::move(what)), tty_(::isatty(STDERR_FILENO) == 1) {}
+  ~ProgressBar() {
+    if (tty_ && printed_) std::fputc('\n', stderr);
+  }
+  ProgressBar(const ProgressBar&) = delete;
+  ProgressBar& operator=(const ProgressBar&) = delete;
+
+  void operator()(std::size_t done, std::size_t total) {
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const int decile = total ? static_cast<int>(10 * done / total) : 10;
+    if (!tty_ && decile <= last_decile_) return;
+    last_decile_ = decile;
+    constexpr int kWidth = 30;
+    const int filled = total ? static_cast<int>(kWidth * done / total) : kWidth;
+    std::string bar(static_cast<std::size_t>(filled), '#');
+    bar.append(static_cast<std::size_t>(kWidth - filled), '.');
+    std::string left;
+    if (done > 0 && done < total) {
+      left = ", ~" + formatDuration(elapsed / static_cast<double>(done) * static_cast<double>(total - done)) + " left";
+    }
+    std::fprintf(stderr, "%srilo report: [%s] %zu/%zu %s, %s elapsed%s%s", tty_ ? "\r" : "", bar.c_str(), done, total,
+                 what_.c_str(), formatDuration(elapsed).c_str(), left.c_str(), tty_ ? "   " : "\n");
+    std::fflush(stderr);
+    printed_ = true;
+  }
+
+ private:
+  std::string what_;
+  bool tty_;
+  bool printed_ = false;
+  int last_decile_ = -1;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+std::string commandLine(const ReportCommandOptions& o) {
+  std::string cmd = "rilo report";
+  for (const std::string& r : o.recordings) cmd += " " + r;
+  cmd += " --out " + o.out;
+  const auto join = [](const auto& items, auto&& text) {
+    std::string s;
+    for (const auto& item : items) s += (s.empty() ? "" : ",") + text(item);
+    return s;
+  };
+  if (!o.sim_seeds.empty()) {
+    cmd += " --sim-seeds " + join(o.sim_seeds, [](std::uint64_t v) { return std::to_string(v); });
+    char minutes[32];
+    std::snprintf(minutes, sizeof minutes, "%g", o.sim_minutes);
+    cmd += std::string(" --sim-minutes ") + minutes;
+  }
+  const auto number = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return std::string(buf);
+  };
+  cmd += " --rates " + join(o.rates_hz, number);
+  cmd += " --smoothers " + join(o.smoothers, [](const std::string& s) { return s; });
+  cmd += " --noises " + join(o.noises, [](const std::string& s) { return s; });
+  cmd += " --lag " + number(o.lag_s) + " --jobs " + std::to_string(o.jobs);
+  return cmd;
+}
+
+}  // namespace
+
+int runReportCommand(const ReportCommandOptions& o) {
+  try {
+    if (o.recordings.empty() && o.sim_seeds.empty()) {
+      throw std::invalid_argument("give recordings (REC...) or --sim-seeds");
+    }
+    ReportOptions options;
+    options.rates_hz = o.rates_hz;
+    options.smoothers = o.smoothers;
+    options.noises = o.noises;
+    options.jobs = o.jobs;
+    options.lag_s = o.lag_s;
+    options.validate();  // before minutes of simulation
+
+    const std::filesystem::path out(o.out);
+    if (std::filesystem::exists(out) && !std::filesystem::is_directory(out)) {
+      throw std::invalid_argument(o.out + " exists and is not a folder");
+    }
+    std::filesystem::create_directories(out);
+
+    std::vector<ReportRecording> recordings;
+    for (const std::string& dir : o.recordings) {
+      if (!std::filesystem::is_directory(dir)) throw std::invalid_argument("REC " + dir + " is not a folder");
+      recordings.push_back(loadReportRecording(dir));
+    }
+    if (!o.sim_seeds.empty()) {
+      std::vector<std::filesystem::path> dirs;
+      for (std::uint64_t seed : o.sim_seeds) dirs.push_back(out / "recordings" / ("sim-seed-" + std::to_string(seed)));
+      {
+        ProgressBar bar("simulated sessions");
+        std::mutex mutex;
+        std::size_t done = 0;
+        bar(0, dirs.size());
+        parallelFor(dirs.size(), o.jobs, [&](std::size_t i) {
+          simulateReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i]);
+          std::lock_guard<std::mutex> lock(mutex);
+          bar(++done, dirs.size());
+        });
+      }
+      for (const std::filesystem::path& dir : dirs) recordings.push_back(loadReportRecording(dir));
+    }
+    makeLabelsUnique(recordings);
+
+    ReportResults results;
+    {
+      ProgressBar bar("runs");
+      options.progress = [&bar](std::size_t done, std::size_t total) { bar(done, total); };
+      results = runReport(recordings, options);
+    }
+    writeReport(out, recordings, results, currentReportHeader(commandLine(o)));
+
+    std::size_t failed = 0, threw = 0;
+    for (const ReportRun& r : results.runs) {
+      if (r.failed(options.fail_mean_m)) ++failed;
+      if (r.threw) ++threw;
+    }
+    std::printf("rilo report: %zu runs on %zu recordings in %.1f s (%zu failed, %zu threw)\n", results.runs.size(),
+                recordings.size(), results.wall_s, failed, threw);
+    std::printf("  wrote %s/{%s,%s,%s/}\n", o.out.c_str(), kReportMarkdownFile, kReportCsvFile, kReportFiguresDir);
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rilo report: %s\n", e.what());
+    return 1;
+  }
+}
+
+void addReportCommand(CLI::App& app) {
+  auto o = std::make_shared<ReportCommandOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "report",
+      "Run the evaluation matrix of the paper (Tables I-III, Fig. 7, Fig. 1) over recordings and write a Markdown "
+      "report with tables, SVG plots and results.csv");
+  cmd->add_option("REC", o->recordings, "Recording folders (ground truth needed for the error tables)")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--out", o->out, "Output folder: report.md, results.csv, figures/ (and recordings/ with --sim-seeds)")
+      ->required();
+  CLI::Option* rates =
+      cmd->add_option("--rates", o->rates_hz,
+                      "Total ranging rates of Fig. 7 (Hz, comma separated, at most 40; 40 replays every range; "
+                      "Table I always runs at 40 Hz and Table II at 1 Hz)")
+          ->delimiter(',')
+          ->capture_default_str()
+          ->check(CLI::Range(0.01, 40.0));
+  CLI::Option* smoothers =
+      cmd->add_option("--smoothers", o->smoothers,
+                      "Estimators of Tables I and III (comma separated; d-isam2, else the first, is the estimator "
+                      "of Table II, Fig. 7 and Fig. 1)")
+          ->delimiter(',')
+          ->capture_default_str()
+          ->check(CLI::IsMember({"d-isam2", "isam2", "dogleg"}));
+  cmd->add_option("--noises", o->noises,
+                  "Range noise models (comma separated; asymmetric, else the first, is the headline model of Fig. 1 "
+                  "and Table III)")
+      ->delimiter(',')
+      ->capture_default_str()
+      ->check(CLI::IsMember({"asymmetric", "gaussian", "huber", "cauchy", "asymmetric-half-cauchy"}));
+  cmd->add_option("--jobs", o->jobs, "Runs in parallel (worker threads; per-update times are less reliable above 1)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
+  cmd->add_flag("--quick", o->quick,
+                "Fast look: rates 1,40 and smoothers d-isam2,isam2 (unless --rates / --smoothers are given)");
+  cmd->add_option("--sim-seeds", o->sim_seeds,
+                  "Simulate office sessions with these seeds (as `rilo sim --seed N`) into OUT/recordings/ and "
+                  "evaluate them too (comma separated)")
+      ->delimiter(',');
+  cmd->add_option("--sim-minutes", o->sim_minutes, "Duration of each simulated session (min)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.05, 600.0));
+  cmd->add_option("--lag", o->lag_s, "Fixed lag of every smoother (s)")->capture_default_str()->check(CLI::Range(0.5, 600.0));
+  cmd->callback([o, rates, smoothers] {
+    ReportCommandOptions run = *o;
+    if (run.quick) {
+      ReportOptions quick;
+      quick.makeQuick();
+      if (rates->count() == 0) run.rates_hz = quick.rates_hz;
+      if (smoothers->count() == 0) run.smoothers = quick.smoothers;
+    }
+    const int rc = runReportCommand(run);
+    if (rc != 0) throw CLI::RuntimeError(rc);
+  });
+}
+
+}  // namespace rilo::tool

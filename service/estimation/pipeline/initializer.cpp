@@ -63,6 +63,7 @@ void InitializerParams::validate() const {
   if (min_window_ranges < 0) fail("min_window_ranges", "must be >= 0");
   if (min_alignment_ranges < 4) fail("min_alignment_ranges", "must be >= 4");
   if (!(attempt_interval_s > 0.0)) fail("attempt_interval_s", "must be > 0");
+  if (!(max_attempt_interval_s >= attempt_interval_s)) fail("max_attempt_interval_s", "must be >= attempt_interval_s");
   if (!(fix_window_s > 0.0)) fail("fix_window_s", "must be > 0");
   if (!(fix_max_window_s >= fix_window_s)) fail("fix_max_window_s", "must be >= fix_window_s");
   if (!(max_alignment_yaw_sigma_rad > 0.0)) fail("max_alignment_yaw_sigma_rad", "must be > 0");
@@ -101,6 +102,7 @@ Initializer::Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params
   params_.alignment.gyro_bias_sigma = g.first_gyro_bias_sigma;
   params_.alignment.band = params_.height_band;
   params_.validate();
+  interval_s_ = params_.attempt_interval_s;
 }
 
 void Initializer::setStatus(InitState s, std::string message) {
@@ -115,6 +117,7 @@ void Initializer::reset() {
   data_start_ns_ = 0;
   last_attempt_ns_ = 0;
   attempted_ = false;
+  interval_s_ = params_.attempt_interval_s;
   grow_window_ = false;
   dropped_imu_ = dropped_ranges_ = 0;
   status_ = InitStatus();
@@ -178,7 +181,7 @@ bool Initializer::process() {
               strprintf("waiting: %.1f s of data, need %.1f s", std::max(0.0, span_s), params_.min_window_s));
     return false;
   }
-  if (attempted_ && t_now - last_attempt_ns_ < toNs(params_.attempt_interval_s)) return false;
+  if (attempted_ && t_now - last_attempt_ns_ < toNs(interval_s_)) return false;
   return attempt();
 }
 
@@ -189,7 +192,11 @@ bool Initializer::attempt() {
   last_attempt_ns_ = imu_.empty() ? 0 : imu_.back().t_ns;
   status_.t_ns = last_attempt_ns_;
   try {
-    return runAttempt();
+    const bool ok = runAttempt();
+    if (!ok && (status_.state == InitState::kYawUnobservable || status_.state == InitState::kBatchRejected)) {
+      interval_s_ = std::min(params_.max_attempt_interval_s, 1.5 * interval_s_);
+    }
+    return ok;
   } catch (const std::exception& e) {
     // A data problem that slipped through a solver's checks: report, never throw.
     setStatus(InitState::kBatchRejected, std::string("attempt failed: ") + e.what());

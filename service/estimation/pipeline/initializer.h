@@ -78,7 +78,12 @@ struct InitializerParams {
   double max_window_s = 30.0;
   int min_window_ranges = 40;      ///< ranges the window should hold (grown up to max_window_s for them)
   int min_alignment_ranges = 12;   ///< fewer ranges in the window: wait
-  double attempt_interval_s = 0.5; ///< data time between attempts (s)
+  double attempt_interval_s = 0.5; ///< data time between attempts (s) ...
+  /// ... grown by 1.5x after each attempt that failed at the (expensive) yaw
+  /// alignment or batch solve, up to this (s): a device that keeps too still
+  /// for yaw, or data that keeps failing, costs a bounded share of the CPU
+  /// (and of a replay's time) rather than a full solve every half second.
+  double max_attempt_interval_s = 1.0;
 
   double fix_window_s = 1.0;       ///< multilateration window (s) ...
   double fix_max_window_s = 8.0;   ///< ... grown up to this until it holds enough anchors and ranges (s)
@@ -232,6 +237,7 @@ class Initializer {
   std::int64_t data_start_ns_ = 0;
   std::int64_t last_attempt_ns_ = 0;
   bool attempted_ = false;
+  double interval_s_ = 0.5;   ///< current attempt interval (see max_attempt_interval_s)
   bool grow_window_ = false;  ///< window_s was not enough for yaw: use up to max_window_s
   std::size_t dropped_imu_ = 0, dropped_ranges_ = 0;
 

@@ -88,6 +88,10 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.initializations = localizer.initializations();
   out.reinitializations = localizer.reinitializations();
   out.last_failure = localizer.lastFailure();
+  out.init_status = localizer.initStatus().message;
+  out.init_attempts = localizer.initStatus().attempts;
+  out.height_band_note = localizer.heightBandNote();
+  out.height_band_in_use = localizer.params().graph.height_band.enabled;
   if (!rec.groundtruth.empty()) {
     out.ape_online = positionErrorAgainst(out.online, rec.groundtruth);
     out.ape_smoothed = positionErrorAgainst(out.smoothed, rec.groundtruth);

@@ -49,6 +49,10 @@ struct ReplayResult {
   std::uint64_t initializations = 0;
   std::uint64_t reinitializations = 0;
   std::string last_failure;           ///< why tracking last ended, empty if never
+  std::string init_status;            ///< the initializer's last message (why it has not started, if it never did)
+  int init_attempts = 0;              ///< initialization attempts (all initializations)
+  bool height_band_in_use = false;    ///< the tag height band held the tracked states
+  std::string height_band_note;       ///< why a configured height band was dropped
   double data_s = 0.0;                ///< recording duration (IMU span, s)
   double wall_s = 0.0;                ///< time the run took (s)
   /// Present when the recording has ground truth.

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "evaluation/json_text.h"
 #include "evaluation/replay_run.h"
 #include "evaluation/tum.h"
 #include "hal/recording/recording_reader.h"
@@ -57,12 +58,16 @@ int runReplay(const ReplayOptions& o) {
   const double max_ms = sorted.empty() ? 0.0 : sorted.back();
 
   std::ofstream summary(dir / "summary.json");
-  summary << "{\n  \"recording\": \"" << o.recording << "\",\n  \"smoother\": \"" << o.settings.smoother
-          << "\",\n  \"noise\": \"" << o.settings.noise << "\",\n  \"ranges_used\": " << run.ranges_used
+  summary << "{\n  \"recording\": " << jsonString(o.recording) << ",\n  \"smoother\": " << jsonString(o.settings.smoother)
+          << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"ranges_used\": " << run.ranges_used
           << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": {\"mean\": " << mean_ms
           << ", \"p99\": " << p99_ms << ", \"max\": " << max_ms << "},\n  \"realtime_factor\": " << run.realtimeFactor()
           << ",\n  \"initializations\": " << run.initializations
-          << ",\n  \"reinitializations\": " << run.reinitializations;
+          << ",\n  \"reinitializations\": " << run.reinitializations
+          << ",\n  \"init_attempts\": " << run.init_attempts << ",\n  \"init_status\": " << jsonString(run.init_status)
+          << ",\n  \"last_failure\": " << jsonString(run.last_failure)
+          << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")
+          << ",\n  \"height_band_note\": " << jsonString(run.height_band_note);
   if (run.ape_online) {
     summary << ",\n  \"ape_online\": " << statsJson(*run.ape_online)
             << ",\n  \"ape_smoothed\": " << statsJson(*run.ape_smoothed);
@@ -73,6 +78,9 @@ int runReplay(const ReplayOptions& o) {
   std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations\n",
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
               max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations));
+  if (!run.height_band_note.empty()) std::printf("  %s\n", run.height_band_note.c_str());
+  if (run.initializations == 0) std::printf("  never initialized: %s\n", run.init_status.c_str());
+  if (!run.last_failure.empty()) std::printf("  last tracking failure: %s\n", run.last_failure.c_str());
   if (run.ape_online) {
     for (const auto& [label, e] : {std::pair{"online  ", *run.ape_online}, std::pair{"smoothed", *run.ape_smoothed}}) {
       std::printf("  APE %s mean %.3f m, median %.3f, rmse %.3f, max %.3f (horizontal %.3f, vertical %.3f)\n", label,

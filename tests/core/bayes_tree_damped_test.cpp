@@ -421,5 +421,36 @@ TEST(BayesTreeDamped, LambdaMaxExhaustedKeepsThePreviousEstimate) {
   EXPECT_NEAR(smoother.error(), smoother.errorFromScratch(), 1e-9 * smoother.error());
 }
 
+// ------------------------------------------------------- agreeing new factors
+
+TEST(BayesTreeDamped, UpdateWhoseNewFactorsAgreeTakesTheGaussNewtonStep) {
+  // An IMU-only state is predicted exactly by its new factors: nothing to
+  // damp, and damping it would only let older states' motion reject the step.
+  BayesTreeSmoother smoother(exactParams(Method::kDamped));
+  FactorGraph f0;
+  f0.emplace<PriorPose3Factor>(X(0), Pose3(Mat3::Identity(), Vec3(3, 3, 0)), sigmas6(0.01, 0.01));
+  Values v0;
+  v0.insert(X(0), Pose3(Mat3::Identity(), Vec3(3, 3, 0)));
+  smoother.update(f0, v0);
+
+  const Pose3 predicted(Mat3::Identity(), Vec3(4, 3, 0));
+  FactorGraph agree;
+  agree.emplace<PriorPose3Factor>(X(1), predicted, sigmas6(0.1, 0.1));
+  Values v1;
+  v1.insert(X(1), predicted);
+  const UpdateStats st = smoother.update(agree, v1);
+  EXPECT_TRUE(st.step_accepted);
+  EXPECT_EQ(st.step_tries, 1);
+  EXPECT_EQ(st.lambda, 0.0) << "Gauss-Newton step, no damping";
+
+  // The same kind of update with a disagreeing factor is damped.
+  FactorGraph disagree;
+  disagree.emplace<PriorPose3Factor>(X(2), Pose3(Mat3::Identity(), Vec3(5.5, 3, 0)), sigmas6(0.1, 0.1));
+  Values v2;
+  v2.insert(X(2), Pose3(Mat3::Identity(), Vec3(5, 3, 0)));
+  const UpdateStats damped = smoother.update(disagree, v2);
+  EXPECT_GT(damped.lambda, 0.0);
+}
+
 }  // namespace
 }  // namespace rilo

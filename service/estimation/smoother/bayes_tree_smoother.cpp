@@ -155,7 +155,11 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
   // without new variables damps the keys of its new factors, and one without
   // either (an extra iteration) the whole re-eliminated top.
   std::vector<VarId> damped;
-  if (params_.method == SmootherParams::Method::kDamped) {
+  double added_error = 0.0;  // of the new factors at the estimate before the step
+  for (FactorId f : added) added_error += factors_[f].error;
+  const bool damp = params_.method == SmootherParams::Method::kDamped &&
+                    (added.empty() || added_error > params_.damping_min_new_error);
+  if (damp) {
     for (const auto& [key, value] : new_values) damped.push_back(key_to_var_.at(key));
     if (damped.empty()) {
       for (FactorId f : added) damped.insert(damped.end(), factors_[f].vars.begin(), factors_[f].vars.end());
@@ -170,6 +174,10 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
   switch (params_.method) {
     case SmootherParams::Method::kGaussNewton: stepGaussNewton(stats); break;
     case SmootherParams::Method::kDamped: {
+      if (!damp) {  // the new factors agree with the estimate: nothing to damp (SmootherParams)
+        stepGaussNewton(stats);
+        break;
+      }
       const bool damp_top = damped.empty();
       if (damp_top) {
         for (CliqueId c : top_cliques_) {
@@ -270,6 +278,7 @@ void BayesTreeSmoother::insertVariables(const Values& new_values, const KeyTimes
       slot.t_ns = it->second;
       if (!have_time_ || it->second > newest_t_ns_) newest_t_ns_ = it->second;
       have_time_ = true;
+      noteRecentTime(it->second);
     }
     // Relinearization threshold by variable kind and key symbol.
     const char symbol = keySymbol(key);
@@ -317,6 +326,13 @@ double BayesTreeSmoother::factorError(const FactorSlot& f, const Values& x) cons
 
 // --- Fluid relinearization ----------------------------------------------------
 
+void BayesTreeSmoother::noteRecentTime(std::int64_t t_ns) {
+  const auto keep = static_cast<std::size_t>(params_.relinearize_min_recent_times);
+  if (keep == 0 || (!recent_times_.empty() && t_ns <= recent_times_.back())) return;  // seen, or out of order
+  recent_times_.push_back(t_ns);
+  if (recent_times_.size() > keep) recent_times_.pop_front();
+}
+
 void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vector<VarId>& marginalizable,
                                     UpdateStats& stats) {
   // After a rejected D-iSAM2 step every moved variable is relinearized at the
@@ -333,8 +349,10 @@ void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vecto
   if (!together) {
     for (VarId v : marginalizable) vars_[v].mark = skip_stamp;
   }
-  if (params_.relinearize_max_age_s > 0.0 && have_time_ && !all) {
-    const std::int64_t oldest_ns = newest_t_ns_ - static_cast<std::int64_t>(std::llround(params_.relinearize_max_age_s * 1e9));
+  const bool enough_recent = recent_times_.size() >= static_cast<std::size_t>(params_.relinearize_min_recent_times);
+  if (params_.relinearize_max_age_s > 0.0 && have_time_ && !all && enough_recent) {
+    std::int64_t oldest_ns = newest_t_ns_ - static_cast<std::int64_t>(std::llround(params_.relinearize_max_age_s * 1e9));
+    if (!recent_times_.empty()) oldest_ns = std::min(oldest_ns, recent_times_.front());
     for (VarSlot& slot : vars_) {
       if (slot.alive && slot.has_time && slot.t_ns < oldest_ns) slot.mark = skip_stamp;
     }

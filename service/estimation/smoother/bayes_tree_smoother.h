@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <deque>
 #include <vector>
 
 #include "estimation/smoother/linear_marginal.h"
@@ -145,6 +146,7 @@ class BayesTreeSmoother final : public Smoother {
   void insertVariables(const Values& new_values, const KeyTimestamps& timestamps, UpdateStats& stats);
   std::vector<FactorId> insertFactors(const FactorGraph& new_factors, UpdateStats& stats);
   std::vector<VarId> selectMarginalizable() const;
+  void noteRecentTime(std::int64_t t_ns);
   void relinearize(std::vector<VarId>& marked, const std::vector<VarId>& marginalizable, UpdateStats& stats);
   void markForCleanMarginalization(const std::vector<VarId>& marginalizable, std::vector<VarId>& marked,
                                    UpdateStats& stats);
@@ -224,6 +226,8 @@ class BayesTreeSmoother final : public Smoother {
   std::uint64_t update_count_ = 0;
   std::int64_t newest_t_ns_ = 0;
   bool have_time_ = false;
+  // The newest relinearize_min_recent_times distinct timestamps, oldest first.
+  std::deque<std::int64_t> recent_times_;
 
   double error_at_estimate_ = 0.0;   // sum of FactorSlot::error
   double error_at_theta_ = 0.0;      // sum of FactorSlot::error_at_theta (dog-leg)

@@ -51,22 +51,21 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
 
   ReplayResult out;
   std::vector<UpdateStats> stats;
-  const double min_range_dt_ns = settings.range_hz > 0.0 ? 1e9 / settings.range_hz : 0.0;
-  std::int64_t last_kept_range_ns = std::numeric_limits<std::int64_t>::min() / 2;
-  const std::size_t total = rec.imu.size() + rec.ranges.size();
+  RangeThinningOptions thinning;
+  thinning.rate_hz = settings.range_hz;
+  thinning.mode = settings.thinning;
+  const std::vector<RangeSample> ranges = thinRanges(rec.ranges, thinning);
+  out.ranges_used = ranges.size();
+  const std::size_t total = rec.imu.size() + ranges.size();
   const std::size_t progress_every = std::max<std::size_t>(1, total / 100);
   const auto wall_start = std::chrono::steady_clock::now();
   std::size_t i = 0, r = 0;
-  while (i < rec.imu.size() || r < rec.ranges.size()) {
+  while (i < rec.imu.size() || r < ranges.size()) {
     if (settings.progress && (i + r) % progress_every == 0) {
       settings.progress(static_cast<double>(i + r) / static_cast<double>(total));
     }
-    if (r < rec.ranges.size() && (i >= rec.imu.size() || rec.ranges[r].t_ns <= rec.imu[i].t_ns)) {
-      const RangeSample& range = rec.ranges[r++];
-      if (static_cast<double>(range.t_ns - last_kept_range_ns) < min_range_dt_ns) continue;  // rate thinning
-      last_kept_range_ns = range.t_ns;
-      ++out.ranges_used;
-      localizer.addRange(range);
+    if (r < ranges.size() && (i >= rec.imu.size() || ranges[r].t_ns <= rec.imu[i].t_ns)) {
+      localizer.addRange(ranges[r++]);
     } else {
       localizer.addImu(rec.imu[i++]);
     }

@@ -12,6 +12,7 @@
 
 #include "estimation/pipeline/localizer.h"
 #include "estimation/pipeline/trajectory_error.h"
+#include "evaluation/range_thinning.h"
 #include "evaluation/trajectory_metrics.h"  // positionErrorAgainst
 #include "hal/recording/recording.h"
 
@@ -21,6 +22,7 @@ struct ReplaySettings {
   std::string smoother = "d-isam2";  ///< d-isam2 | isam2 | dogleg
   std::string noise = "asymmetric";  ///< gaussian | huber | cauchy | asymmetric
   double range_hz = 0.0;             ///< thin ranges to this total rate (0: keep all)
+  RangeThinning thinning = RangeThinning::kRotate;  ///< which ranges thinning keeps (range_thinning.h)
   double lag_s = 5.0;                ///< fixed lag of the smoother (s)
   // Range noise model (unset: the library defaults, RangeNoiseParams).
   std::optional<double> range_sigma_m;  ///< LOS range std-dev (m)

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <stdexcept>
 #include <vector>
 
@@ -59,7 +60,9 @@ int runReplay(const ReplayOptions& o) {
 
   std::ofstream summary(dir / "summary.json");
   summary << "{\n  \"recording\": " << jsonString(o.recording) << ",\n  \"smoother\": " << jsonString(o.settings.smoother)
-          << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"ranges_used\": " << run.ranges_used
+          << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"range_hz\": " << o.settings.range_hz
+          << ",\n  \"thinning\": " << jsonString(rangeThinningName(o.settings.thinning))
+          << ",\n  \"ranges_used\": " << run.ranges_used
           << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": {\"mean\": " << mean_ms
           << ", \"p99\": " << p99_ms << ", \"max\": " << max_ms << "},\n  \"realtime_factor\": " << run.realtimeFactor()
           << ",\n  \"initializations\": " << run.initializations
@@ -102,6 +105,11 @@ void addReplayCommand(CLI::App& app) {
       ->capture_default_str()->check(CLI::IsMember({"gaussian", "huber", "cauchy", "asymmetric"}));
   cmd->add_option("--range-hz", options->settings.range_hz, "Thin ranges to this total rate (Hz; 0 keeps all)")
       ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
+  cmd->add_option("--thinning", options->settings.thinning,
+                  "Which ranges --range-hz keeps: rotate (the anchor ranged longest ago, as a low-rate tag's scheduler) or first")
+      ->capture_default_str()
+      ->transform(CLI::CheckedTransformer(std::map<std::string, RangeThinning>{{"rotate", RangeThinning::kRotate},
+                                                                               {"first", RangeThinning::kFirst}}));
   cmd->add_option("--lag", options->settings.lag_s, "Fixed lag of the smoother (s)")->capture_default_str()->check(CLI::Range(0.5, 600.0));
   cmd->add_option("--range-sigma", options->settings.range_sigma_m, "LOS range noise std-dev (m)")->check(CLI::Range(0.001, 10.0));
   cmd->add_option("--nlos-scale", options->settings.nlos_scale_m, "Half-Cauchy scale of the NLOS range excess (m; asymmetric model)")

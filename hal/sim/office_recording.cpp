@@ -3,6 +3,9 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "hal/sim/office_tdoa.h"
+#include "hal/sim/office_ultrasonic.h"
+
 namespace rilo::sim {
 namespace {
 
@@ -133,34 +136,90 @@ OfficeStats writeOfficeRecording(const OfficeScenarioParams& params, const std::
   s.truth = setup.walk;
   s.t0_ns = params.t0_ns;
   const std::vector<std::int64_t> truth_t = groundTruthTimes(s.t0_ns, s.params.duration_s, options.truth_rate_hz);
+  const bool tdoa = params.tdoa.enabled;
+  const bool ultrasonic = params.ultrasonic.enabled;
+  const bool twr = !tdoa || params.tdoa.keep_twr;
 
   OfficeImuStream imu(params, setup.walk);
-  // Work units: an IMU sample, a range slot (estimated), a truth pose.
-  const double range_estimate = params.duration_s * params.range_rate_hz;
-  Progress progress(options, static_cast<double>(imu.size()) + range_estimate + static_cast<double>(truth_t.size()));
+  // Work units: an IMU sample, a range slot, a TDoA packet, a ping (estimated), a truth pose.
+  const double range_estimate = twr ? params.duration_s * params.range_rate_hz : 0.0;
+  const double tdoa_estimate =
+      tdoa ? params.duration_s * params.tdoa.round_rate_hz * static_cast<double>(setup.p_w_anchors.size()) : 0.0;
+  const double ultrasonic_estimate = ultrasonic ? params.duration_s * params.ultrasonic.ping_rate_hz *
+                                                      static_cast<double>(setup.p_w_ultrasonic.size())
+                                                : 0.0;
+  Progress progress(options, static_cast<double>(imu.size()) + range_estimate + tdoa_estimate + ultrasonic_estimate +
+                                 static_cast<double>(truth_t.size()));
   RecordingWriter w(dir, writerOptions(options));
-  writeStatic(w, s.params, s.p_w_anchors, s.p_b_tag, options);
+  if (!tdoa && !ultrasonic) {
+    writeStatic(w, s.params, s.p_w_anchors, s.p_b_tag, options);
+  } else {
+    RecordingMeta meta = scenarioMeta(s.params, s.p_b_tag, options);
+    std::vector<Anchor> anchors = scenarioAnchors(s.p_w_anchors);
+    if (tdoa) meta.ranging = RangingKind::kTdoa;
+    if (ultrasonic) {
+      meta.ultrasonic_lever_arm_m = params.ultrasonic.p_b_receiver;
+      for (std::size_t j = 0; j < setup.p_w_ultrasonic.size(); ++j) {
+        Anchor a;
+        a.id = ultrasonicAnchorId(setup.p_w_anchors.size(), j);
+        a.p_w_anchor = setup.p_w_ultrasonic[j];
+        a.kind = AnchorKind::kUltrasonic;
+        anchors.push_back(a);
+      }
+    }
+    w.writeMeta(meta);
+    w.writeAnchors(anchors);
+    w.writeTags({Tag{0, s.p_b_tag}});
+  }
   ImuSample m;
   Eigen::Matrix<double, 6, 1> bias;
   while (imu.next(m, bias)) {
     w.write(m);
     progress(static_cast<double>(imu.produced()));
   }
-  OfficeRangeStream ranging(params, setup);
-  RangeSample r;
-  RangeTruth rt;
-  while (ranging.next(r, rt)) {
-    w.write(r);
-    progress(static_cast<double>(imu.size()) + ranging.progress() * range_estimate);
+  double done = static_cast<double>(imu.size());
+  OfficeStats stats;
+  if (twr) {
+    OfficeRangeStream ranging(params, setup);
+    RangeSample r;
+    RangeTruth rt;
+    while (ranging.next(r, rt)) {
+      w.write(r);
+      progress(done + ranging.progress() * range_estimate);
+    }
+    stats = ranging.stats();
+    done += range_estimate;
+  } else {
+    stats.ranges_per_anchor.assign(setup.p_w_anchors.size(), 0);
   }
-  double done = static_cast<double>(imu.size()) + range_estimate;
+  if (tdoa) {
+    OfficeTdoaStream stream(params, setup);
+    TdoaSample sample;
+    TdoaTruth truth;
+    while (stream.next(sample, truth)) {
+      w.write(sample);
+      progress(done + stream.progress() * tdoa_estimate);
+    }
+    stats.tdoa = stream.stats();
+    done += tdoa_estimate;
+  }
+  if (ultrasonic) {
+    OfficeUltrasonicStream stream(params, setup);
+    UltrasonicSample sample;
+    UltrasonicTruth truth;
+    while (stream.next(sample, truth)) {
+      w.write(sample);
+      progress(done + stream.progress() * ultrasonic_estimate);
+    }
+    stats.ultrasonic = stream.stats();
+    done += ultrasonic_estimate;
+  }
   for (std::int64_t t : truth_t) {
     w.write(groundTruthAt(s, t));
     progress(++done);
   }
   w.close();
   progress(done);
-  OfficeStats stats = ranging.stats();
   stats.duration_s = params.duration_s;
   stats.imu_samples = imu.size();
   return stats;

@@ -7,6 +7,8 @@
 //   tags.csv         one antenna, id 0, at p_b_tag (the same as uwb.lever_arm)
 //   imu.csv          every IMU sample
 //   range.csv        every range with tag_id 0, rssi_dbm, fp_power_dbm, los
+//   tdoa.csv, ultrasonic.csv  (office sessions with TDoA / ultrasonic, see
+//                    writeOfficeRecording; meta ranging: tdoa, ultrasonic.lever_arm)
 //   groundtruth.csv  pose and velocity of the truth trajectory at
 //                    truth_rate_hz on the IMU clock (t0_ns + k / rate, up to
 //                    the session's duration)
@@ -53,7 +55,14 @@ void writeScenarioRecording(const Scenario& s, const std::filesystem::path& dir,
 /// Simulates the office session of `params` and writes it into `dir` sample by
 /// sample, without holding the session in memory: the same files as
 /// writeScenarioRecording(simulateOffice(params).scenario, dir, options).
-/// Returns the statistics of the session.
+/// With params.tdoa.enabled, meta says `ranging: tdoa`, tdoa.csv holds the
+/// OfficeTdoaStream samples and range.csv is written only with
+/// params.tdoa.keep_twr. With params.ultrasonic.enabled, anchors.csv also
+/// lists the beacons (kind ultrasonic, ids after the UWB anchors), meta gets
+/// ultrasonic.lever_arm and ultrasonic.csv the OfficeUltrasonicStream
+/// samples. Without either, the files are exactly those of before they existed.
+/// Returns the statistics of the session (stats.tdoa, stats.ultrasonic filled
+/// when enabled; the SS-TWR counters are zero when TDoA replaces it).
 OfficeStats writeOfficeRecording(const OfficeScenarioParams& params, const std::filesystem::path& dir,
                                  const ScenarioRecordingOptions& options = {});
 

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "hal/sim/office_ultrasonic.h"
+
 namespace rilo::sim {
 namespace {
 
@@ -54,6 +56,8 @@ void validate(const OfficeScenarioParams& p) {
   require(finiteNonNegative(p.selection_fading_db), "selection_fading_db", "must be >= 0");
   require(finiteNonNegative(p.rssi_fading_db), "rssi_fading_db", "must be >= 0");
   validate(p.channel);
+  validate(p.tdoa);
+  validate(p.ultrasonic);
 }
 
 OfficeSetup makeOfficeSetup(const OfficeScenarioParams& p) {
@@ -69,6 +73,7 @@ OfficeSetup makeOfficeSetup(const OfficeScenarioParams& p) {
   s.walk = std::make_shared<OfficeWalk>(*plan, wp);
   s.channel = std::make_shared<OfficeChannel>(*plan, s.p_w_anchors, p.p_b_tag, p.channel,
                                               streamSeed(p.seed, kChannelStream));
+  if (p.ultrasonic.enabled) s.p_w_ultrasonic = placeUltrasonicBeacons(*plan, p.ultrasonic);
   return s;
 }
 

@@ -38,6 +38,7 @@
 
 #include "hal/sim/office.h"
 #include "hal/sim/office_channel.h"
+#include "hal/sim/office_sensor_params.h"
 #include "hal/sim/range_imu_scenario.h"
 #include "hal/sim/walk.h"
 
@@ -78,6 +79,12 @@ struct OfficeScenarioParams {
   double selection_fading_db = 2.0;       ///< fast fading when ranking anchors per cycle (dB)
   double rssi_fading_db = 1.5;            ///< fast fading of the reported rssi (dB)
   ChannelParams channel;                  ///< path loss, walls, NLOS severity, body shadowing
+
+  // The second system (seed 002), off by default: UWB TDoA (office_tdoa.h)
+  // and ultrasonic beacons (office_ultrasonic.h). They draw from their own
+  // random streams, so the IMU and the SS-TWR ranges do not change with them.
+  TdoaParams tdoa;
+  UltrasonicParams ultrasonic;
 };
 
 /// Validates `p` (std::invalid_argument naming the field).
@@ -108,6 +115,8 @@ struct OfficeStats {
   double nlos_excess_sum_m = 0.0;  ///< sum of the NLOS excess over NLOS ranges
   double nlos_excess_max_m = 0.0;
   std::vector<std::size_t> ranges_per_anchor;
+  TdoaStats tdoa;                  ///< filled by writeOfficeRecording when params.tdoa.enabled
+  UltrasonicStats ultrasonic;      ///< filled by writeOfficeRecording when params.ultrasonic.enabled
 
   double nlosFraction() const { return ranges ? static_cast<double>(nlos) / static_cast<double>(ranges) : 0.0; }
   double outlierRate() const { return ranges ? static_cast<double>(outliers) / static_cast<double>(ranges) : 0.0; }
@@ -121,6 +130,7 @@ struct OfficeSetup {
   std::vector<Eigen::Vector3d> p_w_anchors;
   std::shared_ptr<const OfficeWalk> walk;
   std::shared_ptr<const OfficeChannel> channel;
+  std::vector<Eigen::Vector3d> p_w_ultrasonic;  ///< ultrasonic beacons (empty unless ultrasonic.enabled)
 };
 OfficeSetup makeOfficeSetup(const OfficeScenarioParams& p);
 
@@ -186,6 +196,9 @@ struct OfficeSimulation {
   OfficeStats stats;
 };
 
+/// IMU and SS-TWR ranges in memory. p.tdoa and p.ultrasonic are ignored here
+/// (their samples come from OfficeTdoaStream / OfficeUltrasonicStream, and
+/// writeOfficeRecording writes them).
 OfficeSimulation simulateOffice(const OfficeScenarioParams& p);
 inline Scenario simulateOfficeScenario(const OfficeScenarioParams& p) { return simulateOffice(p).scenario; }
 

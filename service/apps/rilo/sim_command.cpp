@@ -61,6 +61,36 @@ class ProgressPrinter {
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
+double percentOf(std::size_t part, std::size_t whole) {
+  return whole ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;
+}
+
+void printTdoaStats(const sim::TdoaStats& t, const SimOptions& o) {
+  std::printf("  tdoa      %zu rows (%.1f /s); %zu packets (%g rounds/s x %d anchors): %.1f%% heard, %.1f%% of those "
+              "received, %.1f%% of received without a reference\n",
+              t.measurements, t.measurementsPerSecond(), t.packets, o.tdoa_hz, o.anchors, percentOf(t.heard, t.packets),
+              100.0 * t.reception(), percentOf(t.no_reference, t.received));
+  std::printf("  TDoA NLOS %.1f%% of rows (anchor_b only %.1f%%, reference only %.1f%%, both %.1f%%); NLOS path excess "
+              "mean %.2f m, |bias| mean %.2f m, max %.2f m; outliers %.2f%%\n",
+              100.0 * t.nlosFraction(), percentOf(t.nlos_b_only, t.measurements),
+              percentOf(t.nlos_a_only, t.measurements),
+              percentOf(t.nlos - t.nlos_a_only - t.nlos_b_only, t.measurements), t.meanNlosPathExcess(),
+              t.meanNlosBias(), t.nlos_bias_abs_max_m, 100.0 * t.outlierRate());
+}
+
+void printUltrasonicStats(const sim::UltrasonicStats& u, const sim::OfficePlan& plan,
+                          const sim::OfficeScenarioParams& p) {
+  const sim::UltrasonicParams& up = p.ultrasonic;
+  std::printf("  beacons   %d ultrasonic on the ceiling at %.2f m, receiver at [%g, %g, %g] on the body\n", up.beacons,
+              plan.ceiling_m - up.mount_below_ceiling_m, up.p_b_receiver.x(), up.p_b_receiver.y(), up.p_b_receiver.z());
+  std::printf("  ultrasonic %zu ranges (%.1f /s) of %zu pings: %.1f%% out of range, %.1f%% behind walls, %.1f%% "
+              "blocked by obstacles, %.1f%% dropped\n",
+              u.measurements, u.measurementsPerSecond(), u.pings, percentOf(u.out_of_range, u.pings),
+              percentOf(u.wall_blocked, u.pings), percentOf(u.obstacle_dropped, u.pings), percentOf(u.dropouts, u.pings));
+  std::printf("  reflected %.1f%% of ultrasonic ranges (excess mean %.2f m, max %.2f m)\n", 100.0 * u.nlosFraction(),
+              u.meanReflectionExcess(), u.reflection_excess_max_m);
+}
+
 }  // namespace
 
 int runSim(const SimOptions& o) {
@@ -75,6 +105,17 @@ int runSim(const SimOptions& o) {
     p.ranges_per_cycle = o.ranges_per_cycle;
     p.packet_loss = o.packet_loss;
     p.walk.start_moving = o.start_moving;
+    p.tdoa.enabled = o.tdoa;
+    p.tdoa.round_rate_hz = o.tdoa_hz;
+    p.tdoa.packet_reception = o.packet_reception;
+    p.tdoa.sigma_m = o.tdoa_sigma;
+    p.tdoa.keep_twr = o.keep_twr;
+    p.ultrasonic.enabled = o.ultrasonic;
+    p.ultrasonic.beacons = o.ultrasonic_beacons;
+    p.ultrasonic.ping_rate_hz = o.ultrasonic_hz;
+    p.ultrasonic.max_range_m = o.ultrasonic_range;
+    p.ultrasonic.sigma_m = o.ultrasonic_sigma;
+    p.ultrasonic.speed_of_sound_scale_error = o.sound_speed_error;
     if (o.plan == "default") {
       p.plan = sim::OfficePlanKind::kDefault;
     } else if (o.plan == "random") {
@@ -103,6 +144,17 @@ int runSim(const SimOptions& o) {
                   o.start_moving ? " (moving at start)" : "", o.range_hz, o.ranges_per_cycle, o.packet_loss,
                   o.nlos_severity);
     ro.description = description;
+    if (o.tdoa) {
+      std::snprintf(description, sizeof(description), "; TDoA %.1f Hz rounds, packet reception %.2f, sigma %.3f m%s",
+                    o.tdoa_hz, o.packet_reception, o.tdoa_sigma, o.keep_twr ? ", SS-TWR kept" : " (no SS-TWR)");
+      ro.description += description;
+    }
+    if (o.ultrasonic) {
+      std::snprintf(description, sizeof(description),
+                    "; ultrasonic %d beacons at %.1f Hz, max range %.1f m, sigma %.3f m, sound speed error %+.4f",
+                    o.ultrasonic_beacons, o.ultrasonic_hz, o.ultrasonic_range, o.ultrasonic_sigma, o.sound_speed_error);
+      ro.description += description;
+    }
     ro.truth_rate_hz = o.truth_hz;
     ro.writer.overwrite = o.force;
 
@@ -132,10 +184,17 @@ int runSim(const SimOptions& o) {
                 plan.size_m.x(), plan.size_m.y(), plan.spaces.size(), anchors.size(), z_min, z_max);
     std::printf("  duration  %.1f s, seed %llu\n", st.duration_s, static_cast<unsigned long long>(o.seed));
     std::printf("  imu       %zu samples at %g Hz\n", st.imu_samples, o.imu_hz);
-    std::printf("  ranges    %zu (%.1f /s of %g scheduled; %.1f%% packets lost, %.1f%% slots without a heard anchor)\n",
-                st.ranges, st.rangesPerSecond(), o.range_hz, lost_pct, empty_pct);
-    std::printf("  NLOS      %.1f%% of ranges (mean excess %.2f m, max %.2f m); outliers %.2f%%\n",
-                100.0 * st.nlosFraction(), st.meanNlosExcess(), st.nlos_excess_max_m, 100.0 * st.outlierRate());
+    if (!o.tdoa || o.keep_twr) {
+      std::printf(
+          "  ranges    %zu (%.1f /s of %g scheduled; %.1f%% packets lost, %.1f%% slots without a heard anchor)\n",
+          st.ranges, st.rangesPerSecond(), o.range_hz, lost_pct, empty_pct);
+      std::printf("  NLOS      %.1f%% of ranges (mean excess %.2f m, max %.2f m); outliers %.2f%%\n",
+                  100.0 * st.nlosFraction(), st.meanNlosExcess(), st.nlos_excess_max_m, 100.0 * st.outlierRate());
+    } else {
+      std::printf("  ranges    none (TDoA replaces SS-TWR; --keep-twr writes both)\n");
+    }
+    if (o.tdoa) printTdoaStats(st.tdoa, o);
+    if (o.ultrasonic) printUltrasonicStats(st.ultrasonic, plan, p);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rilo sim: %s\n", e.what());
@@ -146,7 +205,8 @@ int runSim(const SimOptions& o) {
 void addSimCommand(CLI::App& app) {
   auto o = std::make_shared<SimOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "sim", "Simulate a person walking through an office (UWB ranges + IMU) and write it as a recording folder");
+      "sim", "Simulate a person walking through an office (UWB ranges or TDoA, ultrasonic, IMU) and write it as a "
+      "recording folder");
   cmd->add_option("OUT", o->out, "Recording folder to create")->required();
   cmd->add_option("--seed", o->seed, "Seed of the walk, the noise and (with --plan random) the plan")
       ->capture_default_str();
@@ -178,6 +238,50 @@ void addSimCommand(CLI::App& app) {
       ->check(CLI::Range(1.0, 4000.0));
   cmd->add_flag("--start-moving", o->start_moving, "Start the session while walking instead of standing still");
   cmd->add_flag("--force", o->force, "Replace a recording already in OUT");
+  CLI::Option* tdoa =
+      cmd->add_flag("--tdoa", o->tdoa,
+                    "UWB TDoA instead of SS-TWR: the anchors transmit in turn, the tag writes range differences "
+                    "(tdoa.csv, meta ranging: tdoa)");
+  cmd->add_option("--tdoa-hz", o->tdoa_hz, "TDoA rounds per second, one packet from every anchor each (seed: 20 Hz)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 200.0))
+      ->needs(tdoa);
+  cmd->add_option("--packet-reception", o->packet_reception,
+                  "Probability that the tag receives a TDoA packet of an anchor it hears (seed's worst case: 0.4)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 1.0))
+      ->needs(tdoa);
+  cmd->add_option("--tdoa-sigma", o->tdoa_sigma, "LOS noise of a TDoA range difference (m)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10.0))
+      ->needs(tdoa);
+  cmd->add_flag("--keep-twr", o->keep_twr, "With --tdoa, also write the SS-TWR ranges (range.csv)")->needs(tdoa);
+  CLI::Option* ultrasonic = cmd->add_flag(
+      "--ultrasonic", o->ultrasonic,
+      "Ultrasonic beacons on the ceiling and a receiver on the body (anchors of kind ultrasonic, ultrasonic.csv)");
+  cmd->add_option("--ultrasonic-beacons", o->ultrasonic_beacons, "Number of ultrasonic beacons (seed: 4)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64))
+      ->needs(ultrasonic);
+  cmd->add_option("--ultrasonic-hz", o->ultrasonic_hz,
+                  "Pings per beacon per second (seed: 10 Hz; beacons x rate x max range / 343 m/s must stay below 1)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 100.0))
+      ->needs(ultrasonic);
+  cmd->add_option("--ultrasonic-range", o->ultrasonic_range, "Maximum ultrasonic range (m)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.5, 50.0))
+      ->needs(ultrasonic);
+  cmd->add_option("--ultrasonic-sigma", o->ultrasonic_sigma, "Ultrasonic range noise (m)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0))
+      ->needs(ultrasonic);
+  cmd->add_option("--sound-speed-error", o->sound_speed_error,
+                  "Speed-of-sound error as a range scale: ranges come out (1 + e) too long (about -0.0018 per degree "
+                  "the air is warmer than assumed)")
+      ->capture_default_str()
+      ->check(CLI::Range(-0.1, 0.1))
+      ->needs(ultrasonic);
   cmd->callback([o] {
     const int rc = runSim(*o);
     if (rc != 0) throw CLI::RuntimeError(rc);

@@ -1,7 +1,9 @@
 #pragma once
 // `rilo sim OUT`: simulate a person walking through an office with a UWB tag
 // and an IMU (hal/sim/office_scenario.h) and write the session as a recording
-// folder (docs/recording-format.md), then print a short summary.
+// folder (docs/recording-format.md), then print a short summary. With --tdoa
+// the tag listens to UWB TDoA instead of SS-TWR ranging (hal/sim/office_tdoa.h),
+// with --ultrasonic ceiling beacons add ultrasonic ranges (office_ultrasonic.h).
 #include <cstdint>
 #include <string>
 
@@ -25,6 +27,19 @@ struct SimOptions {
   double truth_hz = 200.0;
   bool start_moving = false;
   bool force = false;            ///< replace a recording already in `out`
+
+  // Second system (seed 002): UWB TDoA and ultrasonic beacons, off by default.
+  bool tdoa = false;             ///< TDoA instead of SS-TWR (meta ranging: tdoa)
+  double tdoa_hz = 20.0;         ///< TDoA rounds per second, one packet per anchor each (seed: 20 Hz)
+  double packet_reception = 0.95;  ///< P(a heard TDoA packet is received) (seed's worst case: 0.4)
+  double tdoa_sigma = 0.15;      ///< LOS noise of a TDoA difference (m)
+  bool keep_twr = false;         ///< with tdoa: also write the SS-TWR ranges
+  bool ultrasonic = false;       ///< ultrasonic beacons and ultrasonic.csv
+  int ultrasonic_beacons = 4;    ///< seed: 4 transceivers
+  double ultrasonic_hz = 10.0;   ///< pings per beacon per second (seed: 10 Hz)
+  double ultrasonic_range = 8.0; ///< max range (m)
+  double ultrasonic_sigma = 0.02;  ///< range noise (m)
+  double sound_speed_error = 0.0;  ///< ranges (1 + e) times too long (temperature)
 };
 
 /// Simulates and writes the recording; returns the process exit code (0 ok,

@@ -7,6 +7,7 @@
 
 #include "demo.h"
 #include "eval_command.h"
+#include "import_command.h"
 #include "listen.h"
 #include "replay_command.h"
 #include "report_command.h"
@@ -28,6 +29,7 @@ int main(int argc, char** argv) {
   rilo::tool::addReplayCommand(app);
   rilo::tool::addReportCommand(app);
   rilo::tool::addEvalCommand(app);
+  rilo::tool::addImportUtilCommand(app);
   rilo::tool::addListenCommand(app);
 
   CLI11_PARSE(app, argc, argv);

@@ -1,0 +1,284 @@
+#include "estimation/ekf/error_state_ekf.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "estimation/ekf/ekf_propagation.h"
+#include "estimation/pipeline/range_imu_graph_stream.h"
+
+namespace rilo {
+namespace {
+
+using ekf_index::kAccelBias;
+using ekf_index::kGyroBias;
+using ekf_index::kPos;
+using ekf_index::kTheta;
+using ekf_index::kVel;
+
+[[noreturn]] void invalid(const char* where, const char* name, const char* rule) {
+  throw std::invalid_argument(std::string("ErrorStateEkf::") + where + ": " + name + " must be " + rule);
+}
+void requireFinite(double v, const char* where, const char* name) {
+  if (!std::isfinite(v)) invalid(where, name, "finite");
+}
+void requireFinite(const Vec3& v, const char* where, const char* name) {
+  if (!v.allFinite()) invalid(where, name, "finite");
+}
+void requireSigma(double v, const char* where, const char* name) {
+  if (!(std::isfinite(v) && v > 0.0)) {
+    throw std::invalid_argument(std::string("ErrorStateEkf::") + where + ": " + name +
+                                " must be positive and finite, got " + std::to_string(v));
+  }
+}
+
+void symmetrize(Mat15& P) { P = 0.5 * (P + P.transpose()).eval(); }
+
+}  // namespace
+
+ErrorStateEkf::ErrorStateEkf(const EkfParams& params) : params_(params) {
+  params_.validate();
+  g_w_ = params_.imu.gravityWorld();
+  F_.setIdentity();
+}
+
+void ErrorStateEkf::initialize(std::int64_t t_ns, const EkfState& state, const Mat15& covariance) {
+  if (!state.allFinite()) invalid("initialize", "state", "finite");
+  if (!covariance.allFinite()) invalid("initialize", "covariance", "finite");
+  const double scale = std::max(1.0, covariance.cwiseAbs().maxCoeff());
+  if ((covariance - covariance.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) {
+    invalid("initialize", "covariance", "symmetric");
+  }
+  Eigen::LLT<Mat15> llt(covariance);
+  if (llt.info() != Eigen::Success) invalid("initialize", "covariance", "positive definite");
+
+  x_ = state;
+  x_.R_w_b = so3::normalize(state.R_w_b);
+  P_ = covariance;
+  symmetrize(P_);
+  t_ns_ = t_ns;
+  index_ = 0;
+  has_last_sample_ = false;
+  initialized_ = true;
+}
+
+void ErrorStateEkf::initialize(const StateEstimate& estimate, const Mat15& covariance) {
+  initialize(estimate.t_ns, EkfState(estimate.T_w_b, estimate.v_w, estimate.bias), covariance);
+  index_ = estimate.index;
+}
+
+StateEstimate ErrorStateEkf::estimate() const {
+  StateEstimate out;
+  out.index = index_;
+  out.t_ns = t_ns_;
+  out.T_w_b = x_.pose();
+  out.v_w = x_.v_w;
+  out.bias = x_.bias;
+  return out;
+}
+
+Mat6 ErrorStateEkf::poseCovarianceInRetractionChart() const {
+  // [phi; rho] = blockdiag(I, R^T) [dtheta; dp].
+  Mat6 J = Mat6::Identity();
+  J.block<3, 3>(3, 3) = x_.R_w_b.transpose();
+  return J * P_.topLeftCorner<6, 6>() * J.transpose();
+}
+
+void ErrorStateEkf::requireInitialized(const char* what) const {
+  if (!initialized_) throw std::logic_error(std::string("ErrorStateEkf::") + what + ": call initialize() first");
+}
+
+PropagateStatus ErrorStateEkf::propagate(const ImuSample& sample) {
+  requireInitialized("propagate");
+  requireFinite(sample.gyro_rad_s, "propagate", "sample.gyro_rad_s");
+  requireFinite(sample.accel_m_s2, "propagate", "sample.accel_m_s2");
+  if (!has_last_sample_ && sample.t_ns == t_ns_) {
+    last_sample_ = sample;
+    has_last_sample_ = true;
+    return PropagateStatus::kFirstSample;
+  }
+  if (sample.t_ns <= t_ns_) {
+    ++counters_.imu_non_positive_dt;
+    return PropagateStatus::kNonPositiveDt;
+  }
+  const double dt_s = 1e-9 * static_cast<double>(sample.t_ns - t_ns_);
+  if (dt_s > params_.max_imu_dt_s) {
+    ++counters_.imu_gaps;
+    return PropagateStatus::kGapTooLarge;
+  }
+  if (dt_s != bias_dt_cached_s_) {
+    bias_phi_ = params_.imu.biasTransition(dt_s);
+    bias_q_ = params_.imu.biasDiscreteVariance(dt_s);
+    bias_dt_cached_s_ = dt_s;
+  }
+
+  const ImuSample& start = has_last_sample_ ? last_sample_ : sample;
+  const ImuInterval interval{start.gyro_rad_s, start.accel_m_s2, sample.gyro_rad_s, sample.accel_m_s2, dt_s};
+  x_ = integrateImuMidpoint(x_, interval, g_w_, bias_phi_, &F_);
+  x_.R_w_b = so3::normalize(x_.R_w_b);  // keep R orthonormal over long runs
+
+  Mat15 FP;
+  FP.noalias() = F_ * P_;
+  P_.noalias() = FP * F_.transpose();
+  addProcessNoise(dt_s);
+  symmetrize(P_);
+
+  t_ns_ = sample.t_ns;
+  last_sample_ = sample;
+  has_last_sample_ = true;
+  ++counters_.imu_propagated;
+  return PropagateStatus::kPropagated;
+}
+
+void ErrorStateEkf::addProcessNoise(double dt_s) {
+  const ImuParams& imu = params_.imu;
+  const double sg2 = imu.gyro_noise_density * imu.gyro_noise_density;
+  const double sa2 = imu.accel_noise_density * imu.accel_noise_density;
+  const double si2 = imu.integration_noise_density * imu.integration_noise_density;
+  const double dt2 = dt_s * dt_s;
+  const double q_pv = 0.5 * sa2 * dt2;
+  for (int i = 0; i < 3; ++i) {
+    P_(kTheta + i, kTheta + i) += sg2 * dt_s;
+    P_(kPos + i, kPos + i) += 0.25 * sa2 * dt2 * dt_s + si2 * dt_s;
+    P_(kVel + i, kVel + i) += sa2 * dt_s;
+    P_(kPos + i, kVel + i) += q_pv;
+    P_(kVel + i, kPos + i) += q_pv;
+    P_(kAccelBias + i, kAccelBias + i) += bias_q_(i);
+    P_(kGyroBias + i, kGyroBias + i) += bias_q_(3 + i);
+  }
+}
+
+template <int M>
+EkfUpdateResult ErrorStateEkf::update(const EkfPrediction<M>& pred, const Eigen::Matrix<double, M, 1>& z,
+                                      const Eigen::Matrix<double, M, 1>& sigma, const RobustLoss* loss,
+                                      double gate_chi2, EkfUpdateCounts& counts) {
+  using VecM = Eigen::Matrix<double, M, 1>;
+  using MatM = Eigen::Matrix<double, M, M>;
+  using Mat15M = Eigen::Matrix<double, 15, M>;
+
+  const VecM y = z - pred.h;
+  const auto& H = pred.H;  // M x 6 over [dtheta, dp]; the other columns are zero
+  Mat15M PHt;
+  PHt.noalias() = P_.leftCols<6>() * H.transpose();
+  MatM HPHt;
+  HPHt.noalias() = H * PHt.template topRows<6>();
+  const VecM R = sigma.cwiseAbs2();
+
+  EkfUpdateResult result;
+  result.innovation = y(0);
+  MatM S = HPHt;
+  S.diagonal() += R;
+  const MatM S_inv = S.inverse();  // fixed-size 1x1 / 2x2: closed form
+  result.normalized_innovation = y(0) / std::sqrt(S(0, 0));
+  result.mahalanobis_sq = y.dot(S_inv * y);
+  if (!(result.mahalanobis_sq <= gate_chi2)) {  // NaN counts as gated
+    ++counts.gated;
+    result.status = UpdateStatus::kGated;
+    return result;
+  }
+
+  // Robust re-weighting of the range row (IRLS, see the header).
+  VecM R_w = R;
+  MatM S_w_inv = S_inv;
+  if (loss != nullptr) {
+    double w = loss->weight(y(0) / sigma(0));
+    for (int it = 1; it < params_.robust_iterations && w >= params_.min_robust_weight; ++it) {
+      R_w(0) = R(0) / w;
+      MatM S_w = HPHt;
+      S_w.diagonal() += R_w;
+      const VecM e_post = R_w.cwiseProduct(S_w.inverse() * y);  // z - h(x+) of the linearized model
+      w = loss->weight(e_post(0) / sigma(0));
+    }
+    result.weight = w;
+    if (!(w >= params_.min_robust_weight) || w <= 0.0) {
+      ++counts.zero_weight;
+      result.status = UpdateStatus::kZeroWeight;
+      return result;
+    }
+    R_w(0) = R(0) / w;
+    MatM S_w = HPHt;
+    S_w.diagonal() += R_w;
+    S_w_inv = S_w.inverse();
+  }
+
+  Mat15M K;
+  K.noalias() = PHt * S_w_inv;
+  const Vec15 dx = K * y;
+
+  // Joseph form (I - KH) P (I - KH)^T + K R K^T as two rank-M corrections:
+  // X = (I - KH) P = P - K (P H^T)^T, then X (I - KH)^T = X - (X H^T) K^T.
+  Mat15 X = P_;
+  X.noalias() -= K * PHt.transpose();
+  Mat15M XHt;
+  XHt.noalias() = X.leftCols<6>() * H.transpose();
+  P_ = X;
+  P_.noalias() -= XHt * K.transpose();
+  P_.noalias() += K * R_w.asDiagonal() * K.transpose();
+
+  // Injection and reset: dtheta' = Jr(dtheta_hat) (dtheta - dtheta_hat).
+  x_ = x_.retract(dx);
+  const Mat3 G = so3::rightJacobian(dx.segment<3>(kTheta));
+  const Eigen::Matrix<double, 3, 15> top = G * P_.topRows<3>();
+  P_.topRows<3>() = top;
+  const Eigen::Matrix<double, 15, 3> left = P_.leftCols<3>() * G.transpose();
+  P_.leftCols<3>() = left;
+  symmetrize(P_);
+
+  ++counts.accepted;
+  result.status = UpdateStatus::kAccepted;
+  return result;
+}
+
+EkfUpdateResult ErrorStateEkf::updateRange(const Vec3& p_w_anchor, const Vec3& p_b_tag, double range_m,
+                                           double sigma_m, const RobustLoss* loss) {
+  requireInitialized("updateRange");
+  requireFinite(p_w_anchor, "updateRange", "p_w_anchor");
+  requireFinite(p_b_tag, "updateRange", "p_b_tag");
+  requireFinite(range_m, "updateRange", "range_m");
+  requireSigma(sigma_m, "updateRange", "sigma_m");
+  const Eigen::Matrix<double, 1, 1> z(range_m), sigma(sigma_m);
+  return update<1>(predictRange(x_, p_w_anchor, p_b_tag), z, sigma, loss, params_.gate_chi2_1dof,
+                   counters_.range);
+}
+
+EkfUpdateResult ErrorStateEkf::updateTdoa(const Vec3& p_w_anchor_a, const Vec3& p_w_anchor_b, const Vec3& p_b_tag,
+                                          double diff_m, double sigma_m, const RobustLoss* loss) {
+  requireInitialized("updateTdoa");
+  requireFinite(p_w_anchor_a, "updateTdoa", "p_w_anchor_a");
+  requireFinite(p_w_anchor_b, "updateTdoa", "p_w_anchor_b");
+  requireFinite(p_b_tag, "updateTdoa", "p_b_tag");
+  requireFinite(diff_m, "updateTdoa", "diff_m");
+  requireSigma(sigma_m, "updateTdoa", "sigma_m");
+  if (p_w_anchor_a == p_w_anchor_b) invalid("updateTdoa", "p_w_anchor_a and p_w_anchor_b", "different");
+  const Eigen::Matrix<double, 1, 1> z(diff_m), sigma(sigma_m);
+  return update<1>(predictTdoa(x_, p_w_anchor_a, p_w_anchor_b, p_b_tag), z, sigma, loss, params_.gate_chi2_1dof,
+                   counters_.tdoa);
+}
+
+EkfUpdateResult ErrorStateEkf::updateUltrasonic(const Vec3& p_w_anchor, const Vec3& p_b_us, double range_m,
+                                                double sigma_m, const std::optional<UltrasonicElevation>& elevation,
+                                                const RobustLoss* loss) {
+  requireInitialized("updateUltrasonic");
+  requireFinite(p_w_anchor, "updateUltrasonic", "p_w_anchor");
+  requireFinite(p_b_us, "updateUltrasonic", "p_b_us");
+  requireFinite(range_m, "updateUltrasonic", "range_m");
+  requireSigma(sigma_m, "updateUltrasonic", "sigma_m");
+  const EkfPrediction<2> pred = predictUltrasonic(x_, p_w_anchor, p_b_us);
+  if (!elevation) {
+    EkfPrediction<1> range_only;
+    range_only.h(0) = pred.h(0);
+    range_only.H = pred.H.row(0);
+    const Eigen::Matrix<double, 1, 1> z(range_m), sigma(sigma_m);
+    return update<1>(range_only, z, sigma, loss, params_.gate_chi2_1dof, counters_.ultrasonic);
+  }
+  requireFinite(elevation->delta_h_m, "updateUltrasonic", "elevation.delta_h_m");
+  requireSigma(elevation->sigma_h_m, "updateUltrasonic", "elevation.sigma_h_m");
+  const Eigen::Vector2d z(range_m, elevation->delta_h_m);
+  const Eigen::Vector2d sigma(sigma_m, elevation->sigma_h_m);
+  return update<2>(pred, z, sigma, loss, params_.gate_chi2_2dof, counters_.ultrasonic);
+}
+
+}  // namespace rilo

@@ -1,0 +1,147 @@
+#pragma once
+// Error-state EKF for UWB ranging (TWR), TDoA and ultrasonic ranges with IMU
+// propagation: the filtering baseline rilo's smoother is compared against
+// (seed 002's "EKF" column) and a cheap fallback estimator.
+//
+// State and chart: ekf_state.h (nominal R_w_b, p_w_b, v_w, b_a, b_g; 15-dim
+// error [dtheta body/right, dp world, dv world, dba, dbg]).
+//
+// Propagation (propagate(ImuSample)): midpoint integration between the
+// previous and the current sample (ekf_propagation.h), P <- F P F^T + Q with
+// Q from the ImuParams densities for a sample held over dt (sg, sa, si the
+// gyro, accel and integration densities):
+//   Q_theta = sg^2 dt I,  Q_v = sa^2 dt I,  Q_pv = sa^2 dt^2/2 I,
+//   Q_p = (sa^2 dt^3/4 + si^2 dt) I,  Q_bias = ImuParams::biasDiscreteVariance(dt)
+// and the nominal bias decaying with the Gauss-Markov transition. The first
+// sample after initialize() at the filter's time only opens the interval; a
+// first sample after it is held over [t_state, t_sample] (Euler).
+//
+// Updates (updateRange / updateTdoa / updateUltrasonic), all at the filter's
+// current time (propagate to the measurement first; the caller interleaves
+// the streams in time order):
+//   1. y = z - h(x), S = H P H^T + R, R = diag(sigma^2).
+//   2. Chi-square gate: y^T S^-1 y > gate (EkfParams, by row count) ->
+//      rejected (kGated) and counted; the state is untouched.
+//   3. Robust re-weighting (with a loss, range row only): the variance of the
+//      range row becomes sigma^2 / w, w = loss->weight(r), r the WHITENED
+//      residual (z - h)/sigma like the smoother's factors see it: first at the
+//      predicted state (r = y/sigma, the smoother's first linearization),
+//      then (EkfParams::robust_iterations - 1 times, default once more) at the
+//      residual of the updated state that weight implies, R_w S_w^-1 y (exact
+//      for the linearized model, no state copy). This is IRLS on the MAP of
+//      prior + robust likelihood, so the signed asymmetric NLOS loss behaves
+//      as in the smoother: r > 0 (measured longer) is down-weighted, r <= its
+//      decision point is plain Gaussian. w below min_robust_weight -> kZeroWeight.
+//   4. K = P H^T S_w^-1; Joseph form P = (I - K H) P (I - K H)^T + K R_w K^T,
+//      evaluated as two rank-M corrections (O(15^2 M), exactly Joseph's
+//      expression), then symmetrized.
+//   5. Injection x <- x (+) K y and error reset: the new error is
+//      dtheta' = Jr(dtheta_hat) (dtheta - dtheta_hat), so the theta rows and
+//      columns of P are mapped by G = Jr(dtheta_hat) = I - hat(dtheta_hat)/2 +
+//      O(|dtheta_hat|^2) (exact first-order reset of the right chart; the
+//      other blocks are additive and need no reset).
+// Ultrasonic with an elevation row is a 2-row update (2-dof gate); the loss
+// weights only the range row (the elevation row is a Gaussian height
+// expectation), so unlike UltrasonicFactor an asymmetric loss is allowed.
+//
+// Hot path: propagate() and the updates use fixed-size Eigen only and never
+// allocate (tests/core/ekf_alloc_test.cpp counts operator new); only the error
+// paths (exceptions) allocate. Single-threaded.
+//
+// Known limits: the gate trusts the prior S, so a filter that has diverged
+// (or been started far off with a small covariance) gates good measurements
+// too: watch counters() for a run of gated updates and re-initialize. In
+// simulation (tests/core/ekf_tracking_test.cpp) the mean NEES is 17-19.5 for
+// 15 dof, the theta and gyro-bias blocks slightly overconfident (3.4-4.2 for
+// 3): the usual EKF linearization optimism, no stabilising noise is added.
+#include <cstdint>
+#include <optional>
+
+#include "estimation/ekf/ekf_measurement_models.h"
+#include "estimation/ekf/ekf_params.h"
+#include "estimation/ekf/ekf_results.h"
+#include "estimation/ekf/ekf_state.h"
+#include "estimation/factors/ultrasonic_factor.h"
+#include "estimation/noise/robust_loss.h"
+#include "hal/samples.h"
+
+namespace rilo {
+
+struct StateEstimate;  // estimation/pipeline/range_imu_graph_stream.h
+
+class ErrorStateEkf {
+ public:
+  /// Validates params (std::invalid_argument naming the field).
+  explicit ErrorStateEkf(const EkfParams& params = EkfParams());
+
+  /// Starts (or restarts) the filter at t_ns with the nominal state and the
+  /// 15x15 error covariance (order of ekf_state.h). Counters are kept.
+  /// Throws std::invalid_argument ("state", "covariance") for a non-finite
+  /// state or a covariance that is not finite, symmetric and positive definite.
+  void initialize(std::int64_t t_ns, const EkfState& state, const Mat15& covariance);
+  /// Same from the pipeline's StateEstimate (its index is echoed by estimate()).
+  void initialize(const StateEstimate& estimate, const Mat15& covariance);
+
+  /// Propagates to sample.t_ns. Throws std::logic_error before initialize(),
+  /// std::invalid_argument for a non-finite gyro/accel sample. dt <= 0 and
+  /// gaps > max_imu_dt_s are reported (and counted), not thrown: the filter
+  /// does not move. After a gap it keeps refusing until initialize() resumes it.
+  PropagateStatus propagate(const ImuSample& sample);
+
+  /// Two-way range z = range_m to the anchor p_w_anchor from the antenna at
+  /// lever arm p_b_tag, standard deviation sigma_m. loss: optional robust
+  /// loss on the whitened signed residual (not owned; nullptr = Gaussian).
+  /// Throws std::invalid_argument naming a non-finite argument or sigma_m <= 0,
+  /// std::logic_error before initialize().
+  EkfUpdateResult updateRange(const Vec3& p_w_anchor, const Vec3& p_b_tag, double range_m, double sigma_m,
+                              const RobustLoss* loss = nullptr);
+  /// TDoA range difference z = diff_m = |tag - B| - |tag - A| (m). Also throws
+  /// when the two anchors coincide.
+  EkfUpdateResult updateTdoa(const Vec3& p_w_anchor_a, const Vec3& p_w_anchor_b, const Vec3& p_b_tag, double diff_m,
+                             double sigma_m, const RobustLoss* loss = nullptr);
+  /// Ultrasonic range from the receiver at p_b_us, optionally with the
+  /// elevation row of UltrasonicFactor (delta_h_m, sigma_h_m > 0).
+  EkfUpdateResult updateUltrasonic(const Vec3& p_w_anchor, const Vec3& p_b_us, double range_m, double sigma_m,
+                                   const std::optional<UltrasonicElevation>& elevation = std::nullopt,
+                                   const RobustLoss* loss = nullptr);
+
+  bool initialized() const { return initialized_; }
+  std::int64_t t_ns() const { return t_ns_; }          ///< time of the state (ns)
+  const EkfState& state() const { return x_; }
+  const Mat15& covariance() const { return P_; }      ///< error covariance, order of ekf_state.h
+  /// The state as the pipeline reports it (t_ns, pose, velocity, bias; index
+  /// as given to initialize()). Callers include range_imu_graph_stream.h.
+  StateEstimate estimate() const;
+  /// 6x6 pose covariance in the smoother's Pose3 chart [phi; rho], rho = R^T dp (body).
+  Mat6 poseCovarianceInRetractionChart() const;
+  const EkfCounters& counters() const { return counters_; }
+  void resetCounters() { counters_ = EkfCounters(); }
+  const EkfParams& params() const { return params_; }
+
+ private:
+  template <int M>
+  EkfUpdateResult update(const EkfPrediction<M>& pred, const Eigen::Matrix<double, M, 1>& z,
+                         const Eigen::Matrix<double, M, 1>& sigma, const RobustLoss* loss, double gate_chi2,
+                         EkfUpdateCounts& counts);
+  void requireInitialized(const char* what) const;
+  void addProcessNoise(double dt_s);
+
+  EkfParams params_;
+  Vec3 g_w_;
+  bool initialized_ = false;
+  std::int64_t t_ns_ = 0;
+  std::uint64_t index_ = 0;  ///< StateEstimate::index given at initialize()
+  EkfState x_;
+  Mat15 P_ = Mat15::Identity();
+  Mat15 F_;  ///< scratch: transition of the last step
+  bool has_last_sample_ = false;
+  ImuSample last_sample_;
+  EkfCounters counters_;
+
+  // Bias transition and added variance for the last dt (IMU dt rarely changes).
+  double bias_dt_cached_s_ = -1.0;
+  Vec6 bias_phi_ = Vec6::Ones();
+  Vec6 bias_q_ = Vec6::Zero();
+};
+
+}  // namespace rilo

@@ -560,16 +560,27 @@ TEST(RangeImuGraphStream, RejectsBadInput) {
   // Ranges: unknown anchor, time going backwards, before the start, non-finite.
   RangeSample r = s.ranges[1];
   r.anchor_id = static_cast<std::uint32_t>(s.p_w_anchors.size());
-  expectMessage([&] { stream.addRange(r); }, "anchor_id " + std::to_string(s.p_w_anchors.size()));
+  expectMessage([&] { stream.addRange(r); }, "unknown anchor " + std::to_string(s.p_w_anchors.size()));
   stream.addRange(s.ranges[1]);
   r = s.ranges[0];
-  expectMessage([&] { stream.addRange(r); }, "before the previous range");
+  expectMessage([&] { stream.addRange(r); }, "before the previous measurement");
   RangeImuGraphStream fresh(s.p_w_anchors, gp);
   fresh.start(s.ranges[1].t_ns, Pose3(), Vec3::Zero());
   expectMessage([&] { fresh.addRange(s.ranges[0]); }, "before the newest state");
   r = s.ranges[2];
   r.range_m = std::numeric_limits<double>::infinity();
-  expectMessage([&] { stream.addRange(r); }, "range_m");
+  expectMessage([&] { stream.addRange(r); }, "range at t_ns=" + std::to_string(r.t_ns) + ": the value is not finite");
+  // TDoA: both anchors known and distinct; ultrasonic: a configured beacon.
+  TdoaSample d;
+  d.t_ns = s.ranges[2].t_ns;
+  d.anchor_a = 0;
+  d.anchor_b = static_cast<std::uint32_t>(s.p_w_anchors.size());
+  expectMessage([&] { stream.addTdoa(d); }, "tdoa at t_ns=" + std::to_string(d.t_ns) + " names unknown anchor");
+  d.anchor_b = 0;
+  expectMessage([&] { stream.addTdoa(d); }, "anchor_b equals anchor_a");
+  UltrasonicSample u;
+  u.t_ns = s.ranges[2].t_ns;
+  expectMessage([&] { stream.addUltrasonic(u); }, "unknown ultrasonic beacon 0 (0 known)");
 
   stream.finish();
   EXPECT_THROW(stream.addImu(s.imu[5]), std::logic_error);

@@ -24,6 +24,8 @@ class RangeImuEstimator {
                     const ImuBias& bias0_guess = ImuBias());
   void addImu(const ImuSample& sample) { stream_.addImu(sample); }
   void addRange(const RangeSample& sample) { stream_.addRange(sample); }
+  void addTdoa(const TdoaSample& sample) { stream_.addTdoa(sample); }
+  void addUltrasonic(const UltrasonicSample& sample) { stream_.addUltrasonic(sample); }
   /// No more samples: lets the last ranging group through.
   void finish() { stream_.finish(); }
 

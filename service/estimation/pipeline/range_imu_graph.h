@@ -41,6 +41,19 @@ struct RangeImuGraphParams {
   HeightBand height_band = HeightBand::off();
   /// Std-dev of a zero-mean prior on each state's vertical velocity (m/s); 0: none.
   double vertical_speed_sigma_m_s = 0.0;
+
+  // UWB TDoA and ultrasonic ranging (seed 002). TDoA uses the UWB anchors
+  // (as variables or constants, like ranges); ultrasonic beacons are constants.
+  /// Loss of TDoA factors (makeRangeLoss names). Symmetric by default: NLOS on
+  /// either anchor of the pair biases the difference, with opposite signs.
+  std::string tdoa_loss = "huber";
+  double tdoa_sigma_m = 0.15;         ///< std-dev of a LOS range difference (m)
+  std::string ultrasonic_loss = "huber";
+  double ultrasonic_sigma_m = 0.03;   ///< std-dev of a LOS ultrasonic range (m)
+  Vec3 p_b_ultrasonic = Vec3::Zero(); ///< ultrasonic receiver lever arm, body frame (m)
+  /// Ultrasonic beacons by anchor id (m, world); ids not in use hold any
+  /// finite filler. Empty: no ultrasonic ranging.
+  std::vector<Vec3> p_w_ultrasonic;
 };
 
 struct RangeImuGraph {

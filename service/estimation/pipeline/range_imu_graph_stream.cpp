@@ -7,6 +7,8 @@
 #include "estimation/factors/imu_factor.h"
 #include "estimation/factors/prior_factors.h"
 #include "estimation/factors/range_factor.h"
+#include "estimation/factors/tdoa_factor.h"
+#include "estimation/factors/ultrasonic_factor.h"
 
 namespace rilo {
 namespace {
@@ -14,6 +16,12 @@ namespace {
 constexpr double kNsToS = 1e-9;
 
 std::string ns(std::int64_t t_ns) { return std::to_string(t_ns); }
+
+RangeNoiseParams withSigma(RangeNoiseParams p, double sigma_m) {
+  p.sigma_m = sigma_m;
+  p.nlos_scale_m.reset();  // the IQR default at this sigma
+  return p;
+}
 
 /// Integrates the zero-order-held IMU samples over [t_a, t_b] into pim,
 /// advancing `cursor` (index of the sample in effect at t_a, or 0 if the first
@@ -48,6 +56,8 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
       params_(std::move(params)),
       options_(options),
       range_loss_(makeRangeLoss(params_.range_loss, params_.range_noise)),
+      tdoa_loss_(makeRangeLoss(params_.tdoa_loss, withSigma(params_.range_noise, params_.tdoa_sigma_m))),
+      ultrasonic_loss_(makeRangeLoss(params_.ultrasonic_loss, withSigma(params_.range_noise, params_.ultrasonic_sigma_m))),
       pim_(params_.imu, ImuBias(), PreintegratedImu::CovarianceMode::kCombined),
       anchor_in_graph_(p_w_anchors_.size(), false),
       imu_(options.initial_imu_capacity),
@@ -65,6 +75,18 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
     throw std::invalid_argument(where + "range_noise.sigma_m must be positive and finite");
   }
   if (!params_.p_b_tag.allFinite()) throw std::invalid_argument(where + "p_b_tag must be finite");
+  if (!(std::isfinite(params_.tdoa_sigma_m) && params_.tdoa_sigma_m > 0.0)) {
+    throw std::invalid_argument(where + "tdoa_sigma_m must be positive and finite");
+  }
+  if (!(std::isfinite(params_.ultrasonic_sigma_m) && params_.ultrasonic_sigma_m > 0.0)) {
+    throw std::invalid_argument(where + "ultrasonic_sigma_m must be positive and finite");
+  }
+  if (!params_.p_b_ultrasonic.allFinite()) throw std::invalid_argument(where + "p_b_ultrasonic must be finite");
+  for (std::size_t a = 0; a < params_.p_w_ultrasonic.size(); ++a) {
+    if (!params_.p_w_ultrasonic[a].allFinite()) {
+      throw std::invalid_argument(where + "p_w_ultrasonic[" + std::to_string(a) + "] must be finite");
+    }
+  }
   params_.height_band.validate("RangeImuGraphStream: height_band");
   if (!(std::isfinite(params_.vertical_speed_sigma_m_s) && params_.vertical_speed_sigma_m_s >= 0.0)) {
     throw std::invalid_argument(where + "vertical_speed_sigma_m_s must be finite and >= 0");
@@ -105,7 +127,7 @@ GraphIncrement RangeImuGraphStream::start(std::int64_t t0_ns, const Pose3& T_w_b
   while (imu_.size() >= 2 && imu_[1].t_ns <= t0_ns) imu_.pop_front();
   // Re-plan the warm-up ranges from t0 on (each pass moves one to the back).
   for (std::size_t n = ranges_.size(); n > 0; --n) {
-    const RangeSample r = ranges_.front();
+    const Measurement r = ranges_.front();
     ranges_.pop_front();
     if (r.t_ns < t0_ns) {
       ++dropped_ranges_;
@@ -135,16 +157,26 @@ void RangeImuGraphStream::addImu(const ImuSample& s) {
   commitImuOnlyStates();
 }
 
-void RangeImuGraphStream::addRange(const RangeSample& r) {
-  const std::string where = "RangeImuGraphStream::addRange: range at t_ns=" + ns(r.t_ns);
-  if (finished_) throw std::logic_error("RangeImuGraphStream::addRange: called after finish()");
-  if (r.anchor_id >= p_w_anchors_.size()) {
-    throw std::invalid_argument(where + " names unknown anchor_id " + std::to_string(r.anchor_id) + " (" +
-                                std::to_string(p_w_anchors_.size()) + " anchors)");
+void RangeImuGraphStream::addMeasurement(const Measurement& r) {
+  const std::string where =
+      std::string("RangeImuGraphStream::addMeasurement: ") + toString(r.kind) + " at t_ns=" + ns(r.t_ns);
+  if (finished_) throw std::logic_error("RangeImuGraphStream::addMeasurement: called after finish()");
+  const bool ultrasonic = r.kind == Measurement::Kind::kUltrasonic;
+  const std::size_t known = ultrasonic ? params_.p_w_ultrasonic.size() : p_w_anchors_.size();
+  auto check_anchor = [&](std::uint32_t id) {
+    if (id >= known) {
+      throw std::invalid_argument(where + " names unknown " + (ultrasonic ? "ultrasonic beacon " : "anchor ") +
+                                  std::to_string(id) + " (" + std::to_string(known) + " known)");
+    }
+  };
+  check_anchor(r.anchor);
+  if (r.kind == Measurement::Kind::kTdoa) {
+    check_anchor(r.anchor_b);
+    if (r.anchor_b == r.anchor) throw std::invalid_argument(where + ": anchor_b equals anchor_a");
   }
-  if (!std::isfinite(r.range_m)) throw std::invalid_argument(where + ": range_m is not finite");
+  if (!std::isfinite(r.value_m)) throw std::invalid_argument(where + ": the value is not finite");
   if (have_range_ && r.t_ns < newest_range_t_ns_) {
-    throw std::invalid_argument(where + " is before the previous range at t_ns=" + ns(newest_range_t_ns_));
+    throw std::invalid_argument(where + " is before the previous measurement at t_ns=" + ns(newest_range_t_ns_));
   }
   if (started_ && r.t_ns < newest_state_t_ns_) {
     throw std::invalid_argument(where + " is before the newest state at t_ns=" + ns(newest_state_t_ns_) +
@@ -164,7 +196,7 @@ void RangeImuGraphStream::finish() {
   finished_ = true;
 }
 
-void RangeImuGraphStream::planRange(const RangeSample& r) {
+void RangeImuGraphStream::planRange(const Measurement& r) {
   ranges_.push_back(r);
   const std::int64_t gap_ns = r.t_ns - newest_state_t_ns_;
   if (gap_ns <= params_.same_state_window_ns) {
@@ -279,19 +311,43 @@ void RangeImuGraphStream::addMotionPriors(std::uint64_t i, GraphIncrement& inc) 
   }
 }
 
+Key RangeImuGraphStream::uwbAnchorKey(std::uint32_t id, GraphIncrement& inc) const {
+  const Key l = sym::L(id);
+  if (!anchor_in_graph_[id] && !inc.values.exists(l)) {
+    inc.values.insert(l, p_w_anchors_[id]);
+    inc.new_anchor_keys.push_back(l);
+  }
+  return l;
+}
+
 void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const {
+  const bool vars = params_.anchors_as_variables;
   for (std::size_t k = first; k < first + n; ++k) {
-    const RangeSample& r = ranges_[k];
-    if (params_.anchors_as_variables) {
-      const Key l = sym::L(r.anchor_id);
-      inc.factors.emplace<RangeFactor>(x, l, r.range_m, params_.range_noise.sigma_m, params_.p_b_tag, range_loss_);
-      if (!anchor_in_graph_[r.anchor_id] && !inc.values.exists(l)) {
-        inc.values.insert(l, p_w_anchors_[r.anchor_id]);
-        inc.new_anchor_keys.push_back(l);
-      }
-    } else {
-      inc.factors.emplace<RangeFactor>(x, p_w_anchors_[r.anchor_id], r.range_m, params_.range_noise.sigma_m,
-                                       params_.p_b_tag, range_loss_);
+    const Measurement& m = ranges_[k];
+    switch (m.kind) {
+      case Measurement::Kind::kRange:
+        if (vars) {
+          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), m.value_m, params_.range_noise.sigma_m,
+                                           params_.p_b_tag, range_loss_);
+        } else {
+          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], m.value_m, params_.range_noise.sigma_m,
+                                           params_.p_b_tag, range_loss_);
+        }
+        break;
+      case Measurement::Kind::kTdoa:
+        if (vars) {
+          const Key a = uwbAnchorKey(m.anchor, inc);
+          inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(m.anchor_b, inc), m.value_m, params_.tdoa_sigma_m,
+                                          params_.p_b_tag, tdoa_loss_);
+        } else {
+          inc.factors.emplace<TdoaFactor>(x, p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], m.value_m,
+                                          params_.tdoa_sigma_m, params_.p_b_tag, tdoa_loss_);
+        }
+        break;
+      case Measurement::Kind::kUltrasonic:
+        inc.factors.emplace<UltrasonicFactor>(x, params_.p_w_ultrasonic[m.anchor], m.value_m, params_.ultrasonic_sigma_m,
+                                              params_.p_b_ultrasonic, std::nullopt, ultrasonic_loss_);
+        break;
     }
     ++inc.range_factors;
   }
@@ -305,6 +361,15 @@ void RangeImuGraphStream::addAnchorPriors(GraphIncrement& inc) const {
 
 void RangeImuGraphStream::commitAnchors(const GraphIncrement& inc) {
   for (Key l : inc.new_anchor_keys) anchor_in_graph_[keyIndex(l)] = true;
+}
+
+const char* toString(Measurement::Kind kind) {
+  switch (kind) {
+    case Measurement::Kind::kRange: return "range";
+    case Measurement::Kind::kTdoa: return "tdoa";
+    case Measurement::Kind::kUltrasonic: return "ultrasonic";
+  }
+  return "?";
 }
 
 }  // namespace rilo

@@ -50,6 +50,7 @@
 
 #include "estimation/graph/factor.h"
 #include "estimation/imu/preintegration.h"
+#include "estimation/pipeline/measurement.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "hal/samples.h"
 
@@ -128,7 +129,9 @@ struct GraphIncrement {
   bool new_state = true;        ///< false: a ranges-only increment on the existing state `state_index`
   std::uint64_t state_index = 0;  ///< the new state (or the state a ranges-only increment ranges)
   std::int64_t t_ns = 0;          ///< time of state_index (ns)
-  std::size_t range_factors = 0;  ///< number of range factors in `factors`
+  /// Measurement factors (ranges, TDoA, ultrasonic) in `factors`, contiguous
+  /// after the IMU factor.
+  std::size_t range_factors = 0;
 };
 
 /// Stream-only settings (the graph itself is configured by RangeImuGraphParams).
@@ -159,9 +162,17 @@ class RangeImuGraphStream {
   /// finite; std::logic_error after finish().
   void addImu(const ImuSample& sample);
   /// Throws std::invalid_argument on an unknown anchor id, a non-finite range,
-  /// a time before the previous range, or a time before the newest state (before
-  /// t0, or before a committed IMU-only state); std::logic_error after finish().
-  void addRange(const RangeSample& sample);
+  /// a time before the previous measurement (of any kind), or a time before
+  /// the newest state (before t0, or before a committed IMU-only state);
+  /// std::logic_error after finish().
+  void addRange(const RangeSample& sample) { addMeasurement(Measurement::of(sample)); }
+  /// TDoA between two UWB anchors; as addRange, and the anchors must differ.
+  void addTdoa(const TdoaSample& sample) { addMeasurement(Measurement::of(sample)); }
+  /// Range to an ultrasonic beacon of RangeImuGraphParams::p_w_ultrasonic; as addRange.
+  void addUltrasonic(const UltrasonicSample& sample) { addMeasurement(Measurement::of(sample)); }
+  /// Any of the above: ranges, TDoA and ultrasonic ranges share the states
+  /// (same_state_window_ns groups them) and one time order.
+  void addMeasurement(const Measurement& m);
   /// No more samples: closes the open ranging group so its state can be emitted.
   /// Throws std::logic_error before start().
   void finish();
@@ -181,9 +192,9 @@ class RangeImuGraphStream {
   std::int64_t lastStateTime() const { return last_t_ns_; }     ///< ns
   std::size_t imuBufferSize() const { return imu_.size(); }      ///< buffered IMU samples
   std::size_t imuBufferCapacity() const { return imu_.capacity(); }
-  std::size_t pendingRanges() const { return ranges_.size(); }   ///< ranges not yet emitted
+  std::size_t pendingRanges() const { return ranges_.size(); }   ///< measurements not yet emitted
   std::size_t pendingStates() const { return plan_.size(); }     ///< planned states not yet emitted
-  std::size_t droppedRanges() const { return dropped_ranges_; }  ///< ranges before t0, dropped by start()
+  std::size_t droppedRanges() const { return dropped_ranges_; }  ///< measurements before t0, dropped by start()
   const RangeImuGraphParams& params() const { return params_; }
 
  private:
@@ -192,7 +203,7 @@ class RangeImuGraphStream {
     std::size_t n_ranges = 0;  ///< its ranges, in ranges_ after the earlier states' ones
   };
 
-  void planRange(const RangeSample& r);
+  void planRange(const Measurement& m);
   void commitImuOnlyStates();
   bool stateReady(const PlannedState& s) const;
   bool carryClosed() const;
@@ -200,15 +211,17 @@ class RangeImuGraphStream {
   GraphIncrement emitCarriedRanges();
   /// Adds state i's height band and vertical speed priors (when enabled).
   void addMotionPriors(std::uint64_t i, GraphIncrement& inc) const;
-  /// Adds ranges_[first, first + n) on state key x, noting anchors new to the graph.
+  /// Adds the factors of ranges_[first, first + n) on state key x, noting anchors new to the graph.
   void addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const;
+  /// The anchor key of a UWB anchor (adding its value if new to the graph).
+  Key uwbAnchorKey(std::uint32_t id, GraphIncrement& inc) const;
   void addAnchorPriors(GraphIncrement& inc) const;
   void commitAnchors(const GraphIncrement& inc);
 
   std::vector<Vec3> p_w_anchors_;
   RangeImuGraphParams params_;
   RangeImuStreamOptions options_;
-  RobustLossPtr range_loss_;
+  RobustLossPtr range_loss_, tdoa_loss_, ultrasonic_loss_;
   PreintegratedImu pim_;  ///< scratch, reset per state
 
   bool started_ = false;
@@ -216,7 +229,7 @@ class RangeImuGraphStream {
   std::vector<bool> anchor_in_graph_;  ///< anchor key and prior already emitted
 
   detail::GrowingRing<ImuSample> imu_;      ///< front: the sample in effect at the last emitted state
-  detail::GrowingRing<RangeSample> ranges_; ///< [carried ranges][plan_[0]'s][plan_[1]'s]...
+  detail::GrowingRing<Measurement> ranges_; ///< [carried measurements][plan_[0]'s][plan_[1]'s]...
   detail::GrowingRing<PlannedState> plan_;  ///< decided states not yet emitted, in time order
   std::size_t carry_ranges_ = 0;  ///< ranges at the front of ranges_ on the last emitted state
 

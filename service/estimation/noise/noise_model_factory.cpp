@@ -1,8 +1,11 @@
 #include "estimation/noise/noise_model_factory.h"
 
 #include <cmath>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
+#include <tuple>
 
 #include "estimation/noise/asymmetric_loss.h"
 #include "estimation/noise/cauchy_loss.h"
@@ -10,6 +13,23 @@
 #include "estimation/noise/huber_loss.h"
 
 namespace rilo {
+namespace {
+
+/// Asymmetric losses by (component, gamma/sigma, weight). Building one
+/// tabulates its convolution (tens of microseconds), and the initializer's
+/// every batch graph asks for the same one: about 6% of a replay. Losses are
+/// immutable, so sharing them is safe; the cache holds the few distinct
+/// parameter sets a process uses.
+RobustLossPtr sharedAsymmetricLoss(double gamma_over_sigma, double nlos_weight, AsymmetricLoss::Component component) {
+  static std::mutex mutex;
+  static std::map<std::tuple<int, double, double>, RobustLossPtr> cache;
+  const std::lock_guard<std::mutex> lock(mutex);
+  RobustLossPtr& loss = cache[{static_cast<int>(component), gamma_over_sigma, nlos_weight}];
+  if (!loss) loss = std::make_shared<AsymmetricLoss>(gamma_over_sigma, nlos_weight, component);
+  return loss;
+}
+
+}  // namespace
 
 const std::vector<std::string>& rangeLossNames() {
   static const std::vector<std::string> kNames = {"gaussian", "huber", "cauchy", "asymmetric",
@@ -33,7 +53,7 @@ RobustLossPtr makeRangeLoss(const std::string& name, const RangeNoiseParams& par
     }
     const auto component = name == "asymmetric" ? AsymmetricLoss::Component::kConvolved
                                                 : AsymmetricLoss::Component::kHalfCauchy;
-    return std::make_shared<AsymmetricLoss>(gamma_m / params.sigma_m, params.nlos_weight, component);
+    return sharedAsymmetricLoss(gamma_m / params.sigma_m, params.nlos_weight, component);
   }
   std::string valid;
   for (const std::string& n : rangeLossNames()) valid += (valid.empty() ? "" : ", ") + n;

@@ -47,7 +47,8 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
     throw std::runtime_error(rec.meta.name + ": needs imu.csv and range.csv samples");
   }
   if (!(settings.range_hz >= 0.0)) throw std::invalid_argument("replay: range_hz must be >= 0");
-  Localizer localizer(uwbAnchorsById(rec.anchors), localizerParamsFor(rec, settings));
+  const LocalizerParams params = localizerParamsFor(rec, settings);
+  Localizer localizer(uwbAnchorsById(rec.anchors), params);
 
   ReplayResult out;
   std::vector<UpdateStats> stats;
@@ -91,6 +92,9 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.init_attempts = localizer.initStatus().attempts;
   out.height_band_note = localizer.heightBandNote();
   out.height_band_in_use = localizer.params().graph.height_band.enabled;
+  const RobustLossPtr loss = makeRangeLoss(params.graph.range_loss, params.graph.range_noise);
+  out.nlos = classifyRanges(ranges, out.smoothed, uwbAnchorsById(rec.anchors), params.graph.p_b_tag, *loss,
+                            params.graph.range_noise.sigma_m);
   if (!rec.groundtruth.empty()) {
     out.ape_online = positionErrorAgainst(out.online, rec.groundtruth);
     out.ape_smoothed = positionErrorAgainst(out.smoothed, rec.groundtruth);

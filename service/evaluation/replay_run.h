@@ -12,6 +12,7 @@
 
 #include "estimation/pipeline/localizer.h"
 #include "estimation/pipeline/trajectory_error.h"
+#include "evaluation/nlos_classification.h"
 #include "evaluation/range_thinning.h"
 #include "evaluation/trajectory_metrics.h"  // positionErrorAgainst
 #include "hal/recording/recording.h"
@@ -59,6 +60,9 @@ struct ReplayResult {
   double wall_s = 0.0;                ///< time the run took (s)
   /// Present when the recording has ground truth.
   std::optional<PositionErrorStats> ape_online, ape_smoothed;
+  /// Ranges the smoothed trajectory down-weights as NLOS (with the run's loss;
+  /// scored against the recording's los column when it has one).
+  NlosClassification nlos;
 
   double realtimeFactor() const { return wall_s > 0.0 ? data_s / wall_s : 0.0; }
 };

@@ -71,6 +71,14 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"last_failure\": " << jsonString(run.last_failure)
           << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")
           << ",\n  \"height_band_note\": " << jsonString(run.height_band_note);
+  const NlosClassification& n = run.nlos;
+  summary << ",\n  \"nlos\": {\"ranges\": " << n.ranges << ", \"downweighted\": " << n.downweighted
+          << ", \"downweighted_fraction\": " << n.downweightedFraction();
+  if (n.labelled()) {
+    summary << ", \"labelled_nlos\": " << n.labelled_nlos << ", \"nlos_caught\": " << n.nlosCaught()
+            << ", \"labelled_los\": " << n.labelled_los << ", \"los_lost\": " << n.losLost();
+  }
+  summary << "}";
   if (run.ape_online) {
     summary << ",\n  \"ape_online\": " << statsJson(*run.ape_online)
             << ",\n  \"ape_smoothed\": " << statsJson(*run.ape_smoothed);
@@ -84,6 +92,11 @@ int runReplay(const ReplayOptions& o) {
   if (!run.height_band_note.empty()) std::printf("  %s\n", run.height_band_note.c_str());
   if (run.initializations == 0) std::printf("  never initialized: %s\n", run.init_status.c_str());
   if (!run.last_failure.empty()) std::printf("  last tracking failure: %s\n", run.last_failure.c_str());
+  if (n.ranges > 0) {
+    std::printf("  NLOS: %.0f%% of %zu ranges down-weighted (robust weight < 0.5 at the smoothed trajectory)", 100.0 * n.downweightedFraction(), n.ranges);
+    if (n.labelled()) std::printf("; of the labelled NLOS %.0f%% caught, of the LOS %.0f%% lost", 100.0 * n.nlosCaught(), 100.0 * n.losLost());
+    std::printf("\n");
+  }
   if (run.ape_online) {
     for (const auto& [label, e] : {std::pair{"online  ", *run.ape_online}, std::pair{"smoothed", *run.ape_smoothed}}) {
       std::printf("  APE %s mean %.3f m, median %.3f, rmse %.3f, max %.3f (horizontal %.3f, vertical %.3f)\n", label,

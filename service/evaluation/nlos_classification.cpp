@@ -1,0 +1,37 @@
+#include "evaluation/nlos_classification.h"
+
+#include <algorithm>
+#include <cstdlib>
+
+namespace rilo {
+
+NlosClassification classifyRanges(const std::vector<RangeSample>& ranges,
+                                  const std::vector<RangeImuEstimator::TimedPose>& trajectory,
+                                  const std::vector<Vec3>& p_w_anchors, const Vec3& p_b_tag, const RobustLoss& loss,
+                                  double sigma_m, const NlosClassificationOptions& options) {
+  NlosClassification out;
+  if (trajectory.empty()) return out;
+  std::size_t k = 0;  // first pose at or after the range (ranges in time order)
+  for (const RangeSample& r : ranges) {
+    if (r.anchor_id >= p_w_anchors.size()) continue;
+    while (k < trajectory.size() && trajectory[k].t_ns < r.t_ns) ++k;
+    std::size_t best = k < trajectory.size() ? k : trajectory.size() - 1;
+    if (k > 0 && (k == trajectory.size() || r.t_ns - trajectory[k - 1].t_ns < trajectory[k].t_ns - r.t_ns)) best = k - 1;
+    if (std::llabs(trajectory[best].t_ns - r.t_ns) > options.max_dt_ns) continue;
+    const Pose3& T = trajectory[best].T_w_b;
+    const double predicted_m = (T.R * p_b_tag + T.p - p_w_anchors[r.anchor_id]).norm();
+    const bool down = loss.weight((r.range_m - predicted_m) / sigma_m) < options.weight_threshold;
+    ++out.ranges;
+    out.downweighted += down;
+    if (r.los == 0) {
+      ++out.labelled_nlos;
+      out.nlos_downweighted += down;
+    } else if (r.los == 1) {
+      ++out.labelled_los;
+      out.los_downweighted += down;
+    }
+  }
+  return out;
+}
+
+}  // namespace rilo

@@ -1,0 +1,67 @@
+#include "evaluation/nlos_classification.h"
+
+#include <gtest/gtest.h>
+
+#include "estimation/noise/noise_model_factory.h"
+
+namespace rilo {
+namespace {
+
+TEST(NlosClassification, LongRangesAreDownWeightedAndScoredAgainstTheLabels) {
+  const std::vector<Vec3> anchors = {Vec3(0, 0, 2), Vec3(10, 0, 2), Vec3(0, 10, 2)};
+  const Vec3 p_b_tag(0.0, 0.0, 0.1);
+  std::vector<RangeImuEstimator::TimedPose> trajectory;
+  for (int k = 0; k <= 10; ++k) trajectory.push_back({k * 100'000'000LL, Pose3(Mat3::Identity(), Vec3(0.5 * k, 3, 1.2))});
+
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.1;
+  const RobustLossPtr loss = makeRangeLoss("asymmetric", noise);
+  std::vector<RangeSample> ranges;
+  auto add = [&](std::int64_t t_ns, std::uint32_t id, double excess_m, int los) {
+    const Pose3& T = trajectory[static_cast<std::size_t>((t_ns + 50'000'000) / 100'000'000)].T_w_b;
+    RangeSample r;
+    r.t_ns = t_ns;
+    r.anchor_id = id;
+    r.range_m = (T.R * p_b_tag + T.p - anchors[id]).norm() + excess_m;
+    r.los = los;
+    ranges.push_back(r);
+  };
+  add(100'000'000, 0, 0.02, 1);   // LOS, small noise: kept
+  add(210'000'000, 1, 2.0, 0);    // NLOS, 2 m long: down-weighted (nearest pose 200 ms)
+  add(290'000'000, 2, 0.05, 0);   // NLOS with a tiny excess: not caught
+  add(400'000'000, 1, -0.03, -1); // unlabelled
+  add(500'000'000, 0, 3.0, 1);    // labelled LOS but 3 m long (a wrong label or an outlier): lost
+  RangeSample far = ranges.back();
+  far.t_ns = 5'000'000'000;  // no pose within 50 ms: skipped
+  ranges.push_back(far);
+  RangeSample unknown = ranges.front();
+  unknown.t_ns = 5'100'000'000;
+  unknown.anchor_id = 7;     // not an anchor: skipped
+  ranges.push_back(unknown);
+
+  const NlosClassification c = classifyRanges(ranges, trajectory, anchors, p_b_tag, *loss, noise.sigma_m);
+  EXPECT_EQ(c.ranges, 5u);
+  EXPECT_EQ(c.downweighted, 2u);
+  EXPECT_EQ(c.labelled_nlos, 2u);
+  EXPECT_EQ(c.nlos_downweighted, 1u);
+  EXPECT_EQ(c.labelled_los, 2u);
+  EXPECT_EQ(c.los_downweighted, 1u);
+  EXPECT_DOUBLE_EQ(c.nlosCaught(), 0.5);
+  EXPECT_DOUBLE_EQ(c.losLost(), 0.5);
+  EXPECT_DOUBLE_EQ(c.downweightedFraction(), 0.4);
+}
+
+TEST(NlosClassification, ShortRangesStayOnTheGaussianSideOfTheAsymmetricModel) {
+  const std::vector<Vec3> anchors = {Vec3(0, 0, 2)};
+  const std::vector<RangeImuEstimator::TimedPose> trajectory = {{0, Pose3(Mat3::Identity(), Vec3(3, 4, 2))}};
+  RangeNoiseParams noise;
+  const RobustLossPtr asymmetric = makeRangeLoss("asymmetric", noise);
+  RangeSample r;
+  r.anchor_id = 0;
+  r.range_m = 5.0 - 0.15;  // one sigma short
+  EXPECT_EQ(classifyRanges({r}, trajectory, anchors, Vec3::Zero(), *asymmetric, noise.sigma_m).downweighted, 0u);
+  EXPECT_EQ(classifyRanges({r}, {}, anchors, Vec3::Zero(), *asymmetric, noise.sigma_m).ranges, 0u) << "no trajectory";
+}
+
+}  // namespace
+}  // namespace rilo

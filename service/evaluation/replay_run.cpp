@@ -37,7 +37,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;
   if (s.max_height_m) lp.height_band.max_height_m = *s.max_height_m;
   if (s.vertical_speed_sigma_m_s) lp.vertical_speed_sigma_m_s = *s.vertical_speed_sigma_m_s;
-  lp.smoother.method = smootherMethodFromName(s.smoother);
+  setEstimatorByName(lp, s.smoother);
   lp.smoother.lag_s = s.lag_s;
   return lp;
 }

@@ -112,8 +112,8 @@ void addReplayCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("replay", "Run the online pipeline over a recording (as fast as possible) and write its trajectories and timing");
   cmd->add_option("REC", options->recording, "Recording folder")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--out", options->out, "Output folder")->required();
-  cmd->add_option("--smoother", options->settings.smoother, "Incremental smoother")
-      ->capture_default_str()->check(CLI::IsMember({"d-isam2", "isam2", "dogleg"}));
+  cmd->add_option("--smoother", options->settings.smoother, "Estimator: an incremental smoother, or the EKF baseline")
+      ->capture_default_str()->check(CLI::IsMember(estimatorNames()));
   cmd->add_option("--noise", options->settings.noise, "Range noise model")
       ->capture_default_str()->check(CLI::IsMember({"gaussian", "huber", "cauchy", "asymmetric"}));
   cmd->add_option("--range-hz", options->settings.range_hz, "Thin ranges to this total rate (Hz; 0 keeps all)")

@@ -49,6 +49,7 @@ struct EkfCounters {
   EkfUpdateCounts range;
   EkfUpdateCounts tdoa;
   EkfUpdateCounts ultrasonic;
+  EkfUpdateCounts height_band;  ///< applyHeightBand updates
 
   std::uint64_t updates() const { return range.accepted + tdoa.accepted + ultrasonic.accepted; }
   std::uint64_t gated() const { return range.gated + tdoa.gated + ultrasonic.gated; }

@@ -4,6 +4,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -256,6 +257,21 @@ EkfUpdateResult ErrorStateEkf::updateTdoa(const Vec3& p_w_anchor_a, const Vec3& 
   const Eigen::Matrix<double, 1, 1> z(diff_m), sigma(sigma_m);
   return update<1>(predictTdoa(x_, p_w_anchor_a, p_w_anchor_b, p_b_tag), z, sigma, loss, params_.gate_chi2_1dof,
                    counters_.tdoa);
+}
+
+bool ErrorStateEkf::applyHeightBand(double z_min_m, double z_max_m, double sigma_m) {
+  requireInitialized("applyHeightBand");
+  requireSigma(sigma_m, "applyHeightBand", "sigma_m");
+  if (!(z_min_m <= z_max_m)) invalid("applyHeightBand", "z_min_m", "<= z_max_m");
+  const double z = x_.p_w_b.z();
+  if (z >= z_min_m && z <= z_max_m) return false;
+  EkfPrediction<1> pred;
+  pred.h(0) = z;
+  pred.H.setZero();
+  pred.H(0, 5) = 1.0;  // d z / d dp_z (dp in world)
+  const Eigen::Matrix<double, 1, 1> bound(z < z_min_m ? z_min_m : z_max_m), sigma(sigma_m);
+  return update<1>(pred, bound, sigma, nullptr, std::numeric_limits<double>::infinity(), counters_.height_band).status ==
+         UpdateStatus::kAccepted;
 }
 
 EkfUpdateResult ErrorStateEkf::updateUltrasonic(const Vec3& p_w_anchor, const Vec3& p_b_us, double range_m,

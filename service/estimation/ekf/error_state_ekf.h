@@ -105,6 +105,12 @@ class ErrorStateEkf {
                                    const std::optional<UltrasonicElevation>& elevation = std::nullopt,
                                    const RobustLoss* loss = nullptr);
 
+  /// Soft height band on the body origin (HeightBandFactor's model): when
+  /// p_w_b.z is outside [z_min_m, z_max_m], an update towards the nearer bound
+  /// with std-dev sigma_m; inside, nothing. Never gated (it is a prior, not a
+  /// measurement that can be an outlier). Returns whether it updated.
+  bool applyHeightBand(double z_min_m, double z_max_m, double sigma_m);
+
   bool initialized() const { return initialized_; }
   std::int64_t t_ns() const { return t_ns_; }          ///< time of the state (ns)
   const EkfState& state() const { return x_; }

@@ -459,11 +459,11 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   return true;
 }
 
-int handOver(const Initializer& initializer, RangeImuEstimator& estimator) {
+int handOver(const Initializer& initializer, TrackingEstimator& estimator) {
   if (!initializer.initialized()) {
     throw std::logic_error("handOver: the initializer is not initialized (" + initializer.status().message + ")");
   }
-  if (estimator.stream().started()) throw std::logic_error("handOver: the estimator was already started");
+  if (estimator.started()) throw std::logic_error("handOver: the estimator was already started");
   const StateEstimate& s = initializer.result().state;
   int updates = 0;
   estimator.start(s.t_ns, s.T_w_b, s.v_w, s.bias);  // the batch's bias too: the hand-over loses nothing

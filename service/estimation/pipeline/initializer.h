@@ -61,7 +61,7 @@
 
 namespace rilo {
 
-class RangeImuEstimator;
+class TrackingEstimator;
 
 struct InitializerParams {
   /// The estimator's graph parameters (IMU model, range loss and noise, lever
@@ -252,6 +252,6 @@ class Initializer {
 /// process. Afterwards feed new samples to the estimator. Returns the number
 /// of smoother updates. Throws std::logic_error if the initializer is not
 /// initialized or the estimator was already started.
-int handOver(const Initializer& initializer, RangeImuEstimator& estimator);
+int handOver(const Initializer& initializer, TrackingEstimator& estimator);
 
 }  // namespace rilo

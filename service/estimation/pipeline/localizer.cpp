@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "estimation/pipeline/ekf_estimator.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
 
 namespace rilo {
@@ -29,6 +30,24 @@ SmootherParams::Method smootherMethodFromName(const std::string& name) {
   if (name == "isam2") return SmootherParams::Method::kGaussNewton;
   if (name == "dogleg") return SmootherParams::Method::kDogleg;
   throw std::invalid_argument("unknown smoother '" + name + "' (expected d-isam2, isam2 or dogleg)");
+}
+
+const std::vector<std::string>& estimatorNames() {
+  static const std::vector<std::string> kNames = {"d-isam2", "isam2", "dogleg", "ekf"};
+  return kNames;
+}
+
+void setEstimatorByName(LocalizerParams& params, const std::string& name) {
+  if (name == "ekf") {
+    params.estimator = LocalizerParams::Estimator::kEkf;
+    return;
+  }
+  try {
+    params.smoother.method = smootherMethodFromName(name);
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument("unknown estimator '" + name + "' (expected d-isam2, isam2, dogleg or ekf)");
+  }
+  params.estimator = LocalizerParams::Estimator::kSmoother;
 }
 
 const char* smootherMethodName(SmootherParams::Method method) {
@@ -92,6 +111,14 @@ void Localizer::addRange(const RangeSample& sample) {
   }
 }
 
+void Localizer::addTdoa(const TdoaSample& sample) {
+  if (phase_ == Phase::kTracking) guarded([&] { estimator_->addTdoa(sample); });
+}
+
+void Localizer::addUltrasonic(const UltrasonicSample& sample) {
+  if (phase_ == Phase::kTracking) guarded([&] { estimator_->addUltrasonic(sample); });
+}
+
 int Localizer::process(std::vector<UpdateStats>* stats) {
   if (phase_ == Phase::kInitializing) {
     if (!initializer_.process()) return 0;
@@ -127,8 +154,12 @@ void Localizer::guarded(F&& f) {
 }
 
 void Localizer::startTracking() {
-  estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, params_.graph,
-                                                   std::make_unique<BayesTreeSmoother>(params_.smoother), params_.stream);
+  if (params_.estimator == LocalizerParams::Estimator::kEkf) {
+    estimator_ = std::make_unique<EkfEstimator>(p_w_anchors_, params_.graph, params_.ekf);
+  } else {
+    estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, params_.graph,
+                                                     std::make_unique<BayesTreeSmoother>(params_.smoother), params_.stream);
+  }
   // Starts at the initializer's state and replays what it buffered after
   // it, so no sample is lost.
   phase_ = Phase::kTracking;
@@ -173,12 +204,12 @@ void Localizer::fail(std::string why) {
 
 std::optional<CovarianceBlock> Localizer::latestPoseCovariance() {
   if (!tracking()) return std::nullopt;
-  return estimator_->smoother().marginalCovariance(sym::X(estimator_->latest().index));
+  return estimator_->latestPoseCovariance();
 }
 
 std::optional<CovarianceBlock> Localizer::latestVelocityCovariance() {
   if (!tracking()) return std::nullopt;
-  return estimator_->smoother().marginalCovariance(sym::V(estimator_->latest().index));
+  return estimator_->latestVelocityCovariance();
 }
 
 }  // namespace rilo

@@ -11,16 +11,23 @@
 #include <string>
 #include <vector>
 
+#include "estimation/ekf/ekf_params.h"
 #include "estimation/graph/factor.h"
 #include "estimation/pipeline/initializer.h"
 #include "estimation/pipeline/range_imu_estimator.h"
+#include "estimation/pipeline/tracking_estimator.h"
 #include "estimation/smoother/smoother_params.h"
 
 namespace rilo {
 
 struct LocalizerParams {
+  /// What tracks after initialization: the factor graph with a Bayes-tree
+  /// smoother (method in `smoother`), or the error-state EKF baseline.
+  enum class Estimator { kSmoother, kEkf };
+  Estimator estimator = Estimator::kSmoother;
   RangeImuGraphParams graph;
   SmootherParams smoother;           ///< method: D-iSAM2 (default), iSAM2, dog-leg
+  EkfParams ekf;                     ///< gates and robust iterations (its IMU model is graph.imu)
   InitializerParams init;
   RangeImuStreamOptions stream;
   /// What the deployment knows about the tag's height: used by the initializer
@@ -44,6 +51,10 @@ struct LocalizerParams {
 /// Parses "d-isam2" | "isam2" | "dogleg" (throws std::invalid_argument otherwise).
 SmootherParams::Method smootherMethodFromName(const std::string& name);
 const char* smootherMethodName(SmootherParams::Method method);
+/// The names `rilo replay --smoother` takes: the smoother methods and "ekf".
+const std::vector<std::string>& estimatorNames();
+/// Sets params.estimator (and params.smoother.method) from one of estimatorNames().
+void setEstimatorByName(LocalizerParams& params, const std::string& name);
 
 class Localizer {
  public:
@@ -54,6 +65,10 @@ class Localizer {
 
   void addImu(const ImuSample& sample);
   void addRange(const RangeSample& sample);
+  /// TDoA and ultrasonic ranges: used while tracking (the initializer works
+  /// from two-way ranges so far, and drops these).
+  void addTdoa(const TdoaSample& sample);
+  void addUltrasonic(const UltrasonicSample& sample);
   /// Runs what is ready: an initialization attempt, or smoother updates.
   /// Appends one UpdateStats per smoother update when `stats` is given.
   /// Returns the number of smoother updates.
@@ -70,10 +85,10 @@ class Localizer {
   /// Marginal covariance of the newest velocity (world, m^2/s^2), if available.
   std::optional<CovarianceBlock> latestVelocityCovariance();
   const InitStatus& initStatus() const { return initializer_.status(); }
-  const RangeImuEstimator* estimator() const { return estimator_.get(); }
-  /// The smoothed trajectory so far (see RangeImuEstimator::drainSmoothed);
+  const TrackingEstimator* estimator() const { return estimator_.get(); }
+  /// The smoothed trajectory so far (see TrackingEstimator::drainSmoothed);
   /// nothing while initializing.
-  void drainSmoothed(std::vector<RangeImuEstimator::TimedPose>& out, bool all = false) {
+  void drainSmoothed(std::vector<TimedPose>& out, bool all = false) {
     if (estimator_) estimator_->drainSmoothed(out, all);
   }
 
@@ -98,7 +113,7 @@ class Localizer {
   LocalizerParams params_;
   Phase phase_ = Phase::kInitializing;
   Initializer initializer_;
-  std::unique_ptr<RangeImuEstimator> estimator_;
+  std::unique_ptr<TrackingEstimator> estimator_;
   std::int64_t last_imu_ns_ = 0;
   bool have_imu_ = false;
   int consecutive_rejections_ = 0;

@@ -59,4 +59,12 @@ void RangeImuEstimator::drainSmoothed(std::vector<TimedPose>& out, bool all) {
   }
 }
 
+std::optional<CovarianceBlock> RangeImuEstimator::latestPoseCovariance() {
+  return smoother_->marginalCovariance(sym::X(latest_.index));
+}
+
+std::optional<CovarianceBlock> RangeImuEstimator::latestVelocityCovariance() {
+  return smoother_->marginalCovariance(sym::V(latest_.index));
+}
+
 }  // namespace rilo

@@ -9,11 +9,12 @@
 #include <vector>
 
 #include "estimation/pipeline/range_imu_graph_stream.h"
+#include "estimation/pipeline/tracking_estimator.h"
 #include "estimation/smoother/smoother.h"
 
 namespace rilo {
 
-class RangeImuEstimator {
+class RangeImuEstimator final : public TrackingEstimator {
  public:
   /// Throws std::invalid_argument on bad parameters (see the stream) or a null smoother.
   RangeImuEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphParams& graph_params,
@@ -21,29 +22,31 @@ class RangeImuEstimator {
 
   /// Opens state 0 at t0_ns around the given guess and absorbs its priors.
   UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
-                    const ImuBias& bias0_guess = ImuBias());
-  void addImu(const ImuSample& sample) { stream_.addImu(sample); }
-  void addRange(const RangeSample& sample) { stream_.addRange(sample); }
-  void addTdoa(const TdoaSample& sample) { stream_.addTdoa(sample); }
-  void addUltrasonic(const UltrasonicSample& sample) { stream_.addUltrasonic(sample); }
+                    const ImuBias& bias0_guess) override;
+  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess) {
+    return start(t0_ns, T_w_b0_guess, v_w0_guess, ImuBias());
+  }
+  bool started() const override { return stream_.started(); }
+  void addImu(const ImuSample& sample) override { stream_.addImu(sample); }
+  void addMeasurement(const Measurement& m) override { stream_.addMeasurement(m); }
   /// No more samples: lets the last ranging group through.
-  void finish() { stream_.finish(); }
+  void finish() override { stream_.finish(); }
 
   /// Feeds every ready increment to the smoother; appends one UpdateStats per
   /// update to `stats` when given. Returns the number of updates.
-  int process(std::vector<UpdateStats>* stats = nullptr);
+  int process(std::vector<UpdateStats>* stats = nullptr) override;
 
   /// Smoothed estimate of the newest state (valid after start()).
-  const StateEstimate& latest() const { return latest_; }
+  const StateEstimate& latest() const override { return latest_; }
 
-  struct TimedPose {
-    std::int64_t t_ns = 0;
-    Pose3 T_w_b;
-  };
+  using TimedPose = rilo::TimedPose;
   /// Appends the final poses of the states that left the smoother's window
   /// since the last call (the smoothed trajectory), in time order; with
   /// `all`, also every state still in the window (at the end of the data).
-  void drainSmoothed(std::vector<TimedPose>& out, bool all = false);
+  void drainSmoothed(std::vector<TimedPose>& out, bool all = false) override;
+  /// Marginal covariances of the newest state from the smoother.
+  std::optional<CovarianceBlock> latestPoseCovariance() override;
+  std::optional<CovarianceBlock> latestVelocityCovariance() override;
   Smoother& smoother() { return *smoother_; }
   const Smoother& smoother() const { return *smoother_; }
   const RangeImuGraphStream& stream() const { return stream_; }

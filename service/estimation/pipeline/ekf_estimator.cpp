@@ -1,0 +1,174 @@
+#include "estimation/pipeline/ekf_estimator.h"
+
+#include <chrono>
+#include <stdexcept>
+
+namespace rilo {
+namespace {
+
+RangeNoiseParams withSigma(RangeNoiseParams p, double sigma_m) {
+  p.sigma_m = sigma_m;
+  p.nlos_scale_m.reset();
+  return p;
+}
+
+EkfParams withImu(EkfParams p, const ImuParams& imu) {
+  p.imu = imu;
+  return p;
+}
+
+}  // namespace
+
+EkfEstimator::EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphParams& graph, const EkfParams& ekf)
+    : p_w_anchors_(std::move(p_w_anchors)),
+      graph_(graph),
+      ekf_(withImu(ekf, graph.imu)),
+      range_loss_(makeRangeLoss(graph.range_loss, graph.range_noise)),
+      tdoa_loss_(makeRangeLoss(graph.tdoa_loss, withSigma(graph.range_noise, graph.tdoa_sigma_m))),
+      ultrasonic_loss_(makeRangeLoss(graph.ultrasonic_loss, withSigma(graph.range_noise, graph.ultrasonic_sigma_m))) {
+  if (graph_.same_state_window_ns < 0) throw std::invalid_argument("EkfEstimator: same_state_window_ns must be >= 0");
+  pending_.reserve(64);
+  ready_.reserve(16);
+}
+
+UpdateStats EkfEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0) {
+  // The graph's first-state priors: rotation sigmas in the body chart, an
+  // isotropic position sigma (the same in world), velocity and biases.
+  Mat15 P = Mat15::Zero();
+  P.block<3, 3>(0, 0).diagonal() = graph_.first_pose_sigmas.head<3>().cwiseAbs2();
+  P.block<3, 3>(3, 3).diagonal().setConstant(graph_.first_pose_sigmas.tail<3>().cwiseAbs2().maxCoeff());
+  P.block<3, 3>(6, 6).diagonal().setConstant(graph_.first_velocity_sigma_m_s * graph_.first_velocity_sigma_m_s);
+  P.block<3, 3>(9, 9).diagonal().setConstant(graph_.first_accel_bias_sigma * graph_.first_accel_bias_sigma);
+  P.block<3, 3>(12, 12).diagonal().setConstant(graph_.first_gyro_bias_sigma * graph_.first_gyro_bias_sigma);
+  EkfState x;
+  x.R_w_b = T_w_b0.R;
+  x.p_w_b = T_w_b0.p;
+  x.v_w = v_w0;
+  x.bias = bias0;
+  ekf_.initialize(t0_ns, x, P);
+  latest_ = ekf_.estimate();
+  filtered_.push_back({t0_ns, latest_.T_w_b});
+  return UpdateStats();
+}
+
+void EkfEstimator::addImu(const ImuSample& sample) {
+  if (!started()) throw std::logic_error("EkfEstimator::addImu: call start() first");
+  drainPending(&sample, false);
+  if (group_open_ && sample.t_ns - group_t0_ns_ > graph_.same_state_window_ns) closeGroup();
+  if (sample.t_ns > ekf_.t_ns() || !have_imu_) ekf_.propagate(sample);
+  last_imu_ = sample;
+  have_imu_ = true;
+}
+
+void EkfEstimator::addMeasurement(const Measurement& m) {
+  if (!started()) throw std::logic_error("EkfEstimator::addMeasurement: call start() first");
+  if (m.t_ns < ekf_.t_ns() - graph_.same_state_window_ns) return;  // before the start: nothing to update
+  pending_.push_back(m);
+}
+
+void EkfEstimator::finish() {
+  drainPending(nullptr, true);
+  if (group_open_) closeGroup();
+}
+
+void EkfEstimator::drainPending(const ImuSample* next, bool all) {
+  while (pending_head_ < pending_.size()) {
+    const Measurement& m = pending_[pending_head_];
+    if (!all && (next == nullptr || m.t_ns > next->t_ns)) break;
+    if (group_open_ && m.t_ns - group_t0_ns_ > graph_.same_state_window_ns) closeGroup();
+    if (next != nullptr && m.t_ns > ekf_.t_ns()) propagateTo(m.t_ns, *next);
+    apply(m);
+    ++pending_head_;
+  }
+  if (pending_head_ == pending_.size()) {
+    pending_.clear();
+    pending_head_ = 0;
+  }
+}
+
+void EkfEstimator::propagateTo(std::int64_t t_ns, const ImuSample& next) {
+  if (!have_imu_ || next.t_ns <= last_imu_.t_ns) return;
+  const double a = static_cast<double>(t_ns - last_imu_.t_ns) / static_cast<double>(next.t_ns - last_imu_.t_ns);
+  ImuSample mid;
+  mid.t_ns = t_ns;
+  mid.gyro_rad_s = last_imu_.gyro_rad_s + a * (next.gyro_rad_s - last_imu_.gyro_rad_s);
+  mid.accel_m_s2 = last_imu_.accel_m_s2 + a * (next.accel_m_s2 - last_imu_.accel_m_s2);
+  ekf_.propagate(mid);
+  last_imu_ = mid;
+}
+
+void EkfEstimator::apply(const Measurement& m) {
+  const auto t0 = std::chrono::steady_clock::now();
+  EkfUpdateResult r;
+  switch (m.kind) {
+    case Measurement::Kind::kRange:
+      if (m.anchor >= p_w_anchors_.size()) return;
+      r = ekf_.updateRange(p_w_anchors_[m.anchor], graph_.p_b_tag, m.value_m, graph_.range_noise.sigma_m, range_loss_.get());
+      break;
+    case Measurement::Kind::kTdoa:
+      if (m.anchor >= p_w_anchors_.size() || m.anchor_b >= p_w_anchors_.size() || m.anchor == m.anchor_b) return;
+      r = ekf_.updateTdoa(p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], graph_.p_b_tag, m.value_m,
+                          graph_.tdoa_sigma_m, tdoa_loss_.get());
+      break;
+    case Measurement::Kind::kUltrasonic:
+      if (m.anchor >= graph_.p_w_ultrasonic.size()) return;
+      r = ekf_.updateUltrasonic(graph_.p_w_ultrasonic[m.anchor], graph_.p_b_ultrasonic, m.value_m,
+                                graph_.ultrasonic_sigma_m, std::nullopt, ultrasonic_loss_.get());
+      break;
+  }
+  if (!group_open_) {
+    group_open_ = true;
+    group_t0_ns_ = m.t_ns;
+    group_size_ = group_accepted_ = 0;
+    group_time_s_ = 0.0;
+  }
+  // The graph holds every state in the tag height band (HeightBandFactor on
+  // the body height); the filter applies the same band after each update.
+  // Without it, NLOS-long ranges from anchors above pulled the filtered
+  // height 2 m down within 10 s and the filter diverged.
+  const HeightBand& band = graph_.height_band;
+  if (band.enabled) ekf_.applyHeightBand(band.minZ() - graph_.p_b_tag.z(), band.maxZ() - graph_.p_b_tag.z(), band.sigma_m);
+  ++group_size_;
+  group_accepted_ += r.status == UpdateStatus::kAccepted;
+  group_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  group_state_ = ekf_.estimate();
+}
+
+void EkfEstimator::closeGroup() {
+  group_open_ = false;
+  latest_ = group_state_;
+  latest_.index = ++updates_;
+  filtered_.push_back({latest_.t_ns, latest_.T_w_b});
+  UpdateStats s;
+  s.factors_added = group_size_;
+  s.variables_total = 1;
+  s.step_tries = 1;
+  s.step_accepted = group_accepted_ > 0;  // every measurement gated: the filter kept its prediction
+  s.time_s = group_time_s_;
+  ready_.push_back(s);
+}
+
+int EkfEstimator::process(std::vector<UpdateStats>* stats) {
+  const int n = static_cast<int>(ready_.size());
+  if (stats) stats->insert(stats->end(), ready_.begin(), ready_.end());
+  ready_.clear();
+  return n;
+}
+
+void EkfEstimator::drainSmoothed(std::vector<TimedPose>& out, bool all) {
+  (void)all;  // a filter holds nothing back
+  out.insert(out.end(), filtered_.begin(), filtered_.end());
+  filtered_.clear();
+}
+
+std::optional<CovarianceBlock> EkfEstimator::latestPoseCovariance() {
+  if (!started()) return std::nullopt;
+  return CovarianceBlock(ekf_.poseCovarianceInRetractionChart());
+}
+
+std::optional<CovarianceBlock> EkfEstimator::latestVelocityCovariance() {
+  if (!started()) return std::nullopt;
+  return CovarianceBlock(ekf_.covariance().block<3, 3>(6, 6));
+}
+
+}  // namespace rilo

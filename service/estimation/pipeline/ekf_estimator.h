@@ -1,0 +1,80 @@
+#pragma once
+// The error-state EKF (estimation/ekf) as a TrackingEstimator: the filtering
+// baseline the smoothers are compared against (seed 002's EKF column), on the
+// same samples, initializer and outputs (`rilo replay --smoother ekf`).
+//
+// Timing: measurements wait until an IMU sample at or after their time has
+// arrived; the filter then propagates to the measurement's exact time (an
+// IMU sample interpolated between the two around it) and updates. Updates are
+// grouped like the graph's states (RangeImuGraphParams::same_state_window_ns):
+// a group ends when a measurement or the IMU passes its first time plus the
+// window, and counts as one update whose state (at the group's last
+// measurement) is latest(). The filtered states at those times are the
+// "smoothed" trajectory (a filter does not smooth).
+//
+// Measurement models, noise, losses and the tag height band are the graph's (RangeImuGraphParams):
+// ranges with range_loss and range_noise.sigma_m, TDoA with tdoa_loss and
+// tdoa_sigma_m, ultrasonic with ultrasonic_loss and ultrasonic_sigma_m;
+// anchors are the surveyed constants. The first covariance is the graph's
+// first-state priors. Per-sample work is fixed size; buffers grow to their
+// working size once (pending measurements, drained poses).
+#include <memory>
+#include <vector>
+
+#include "estimation/ekf/error_state_ekf.h"
+#include "estimation/pipeline/range_imu_graph.h"
+#include "estimation/pipeline/range_imu_graph_stream.h"  // StateEstimate
+#include "estimation/pipeline/tracking_estimator.h"
+
+namespace rilo {
+
+class EkfEstimator final : public TrackingEstimator {
+ public:
+  /// Throws std::invalid_argument on bad parameters (naming the field).
+  EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphParams& graph, const EkfParams& ekf = EkfParams());
+
+  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0) override;
+  bool started() const override { return ekf_.initialized(); }
+  void addImu(const ImuSample& sample) override;
+  void addMeasurement(const Measurement& m) override;
+  void finish() override;
+  int process(std::vector<UpdateStats>* stats = nullptr) override;
+  const StateEstimate& latest() const override { return latest_; }
+  void drainSmoothed(std::vector<TimedPose>& out, bool all = false) override;
+  std::optional<CovarianceBlock> latestPoseCovariance() override;
+  std::optional<CovarianceBlock> latestVelocityCovariance() override;
+
+  const ErrorStateEkf& filter() const { return ekf_; }
+
+ private:
+  /// Propagates to t_ns with an IMU sample interpolated between the last one and `next`.
+  void propagateTo(std::int64_t t_ns, const ImuSample& next);
+  void apply(const Measurement& m);
+  void closeGroup();
+  /// Applies the pending measurements up to t_ns (all with `all`), IMU `next` bounding them.
+  void drainPending(const ImuSample* next, bool all);
+
+  std::vector<Vec3> p_w_anchors_;
+  RangeImuGraphParams graph_;
+  ErrorStateEkf ekf_;
+  RobustLossPtr range_loss_, tdoa_loss_, ultrasonic_loss_;
+
+  bool have_imu_ = false;
+  ImuSample last_imu_;
+  std::vector<Measurement> pending_;  // time order, not yet applied
+  std::size_t pending_head_ = 0;
+
+  // The open update group.
+  bool group_open_ = false;
+  std::int64_t group_t0_ns_ = 0;
+  int group_size_ = 0, group_accepted_ = 0;
+  double group_time_s_ = 0.0;
+  StateEstimate group_state_;
+
+  StateEstimate latest_;
+  std::uint64_t updates_ = 0;
+  std::vector<UpdateStats> ready_;  // closed groups not yet reported by process()
+  std::vector<TimedPose> filtered_;  // not yet drained
+};
+
+}  // namespace rilo

@@ -1,0 +1,55 @@
+#pragma once
+// What the Localizer tracks with after initialization: samples in (time
+// order per stream), the newest state out. Two families implement it: the
+// factor-graph estimator (RangeImuEstimator: the graph stream and a smoother)
+// and the error-state EKF baseline (EkfEstimator). Single-threaded.
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "estimation/graph/values.h"
+#include "estimation/math/imu_bias.h"
+#include "estimation/math/pose3.h"
+#include "estimation/pipeline/measurement.h"
+#include "estimation/smoother/smoother.h"
+
+namespace rilo {
+
+struct StateEstimate;  // range_imu_graph_stream.h
+
+/// A pose of the final (smoothed or filtered) trajectory.
+struct TimedPose {
+  std::int64_t t_ns = 0;
+  Pose3 T_w_b;
+};
+
+class TrackingEstimator {
+ public:
+  virtual ~TrackingEstimator() = default;
+
+  /// Starts at t0_ns around the given state (priors of the graph parameters).
+  virtual UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0) = 0;
+  virtual bool started() const = 0;
+  virtual void addImu(const ImuSample& sample) = 0;
+  /// A range, TDoA or ultrasonic range (Measurement::of(sample)).
+  virtual void addMeasurement(const Measurement& m) = 0;
+  void addRange(const RangeSample& sample) { addMeasurement(Measurement::of(sample)); }
+  void addTdoa(const TdoaSample& sample) { addMeasurement(Measurement::of(sample)); }
+  void addUltrasonic(const UltrasonicSample& sample) { addMeasurement(Measurement::of(sample)); }
+  /// No more samples: lets the last measurements through.
+  virtual void finish() = 0;
+  /// Does the work that is ready; one UpdateStats per estimator update appended
+  /// to `stats` when given. Returns the number of updates.
+  virtual int process(std::vector<UpdateStats>* stats = nullptr) = 0;
+  /// Newest estimate (valid after start()).
+  virtual const StateEstimate& latest() const = 0;
+  /// Appends the final poses of states that left the estimator (in time
+  /// order); with `all`, also those still held (at the end of the data).
+  virtual void drainSmoothed(std::vector<TimedPose>& out, bool all = false) = 0;
+  /// Covariance of the newest pose, tangent [rot; trans] of Pose3, if available.
+  virtual std::optional<CovarianceBlock> latestPoseCovariance() = 0;
+  /// Covariance of the newest velocity (world, m^2/s^2), if available.
+  virtual std::optional<CovarianceBlock> latestVelocityCovariance() = 0;
+};
+
+}  // namespace rilo

@@ -140,6 +140,7 @@ int Service::run(const std::atomic<bool>& stop) {
 
 void Service::estimatorLoop() {
   std::vector<UpdateStats> stats;
+  std::vector<TimedPose> smoothed;  // drained and dropped, see below
   const auto silence_ns = static_cast<std::int64_t>(options_.sensor_silence_s * 1e9);
   std::vector<bool> silent(lanes_.size(), false);
   int init_attempts_seen = 0;
@@ -189,6 +190,11 @@ void Service::estimatorLoop() {
     stats.clear();
     const auto t_start = std::chrono::steady_clock::now();
     const int updates = localizer_.process(&stats);
+    // The smoothed states that left the smoother's window are not published
+    // (the smoothed topic carries the newest state): take them so the
+    // estimator's hand-back buffer stays bounded over hours.
+    smoothed.clear();
+    localizer_.drainSmoothed(smoothed);
     const double elapsed_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_start).count();
     if (localizer_.reinitializations() != reinit_before) {
       counters_.reinitializations.add(localizer_.reinitializations() - reinit_before);

@@ -414,6 +414,7 @@ Obstruction obstruction(const OfficePlan& plan, const Eigen::Vector3d& p_a, cons
       case ObstacleKind::kDesk: ++o.desks; break;
       case ObstacleKind::kCabinet: ++o.cabinets; break;
       case ObstacleKind::kPerson: ++o.people; break;
+      case ObstacleKind::kPillar: ++o.pillars; break;
     }
   }
   return o;

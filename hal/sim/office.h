@@ -10,7 +10,9 @@
 // wall centrelines with a convex free rectangle inside it where a person can
 // walk (furniture stands only in the strip between the walls and the free
 // rectangle); a door joins two spaces, and the walk planner steps through it
-// along the door's normal.
+// along the door's normal. An open hall (office_hall.h) is one space without
+// doors whose free rectangle holds free-standing furniture and pillars
+// ("islands": obstacles overlapping a free rectangle); the walk goes around them.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -28,7 +30,7 @@ struct Wall {
   WallMaterial material = WallMaterial::kDrywall;
 };
 
-enum class ObstacleKind { kDesk, kCabinet, kPerson };
+enum class ObstacleKind { kDesk, kCabinet, kPerson, kPillar };
 
 /// Axis-aligned box standing on the floor.
 struct Obstacle {
@@ -158,9 +160,10 @@ struct Obstruction {
   int desks = 0;
   int cabinets = 0;
   int people = 0;
+  int pillars = 0;
 
   int walls() const { return drywall + concrete; }
-  int total() const { return walls() + desks + cabinets + people; }
+  int total() const { return walls() + desks + cabinets + people + pillars; }
   bool lineOfSight() const { return total() == 0; }
 };
 

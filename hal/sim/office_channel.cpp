@@ -33,6 +33,7 @@ void validate(const ChannelParams& p) {
   validateMaterial(p.desk, "desk");
   validateMaterial(p.cabinet, "cabinet");
   validateMaterial(p.person, "person");
+  validateMaterial(p.pillar, "pillar");
   validateMaterial(p.body, "body");
   require(p.nlos_severity >= 0.0 && p.nlos_severity <= 10.0, "nlos_severity", "must be in [0, 10]");
   require(p.nlos_max_excess_m > 0.0 && p.nlos_max_excess_m <= 100.0, "nlos_max_excess_m", "must be in (0, 100] m");
@@ -80,6 +81,7 @@ LinkState OfficeChannel::link(std::size_t anchor, const KinematicState& body) co
   add(o.desks, P.desk);
   add(o.cabinets, P.cabinet);
   add(o.people, P.person);
+  add(o.pillars, P.pillar);
   add(L.body_shadowed ? 1 : 0, P.body);
   L.los = o.lineOfSight() && !L.body_shadowed;
 

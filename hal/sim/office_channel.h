@@ -49,6 +49,7 @@ struct ChannelParams {
   MaterialRf desk{1.5, 0.02, 0.05};
   MaterialRf cabinet{10.0, 0.20, 0.40};  ///< metal
   MaterialRf person{6.0, 0.10, 0.15};
+  MaterialRf pillar{12.0, 0.15, 0.45};   ///< concrete pillar of a hall, floor to ceiling
   MaterialRf body{8.0, 0.08, 0.10};      ///< the wearer's own body (body shadowing)
   double nlos_severity = 1.0;        ///< scales the NLOS range excess (delay and tail); 0 = attenuation only
   double nlos_max_excess_m = 8.0;    ///< physical cap on the excess (m)

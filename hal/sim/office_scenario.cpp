@@ -58,23 +58,42 @@ void validate(const OfficeScenarioParams& p) {
   validate(p.channel);
   validate(p.tdoa);
   validate(p.ultrasonic);
+  validate(p.hall);
 }
 
 OfficeSetup makeOfficeSetup(const OfficeScenarioParams& p) {
   validate(p);
   OfficeSetup s;
-  auto plan = std::make_shared<OfficePlan>(p.plan == OfficePlanKind::kRandom ? randomOfficePlan(p.seed)
-                                                                              : defaultOfficePlan());
+  auto plan = std::make_shared<OfficePlan>(officePlanOf(p));
   s.plan = plan;
-  s.p_w_anchors = placeAnchors(*plan, p.anchors);
+  s.p_w_anchors = anchorsOf(*plan, p);
   WalkParams wp = p.walk;
   wp.seed = p.seed;
   wp.duration_s = p.duration_s + 1.0;
   s.walk = std::make_shared<OfficeWalk>(*plan, wp);
   s.channel = std::make_shared<OfficeChannel>(*plan, s.p_w_anchors, p.p_b_tag, p.channel,
                                               streamSeed(p.seed, kChannelStream));
-  if (p.ultrasonic.enabled) s.p_w_ultrasonic = placeUltrasonicBeacons(*plan, p.ultrasonic);
+  if (p.ultrasonic.enabled) s.p_w_ultrasonic = ultrasonicBeaconsOf(*plan, p);
   return s;
+}
+
+OfficePlan officePlanOf(const OfficeScenarioParams& p) {
+  switch (p.plan) {
+    case OfficePlanKind::kRandom: return randomOfficePlan(p.seed);
+    case OfficePlanKind::kHall: return buildHallPlan(p.hall);
+    case OfficePlanKind::kDefault: break;
+  }
+  return defaultOfficePlan();
+}
+
+std::vector<Eigen::Vector3d> anchorsOf(const OfficePlan& plan, const OfficeScenarioParams& p) {
+  if (p.plan == OfficePlanKind::kHall) return placeHallAnchors(plan, p.hall, p.anchors.count, p.anchors.wall_offset_m);
+  return placeAnchors(plan, p.anchors);
+}
+
+std::vector<Eigen::Vector3d> ultrasonicBeaconsOf(const OfficePlan& plan, const OfficeScenarioParams& p) {
+  if (p.plan == OfficePlanKind::kHall) return placeHallUltrasonicBeacons(plan, p.ultrasonic);
+  return placeUltrasonicBeacons(plan, p.ultrasonic);
 }
 
 ScenarioParams scenarioParamsOf(const OfficeScenarioParams& p) {

@@ -1,6 +1,7 @@
 #pragma once
 // A ranging + IMU session of a person walking through an office: the office
-// plan with walls and furniture (office.h), sparse wall-mounted anchors, the
+// plan with walls and furniture (office.h; or an open hall with the anchors
+// around it, office_hall.h), sparse wall-mounted anchors, the
 // walk (walk.h), the radio channel (office_channel.h), a BMI263-class IMU at
 // 800 Hz and SS-TWR ranging to the strongest few anchors per cycle.
 //
@@ -38,19 +39,23 @@
 
 #include "hal/sim/office.h"
 #include "hal/sim/office_channel.h"
+#include "hal/sim/office_hall.h"
 #include "hal/sim/office_sensor_params.h"
 #include "hal/sim/range_imu_scenario.h"
 #include "hal/sim/walk.h"
 
 namespace rilo::sim {
 
-enum class OfficePlanKind { kDefault, kRandom };
+/// kDefault: defaultOfficePlan(); kRandom: randomOfficePlan(seed); kHall: an
+/// open hall with the anchors around it (office_hall.h).
+enum class OfficePlanKind { kDefault, kRandom, kHall };
 
 struct OfficeScenarioParams {
   std::uint64_t seed = 1;
   double duration_s = 60.0;
-  OfficePlanKind plan = OfficePlanKind::kDefault;  ///< kRandom: randomOfficePlan(seed)
-  AnchorPlacement anchors;                   ///< count, mounting heights
+  OfficePlanKind plan = OfficePlanKind::kDefault;
+  AnchorPlacement anchors;                   ///< count, mounting heights (kHall: count and wall offset only)
+  HallLayout hall;                           ///< kHall: size, furniture, low and high anchor heights
   WalkParams walk;                           ///< walk.seed and walk.duration_s are set from seed and duration_s
   Eigen::Vector3d p_b_tag{0.06, 0.0, 0.10};  ///< UWB antenna in the body frame (m); tag at ~1.35 m
   std::int64_t t0_ns = 1'000'000'000;        ///< time of the first IMU sample
@@ -133,6 +138,14 @@ struct OfficeSetup {
   std::vector<Eigen::Vector3d> p_w_ultrasonic;  ///< ultrasonic beacons (empty unless ultrasonic.enabled)
 };
 OfficeSetup makeOfficeSetup(const OfficeScenarioParams& p);
+
+/// The plan of p.plan (the hall of p.hall for kHall).
+OfficePlan officePlanOf(const OfficeScenarioParams& p);
+/// The UWB anchors of `p` in `plan`: placeAnchors, or placeHallAnchors for kHall.
+std::vector<Eigen::Vector3d> anchorsOf(const OfficePlan& plan, const OfficeScenarioParams& p);
+/// The ultrasonic beacons of `p` in `plan`: placeUltrasonicBeacons, or
+/// placeHallUltrasonicBeacons for kHall (whether p.ultrasonic.enabled or not).
+std::vector<Eigen::Vector3d> ultrasonicBeaconsOf(const OfficePlan& plan, const OfficeScenarioParams& p);
 
 /// ScenarioParams describing an office simulation (the fields they share; the
 /// Markov-chain NLOS fields do not apply: nlos_fraction is set by

@@ -45,7 +45,7 @@ double anchorToAnchorRssiDbm(const OfficePlan& plan, const ChannelParams& c, con
                              const Eigen::Vector3d& p_w_b) {
   const Obstruction o = obstruction(plan, p_w_a, p_w_b);
   const double loss_db = o.drywall * c.drywall.loss_db + o.concrete * c.concrete.loss_db + o.desks * c.desk.loss_db +
-                         o.cabinets * c.cabinet.loss_db + o.people * c.person.loss_db;
+                         o.cabinets * c.cabinet.loss_db + o.people * c.person.loss_db + o.pillars * c.pillar.loss_db;
   const double d = std::max((p_w_a - p_w_b).norm(), 0.1);
   return c.rssi_1m_dbm - 10.0 * c.path_loss_exponent * std::log10(d) - loss_db;
 }

@@ -133,7 +133,7 @@ OfficeUltrasonicStream::OfficeUltrasonicStream(const OfficeScenarioParams& p, co
       rng_(streamSeed(p.seed, kUltrasonicStream)) {
   validate(p);
   if (!setup_.walk || !setup_.plan) throw std::invalid_argument("OfficeUltrasonicStream: incomplete setup");
-  beacons_ = setup_.p_w_ultrasonic.empty() ? placeUltrasonicBeacons(*setup_.plan, up_) : setup_.p_w_ultrasonic;
+  beacons_ = setup_.p_w_ultrasonic.empty() ? ultrasonicBeaconsOf(*setup_.plan, p) : setup_.p_w_ultrasonic;
   SimRng field_rng(streamSeed(p.seed, kUltrasonicFieldStream));
   for (std::size_t j = 0; j < beacons_.size(); ++j) reflection_field_.emplace_back(field_rng, up_.field_length_m);
   last_t_ns_ = std::numeric_limits<std::int64_t>::min();

@@ -3,7 +3,8 @@
 // transceivers ... placed at known locations ... 10 Hz"; centimetre-level in
 // LOS, short range, easily obstructed).
 //
-// Beacons hang from the ceiling (placeUltrasonicBeacons); the receiver sits
+// Beacons hang from the ceiling (placeUltrasonicBeacons; in a hall
+// placeHallUltrasonicBeacons, office_hall.h); the receiver sits
 // on the body at p_b_receiver (meta ultrasonic.lever_arm). Their anchor ids
 // in a recording follow the UWB anchors': N_uwb + j for beacon j, kind
 // `ultrasonic`.
@@ -67,7 +68,7 @@ class OfficeUltrasonicStream {
  public:
   /// Uses p.ultrasonic (whether enabled or not), p.seed, p.duration_s,
   /// p.t0_ns and the channel's body-shadowing angles; the beacons are
-  /// setup.p_w_ultrasonic (placeUltrasonicBeacons when empty).
+  /// setup.p_w_ultrasonic (ultrasonicBeaconsOf when empty).
   OfficeUltrasonicStream(const OfficeScenarioParams& p, const OfficeSetup& setup);
   /// Next range and its truth; false at the end of the session.
   bool next(UltrasonicSample& sample, UltrasonicTruth& truth);

@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include <Eigen/Geometry>
 
 #include "hal/sim/office_random.h"
+#include "hal/sim/walk_islands.h"
 
 namespace rilo::sim {
 namespace {
@@ -209,7 +211,18 @@ OfficeWalk::OfficeWalk(const OfficePlan& plan, const WalkParams& params) : param
     if (!plan.spaces[i].corridor) rooms.push_back(static_cast<int>(i));
   }
   int space = rooms.empty() ? 0 : rooms[rng.index(rooms.size())];
-  wps.push_back({randomFreePoint(plan.spaces[static_cast<std::size_t>(space)], rng), 1.0, 0.0});
+  // Islands keep this far from the route: the body (0.3 m) plus the most a
+  // rounded corner (turns up to 120 degrees, sharper ones stop) cuts inside it.
+  const double clearance_m = 0.3 + 0.5 * P.turn_radius_m;
+  std::vector<WalkIslands> islands;
+  for (const Space& s : plan.spaces) islands.emplace_back(plan, s, clearance_m);
+  constexpr int kIslandTries = 200;
+  Vec2 start = randomFreePoint(plan.spaces[static_cast<std::size_t>(space)], rng);
+  for (int tries = 0; !islands[static_cast<std::size_t>(space)].clear(start, start); ++tries) {
+    if (tries == kIslandTries) throw std::invalid_argument("OfficeWalk: no free starting point (islands fill it)");
+    start = randomFreePoint(plan.spaces[static_cast<std::size_t>(space)], rng);
+  }
+  wps.push_back({start, 1.0, 0.0});
   const double lead_guess = P.start_moving ? 5.0 : 0.0;
   double planned = P.start_moving ? 0.0 : P.initial_still_s;
   bool first_leg = true;
@@ -221,21 +234,40 @@ OfficeWalk::OfficeWalk(const OfficePlan& plan, const WalkParams& params) : param
       next = static_cast<int>(rng.index(plan.spaces.size() - 1));
       if (next >= space) ++next;
     }
+    // In a single room (a hall) a moving start walks at least 4 m instead.
+    const double min_leg_m = first_leg && P.start_moving && plan.spaces.size() == 1 ? 4.0 : 1.0;
     first_leg = false;
-    Vec2 target = randomFreePoint(plan.spaces[static_cast<std::size_t>(next)], rng);
-    for (int tries = 0; tries < 10 && (target - wps.back().p).norm() < 1.0; ++tries) {
-      target = randomFreePoint(plan.spaces[static_cast<std::size_t>(next)], rng);
+    const Space& next_space = plan.spaces[static_cast<std::size_t>(next)];
+    Vec2 target = randomFreePoint(next_space, rng);
+    for (int tries = 0; tries < 10 && (target - wps.back().p).norm() < min_leg_m; ++tries) {
+      target = randomFreePoint(next_space, rng);
+    }
+    const std::vector<int> doors = routeDoors(plan, space, next);
+    const WalkIslands& next_islands = islands[static_cast<std::size_t>(next)];
+    std::vector<Vec2> around;  // corners of islands to pass on the last stretch
+    if (!next_islands.empty()) {
+      const Vec2 entry = doors.empty() ? wps.back().p : plan.approachPoint(doors.back(), next);
+      std::optional<std::vector<Vec2>> way;
+      for (int tries = 0; !way; ++tries) {
+        if (tries == kIslandTries) throw std::invalid_argument("OfficeWalk: no destination reachable around islands");
+        if (tries > 0) target = randomFreePoint(next_space, rng);
+        if (next_islands.clear(target, target) && (target - entry).norm() >= min_leg_m) {
+          way = next_islands.wayAround(entry, target);
+        }
+      }
+      around = std::move(*way);
     }
     const double speed = rng.uniform(P.speed_min_m_s, P.speed_max_m_s);
     const Vec2 from = wps.back().p;
     const std::size_t first_new = wps.size();
     int at = space;
-    for (int d : routeDoors(plan, space, next)) {
+    for (int d : doors) {
       const int beyond = plan.doors[static_cast<std::size_t>(d)].other(at);
       wps.push_back({plan.approachPoint(d, at), speed, 0.0});
       wps.push_back({plan.approachPoint(d, beyond), speed, 0.0});
       at = beyond;
     }
+    for (const Vec2& c : around) wps.push_back({c, speed, 0.0});
     const double pause = rng.bernoulli(P.pause_probability) ? rng.uniform(P.pause_min_s, P.pause_max_s) : 0.0;
     wps.push_back({target, speed, pause});
     // Time estimate (a lower bound: acceleration and turns only add time).

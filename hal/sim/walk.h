@@ -7,7 +7,13 @@
 // (fewest doors); the route steps through each door along its normal, from
 // the approach point on one side to the approach point on the other, so it
 // only ever leaves a space's free rectangle inside a door opening. At a
-// destination the person pauses (sometimes) and turns on the spot.
+// destination the person pauses (sometimes) and turns on the spot. Obstacles
+// standing inside a free rectangle (an open hall's desks, shelves, pillars:
+// "islands", walk_islands.h) are walked around: destinations are drawn
+// outside them and the last stretch to a destination takes the shortest way
+// past their corners, 0.3 m + turn_radius_m / 2 from them (the most a rounded
+// corner cuts inside the route), so the body keeps ~0.3 m from them. A plan
+// without islands draws exactly as before.
 //
 // Motion: corners of the route are rounded with circular arcs (radius up to
 // `turn_radius_m`, never more than half of either adjacent segment), a speed

@@ -120,9 +120,16 @@ int runSim(const SimOptions& o) {
       p.plan = sim::OfficePlanKind::kDefault;
     } else if (o.plan == "random") {
       p.plan = sim::OfficePlanKind::kRandom;
+    } else if (o.plan == "hall") {
+      p.plan = sim::OfficePlanKind::kHall;
     } else {
-      throw std::invalid_argument("--plan must be default or random, not '" + o.plan + "'");
+      throw std::invalid_argument("--plan must be default, random or hall, not '" + o.plan + "'");
     }
+    const bool hall = p.plan == sim::OfficePlanKind::kHall;
+    if (!hall && (o.hall_length != SimOptions{}.hall_length || o.hall_width != SimOptions{}.hall_width)) {
+      throw std::invalid_argument("--hall-length and --hall-width need --plan hall");
+    }
+    p.hall.size_m = Eigen::Vector2d(o.hall_length, o.hall_width);
     if (o.truth_hz > o.imu_hz) throw std::invalid_argument("--truth-hz must not exceed --imu-hz");
     sim::validate(p);
 
@@ -137,10 +144,16 @@ int runSim(const SimOptions& o) {
     sim::ScenarioRecordingOptions ro;
     ro.name = out.filename().empty() ? out.parent_path().filename().string() : out.filename().string();
     char description[256];
+    char plan_text[64];
+    if (hall) {
+      std::snprintf(plan_text, sizeof(plan_text), "%.1f m x %.1f m hall plan", o.hall_length, o.hall_width);
+    } else {
+      std::snprintf(plan_text, sizeof(plan_text), "%s office plan", o.plan.c_str());
+    }
     std::snprintf(description, sizeof(description),
-                  "rilo sim: %s office plan, seed %llu, %d anchors, %.1f min walk%s, ranging %.1f Hz (%d per cycle), "
+                  "rilo sim: %s, seed %llu, %d anchors, %.1f min walk%s, ranging %.1f Hz (%d per cycle), "
                   "packet loss %.2f, NLOS severity %.2f",
-                  o.plan.c_str(), static_cast<unsigned long long>(o.seed), o.anchors, o.minutes,
+                  plan_text, static_cast<unsigned long long>(o.seed), o.anchors, o.minutes,
                   o.start_moving ? " (moving at start)" : "", o.range_hz, o.ranges_per_cycle, o.packet_loss,
                   o.nlos_severity);
     ro.description = description;
@@ -159,9 +172,8 @@ int runSim(const SimOptions& o) {
     ro.writer.overwrite = o.force;
 
     // Anchor heights for the summary (the plan is cheap to rebuild).
-    const sim::OfficePlan plan = p.plan == sim::OfficePlanKind::kRandom ? sim::randomOfficePlan(p.seed)
-                                                                         : sim::defaultOfficePlan();
-    const std::vector<Eigen::Vector3d> anchors = sim::placeAnchors(plan, p.anchors);
+    const sim::OfficePlan plan = sim::officePlanOf(p);
+    const std::vector<Eigen::Vector3d> anchors = sim::anchorsOf(plan, p);
     double z_min = anchors.front().z(), z_max = z_min;
     for (const Eigen::Vector3d& a : anchors) {
       z_min = std::min(z_min, a.z());
@@ -180,8 +192,17 @@ int runSim(const SimOptions& o) {
                         static_cast<double>(st.cycles * static_cast<std::size_t>(o.ranges_per_cycle))
                   : 0.0;
     std::printf("rilo sim: wrote %s\n", o.out.c_str());
-    std::printf("  plan      %s office %.1f m x %.1f m, %zu spaces; %zu anchors at %.2f-%.2f m\n", o.plan.c_str(),
-                plan.size_m.x(), plan.size_m.y(), plan.spaces.size(), anchors.size(), z_min, z_max);
+    if (hall) {
+      std::size_t pillars = 0;
+      for (const sim::Obstacle& b : plan.obstacles) pillars += b.kind == sim::ObstacleKind::kPillar ? 1 : 0;
+      std::printf("  plan      hall %.1f m x %.1f m, %zu pillars, %zu desks, shelves and seated people; %zu anchors "
+                  "around it at %.2f-%.2f m (alternating low and high)\n",
+                  plan.size_m.x(), plan.size_m.y(), pillars, plan.obstacles.size() - pillars, anchors.size(), z_min,
+                  z_max);
+    } else {
+      std::printf("  plan      %s office %.1f m x %.1f m, %zu spaces; %zu anchors at %.2f-%.2f m\n", o.plan.c_str(),
+                  plan.size_m.x(), plan.size_m.y(), plan.spaces.size(), anchors.size(), z_min, z_max);
+    }
     std::printf("  duration  %.1f s, seed %llu\n", st.duration_s, static_cast<unsigned long long>(o.seed));
     std::printf("  imu       %zu samples at %g Hz\n", st.imu_samples, o.imu_hz);
     if (!o.tdoa || o.keep_twr) {
@@ -205,8 +226,8 @@ int runSim(const SimOptions& o) {
 void addSimCommand(CLI::App& app) {
   auto o = std::make_shared<SimOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "sim", "Simulate a person walking through an office (UWB ranges or TDoA, ultrasonic, IMU) and write it as a "
-      "recording folder");
+      "sim", "Simulate a person walking through an office or an open hall (UWB ranges or TDoA, ultrasonic, IMU) and "
+      "write it as a recording folder");
   cmd->add_option("OUT", o->out, "Recording folder to create")->required();
   cmd->add_option("--seed", o->seed, "Seed of the walk, the noise and (with --plan random) the plan")
       ->capture_default_str();
@@ -216,7 +237,9 @@ void addSimCommand(CLI::App& app) {
   cmd->add_option("--range-hz", o->range_hz, "Total ranging rate over all anchors, before packet loss (Hz)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 1000.0));
-  cmd->add_option("--anchors", o->anchors, "Number of anchors, mounted on walls at 2.0-2.8 m")
+  cmd->add_option("--anchors", o->anchors,
+                  "Number of anchors, mounted on walls at 2.0-2.8 m (hall: around it, alternating 0.5-1.0 m and "
+                  "2.5-2.8 m)")
       ->capture_default_str()
       ->check(CLI::Range(1, 32));
   cmd->add_option("--nlos-severity", o->nlos_severity,
@@ -230,9 +253,17 @@ void addSimCommand(CLI::App& app) {
   cmd->add_option("--packet-loss", o->packet_loss, "Probability that a range packet is lost")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 0.95));
-  cmd->add_option("--plan", o->plan, "Office plan: default (20 m x 12 m, corridor, 6 rooms) or random (from the seed)")
+  cmd->add_option("--plan", o->plan,
+                  "Office plan: default (20 m x 12 m, corridor, 6 rooms), random (from the seed) or hall (one open "
+                  "room with desks, shelves and pillars, the anchors around it)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"default", "random"}));
+      ->check(CLI::IsMember({"default", "random", "hall"}));
+  cmd->add_option("--hall-length", o->hall_length, "With --plan hall: its size along x (m)")
+      ->capture_default_str()
+      ->check(CLI::Range(6.0, 100.0));
+  cmd->add_option("--hall-width", o->hall_width, "With --plan hall: its size along y (m)")
+      ->capture_default_str()
+      ->check(CLI::Range(6.0, 100.0));
   cmd->add_option("--truth-hz", o->truth_hz, "Ground-truth pose rate in groundtruth.csv (Hz, at most --imu-hz)")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 4000.0));

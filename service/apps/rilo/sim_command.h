@@ -4,6 +4,8 @@
 // folder (docs/recording-format.md), then print a short summary. With --tdoa
 // the tag listens to UWB TDoA instead of SS-TWR ranging (hal/sim/office_tdoa.h),
 // with --ultrasonic ceiling beacons add ultrasonic ranges (office_ultrasonic.h).
+// --plan hall simulates an open hall with the anchors around it instead of an
+// office floor (hal/sim/office_hall.h).
 #include <cstdint>
 #include <string>
 
@@ -23,7 +25,9 @@ struct SimOptions {
   double imu_hz = 800.0;
   int ranges_per_cycle = 4;
   double packet_loss = 0.05;
-  std::string plan = "default";  ///< default | random
+  std::string plan = "default";  ///< default | random | hall
+  double hall_length = 16.0;     ///< --plan hall: size along x (m)
+  double hall_width = 10.0;      ///< --plan hall: size along y (m)
   double truth_hz = 200.0;
   bool start_moving = false;
   bool force = false;            ///< replace a recording already in `out`

@@ -16,9 +16,10 @@ struct SlidingWindowParams {
   double window_s = 5.0;
 
   // --- Levenberg-Marquardt (one run per update) ---------------------------
-  /// Outer iterations (linearizations) per update; the previous update's
-  /// optimum plus the IMU prediction of the new state is a good start, so a
-  /// few suffice (2 on the 40 Hz walk).
+  /// Bound on the outer iterations (linearizations) per update. The previous
+  /// update's estimate plus the IMU prediction of the new state is a good
+  /// start: in steady state the tolerances below stop after 1-2 iterations,
+  /// and the bound matters at start-up and after large corrections.
   int max_iterations = 6;
   /// Damping H + lambda I (Levenberg, as BatchLevenbergMarquardt's default:
   /// Marquardt scaling is ill-conditioned on the stiff IMU chains). Every
@@ -28,11 +29,20 @@ struct SlidingWindowParams {
   double lambda_max = 1e10;   ///< give up the update (keep the estimate) beyond this
   /// Accept a step when actual / predicted error decrease exceeds this.
   double min_gain_ratio = 1e-3;
-  /// Converged when an accepted step changed the error, and the model
-  /// predicted a change, of at most max(absolute_error_tolerance,
-  /// relative_error_tolerance * error).
+  /// Converged when the model predicts a decrease of at most
+  /// max(absolute_error_tolerance, relative_error_tolerance * error) (the
+  /// step is then kept if it did not increase the error). The error is
+  /// chi^2 / 2, and the predicted decrease of a Gauss-Newton step is half its
+  /// squared length in the metric of the window's information: 0.5 stops
+  /// once a step moves the window by less than one standard deviation
+  /// (jointly, so by less than one sigma in any single coordinate), and the
+  /// next update carries on from there. Measured on the 40 Hz walk with 4
+  /// ranges per state (2 s window): 1.09 iterations per update at this
+  /// tolerance, 1.96 at 0.05, 2.6 at 1e-2; the newest state's online error
+  /// was the same to 1 cm in all three (robust range losses make the
+  /// iterations after the first crawl: IRLS converges linearly).
   double relative_error_tolerance = 1e-6;
-  double absolute_error_tolerance = 1e-9;
+  double absolute_error_tolerance = 0.5;
   double step_tolerance = 1e-5;      ///< converged when |step|_inf <= this (rad / m ...)
   double gradient_tolerance = 1e-9;  ///< converged when |J^T r|_inf <= this before a step
 

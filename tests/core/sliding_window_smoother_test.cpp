@@ -191,6 +191,16 @@ TEST(SlidingWindowSmoother, WholeGraphInOneUpdateEqualsBatchLm) {
     EXPECT_LT(worstDifference(smoother, batch.values, &worst_key), 1e-8) << loss << " at " << worst_key;
     EXPECT_NEAR(smoother.error(), batch.result.final_error, 1e-9 * batch.result.final_error) << loss;
     EXPECT_NEAR(smoother.error(), smoother.errorFromScratch(), 1e-9 * smoother.error());
+    // Same Hessian at the same optimum: same marginal covariance (up to the
+    // conditioning of J^T J, ~1e9, under two elimination orders).
+    for (Key key : {X(0), V(10), B(20), w.graph.anchor_keys.front()}) {
+      const auto sw = smoother.marginalCovariance(key);
+      const auto lm_cov = lm.marginalCovariance(key);
+      ASSERT_TRUE(sw.has_value() && lm_cov.has_value()) << keyString(key);
+      EXPECT_LT((Eigen::MatrixXd(*sw) - Eigen::MatrixXd(*lm_cov)).cwiseAbs().maxCoeff(),
+                1e-5 * Eigen::MatrixXd(*lm_cov).cwiseAbs().maxCoeff())
+          << loss << " " << keyString(key);
+    }
   }
 }
 

@@ -39,6 +39,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.vertical_speed_sigma_m_s) lp.vertical_speed_sigma_m_s = *s.vertical_speed_sigma_m_s;
   setEstimatorByName(lp, s.smoother);
   lp.smoother.lag_s = s.lag_s;
+  lp.sliding_window.window_s = s.lag_s;
   return lp;
 }
 

@@ -135,6 +135,23 @@ TEST(Localizer, EkfBaselineTracksAfterTheSameInitialization) {
   EXPECT_LT(cov->diagonal().tail<3>().maxCoeff(), 1.0);
 }
 
+TEST(Localizer, SlidingWindowTracksAfterTheSameInitialization) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 30.0;
+  sp.seed = 3;
+  const sim::Scenario s = sim::simulateScenario(sp);
+  LocalizerParams p = paramsFor(s);
+  setEstimatorByName(p, "sliding-window");
+  p.sliding_window.window_s = 2.0;
+  Localizer localizer(s.p_w_anchors, p);
+  const FeedResult run = feed(s, localizer);
+  ASSERT_TRUE(localizer.tracking()) << localizer.initStatus().message;
+  EXPECT_EQ(localizer.reinitializations(), 0u) << localizer.lastFailure();
+  EXPECT_GT(run.tracked_updates, 200);
+  EXPECT_LT(run.mean_error_m, 1.0);
+  ASSERT_TRUE(localizer.latestPoseCovariance().has_value());
+}
+
 TEST(Localizer, NamesTheSmoothers) {
   EXPECT_EQ(smootherMethodFromName("d-isam2"), SmootherParams::Method::kDamped);
   EXPECT_EQ(smootherMethodFromName("isam2"), SmootherParams::Method::kGaussNewton);
@@ -145,6 +162,8 @@ TEST(Localizer, NamesTheSmoothers) {
   setEstimatorByName(named, "isam2");
   EXPECT_EQ(named.estimator, LocalizerParams::Estimator::kSmoother);
   EXPECT_EQ(named.smoother.method, SmootherParams::Method::kGaussNewton);
+  setEstimatorByName(named, "sliding-window");
+  EXPECT_EQ(named.estimator, LocalizerParams::Estimator::kSlidingWindow);
   EXPECT_THROW(setEstimatorByName(named, "kalman"), std::invalid_argument);
   LocalizerParams bad;
   bad.max_speed_m_s = 0.0;

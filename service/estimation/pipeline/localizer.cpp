@@ -7,6 +7,7 @@
 
 #include "estimation/pipeline/ekf_estimator.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
+#include "estimation/smoother/sliding_window_smoother.h"
 
 namespace rilo {
 
@@ -22,6 +23,7 @@ void LocalizerParams::validate() const {
   height_band.validate("LocalizerParams.height_band");
   if (!(vertical_speed_sigma_m_s >= 0.0 && std::isfinite(vertical_speed_sigma_m_s))) fail("vertical_speed_sigma_m_s", "must be finite and >= 0");
   smoother.validate();
+  sliding_window.validate();
   init.validate();
 }
 
@@ -33,7 +35,7 @@ SmootherParams::Method smootherMethodFromName(const std::string& name) {
 }
 
 const std::vector<std::string>& estimatorNames() {
-  static const std::vector<std::string> kNames = {"d-isam2", "isam2", "dogleg", "ekf"};
+  static const std::vector<std::string> kNames = {"d-isam2", "isam2", "dogleg", "sliding-window", "ekf"};
   return kNames;
 }
 
@@ -42,10 +44,14 @@ void setEstimatorByName(LocalizerParams& params, const std::string& name) {
     params.estimator = LocalizerParams::Estimator::kEkf;
     return;
   }
+  if (name == "sliding-window") {
+    params.estimator = LocalizerParams::Estimator::kSlidingWindow;
+    return;
+  }
   try {
     params.smoother.method = smootherMethodFromName(name);
   } catch (const std::invalid_argument&) {
-    throw std::invalid_argument("unknown estimator '" + name + "' (expected d-isam2, isam2, dogleg or ekf)");
+    throw std::invalid_argument("unknown estimator '" + name + "' (expected d-isam2, isam2, dogleg, sliding-window or ekf)");
   }
   params.estimator = LocalizerParams::Estimator::kSmoother;
 }
@@ -156,6 +162,9 @@ void Localizer::guarded(F&& f) {
 void Localizer::startTracking() {
   if (params_.estimator == LocalizerParams::Estimator::kEkf) {
     estimator_ = std::make_unique<EkfEstimator>(p_w_anchors_, params_.graph, params_.ekf);
+  } else if (params_.estimator == LocalizerParams::Estimator::kSlidingWindow) {
+    estimator_ = std::make_unique<RangeImuEstimator>(
+        p_w_anchors_, params_.graph, std::make_unique<SlidingWindowSmoother>(params_.sliding_window), params_.stream);
   } else {
     estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, params_.graph,
                                                      std::make_unique<BayesTreeSmoother>(params_.smoother), params_.stream);

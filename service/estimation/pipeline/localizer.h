@@ -16,17 +16,20 @@
 #include "estimation/pipeline/initializer.h"
 #include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/pipeline/tracking_estimator.h"
+#include "estimation/smoother/sliding_window_params.h"
 #include "estimation/smoother/smoother_params.h"
 
 namespace rilo {
 
 struct LocalizerParams {
   /// What tracks after initialization: the factor graph with a Bayes-tree
-  /// smoother (method in `smoother`), or the error-state EKF baseline.
-  enum class Estimator { kSmoother, kEkf };
+  /// smoother (method in `smoother`), the factor graph with the sliding-window
+  /// LM smoother (seed 002), or the error-state EKF baseline.
+  enum class Estimator { kSmoother, kSlidingWindow, kEkf };
   Estimator estimator = Estimator::kSmoother;
   RangeImuGraphParams graph;
   SmootherParams smoother;           ///< method: D-iSAM2 (default), iSAM2, dog-leg
+  SlidingWindowParams sliding_window;  ///< window_s follows smoother.lag_s when set by name
   EkfParams ekf;                     ///< gates and robust iterations (its IMU model is graph.imu)
   InitializerParams init;
   RangeImuStreamOptions stream;
@@ -51,7 +54,7 @@ struct LocalizerParams {
 /// Parses "d-isam2" | "isam2" | "dogleg" (throws std::invalid_argument otherwise).
 SmootherParams::Method smootherMethodFromName(const std::string& name);
 const char* smootherMethodName(SmootherParams::Method method);
-/// The names `rilo replay --smoother` takes: the smoother methods and "ekf".
+/// The names `rilo replay --smoother` takes: the smoother methods, "sliding-window" and "ekf".
 const std::vector<std::string>& estimatorNames();
 /// Sets params.estimator (and params.smoother.method) from one of estimatorNames().
 void setEstimatorByName(LocalizerParams& params, const std::string& name);

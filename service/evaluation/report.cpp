@@ -22,7 +22,10 @@ constexpr std::int64_t kErrorMaxDtNs = 50'000'000;
 
 bool sameRate(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
 
-bool isKnownSmoother(const std::string& s) { return s == "d-isam2" || s == "isam2" || s == "dogleg"; }
+bool isKnownSmoother(const std::string& s) {
+  const std::vector<std::string>& names = estimatorNames();
+  return std::find(names.begin(), names.end(), s) != names.end();
+}
 bool isKnownNoise(const std::string& n) {
   return n == "asymmetric" || n == "gaussian" || n == "huber" || n == "cauchy" || n == "asymmetric-half-cauchy";
 }
@@ -111,7 +114,8 @@ void makeLabelsUnique(std::vector<ReportRecording>& recordings) {
   }
 }
 
-std::filesystem::path simulateReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir) {
+std::filesystem::path simulateReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir,
+                                              sim::OfficePlanKind plan) {
   // The defaults of `rilo sim` (service/apps/rilo/sim_command.h, SimOptions).
   sim::OfficeScenarioParams p;
   p.seed = seed;
@@ -123,15 +127,16 @@ std::filesystem::path simulateReportRecording(std::uint64_t seed, double minutes
   p.ranges_per_cycle = 4;
   p.packet_loss = 0.05;
   p.walk.start_moving = false;
-  p.plan = sim::OfficePlanKind::kDefault;
+  p.plan = plan;
   sim::validate(p);
 
   sim::ScenarioRecordingOptions ro;
   ro.name = dir.filename().empty() ? dir.parent_path().filename().string() : dir.filename().string();
   char description[256];
   std::snprintf(description, sizeof(description),
-                "rilo report: default office plan, seed %llu, %d anchors, %.1f min walk, ranging %.1f Hz (%d per "
+                "rilo report: %s plan, seed %llu, %d anchors, %.1f min walk, ranging %.1f Hz (%d per "
                 "cycle), packet loss %.2f, NLOS severity %.2f",
+                plan == sim::OfficePlanKind::kHall ? "hall" : plan == sim::OfficePlanKind::kRandom ? "random office" : "default office",
                 static_cast<unsigned long long>(seed), p.anchors.count, minutes, p.range_rate_hz, p.ranges_per_cycle,
                 p.packet_loss, p.channel.nlos_severity);
   ro.description = description;
@@ -153,7 +158,7 @@ void ReportOptions::validate() const {
   if (rates_hz.empty()) throw std::invalid_argument("report: rates must not be empty");
   for (const std::string& s : smoothers) {
     if (!isKnownSmoother(s)) {
-      throw std::invalid_argument("report: smoothers: unknown smoother '" + s + "' (d-isam2, isam2, dogleg)");
+      throw std::invalid_argument("report: smoothers: unknown smoother '" + s + "' (d-isam2, isam2, dogleg, sliding-window, ekf)");
     }
   }
   for (const std::string& n : noises) {

@@ -37,6 +37,7 @@
 #include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/pipeline/trajectory_error.h"
 #include "hal/recording/recording.h"
+#include "hal/sim/office_scenario.h"
 
 namespace rilo {
 
@@ -59,10 +60,11 @@ ReportRecording loadReportRecording(const std::filesystem::path& dir);
 void makeLabelsUnique(std::vector<ReportRecording>& recordings);
 
 /// Simulates an office session exactly as `rilo sim DIR --seed SEED --minutes
-/// MINUTES` does with its other options at their defaults (same library
-/// call, sim::writeOfficeRecording) and writes it into `dir`, replacing a
-/// recording already there. Returns the folder.
-std::filesystem::path simulateReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir);
+/// MINUTES --plan PLAN` does with its other options at their defaults (same
+/// library call, sim::writeOfficeRecording) and writes it into `dir`,
+/// replacing a recording already there. Returns the folder.
+std::filesystem::path simulateReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir,
+                                              sim::OfficePlanKind plan = sim::OfficePlanKind::kDefault);
 
 struct ReportOptions {
   std::vector<double> rates_hz{1.0, 2.0, 4.0, 8.0, 20.0, 40.0};  ///< Fig. 7 (Hz)

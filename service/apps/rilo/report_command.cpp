@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "estimation/pipeline/localizer.h"
 #include "evaluation/report.h"
 #include "evaluation/report_markdown.h"
 
@@ -81,7 +82,7 @@ std::string commandLine(const ReportCommandOptions& o) {
     cmd += " --sim-seeds " + join(o.sim_seeds, [](std::uint64_t v) { return std::to_string(v); });
     char minutes[32];
     std::snprintf(minutes, sizeof minutes, "%g", o.sim_minutes);
-    cmd += std::string(" --sim-minutes ") + minutes;
+    cmd += std::string(" --sim-minutes ") + minutes + " --sim-plan " + o.sim_plan;
   }
   const auto number = [](double v) {
     char buf[32];
@@ -130,7 +131,10 @@ int runReportCommand(const ReportCommandOptions& o) {
         std::size_t done = 0;
         bar(0, dirs.size());
         parallelFor(dirs.size(), o.jobs, [&](std::size_t i) {
-          simulateReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i]);
+          simulateReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i],
+                                  o.sim_plan == "hall"     ? sim::OfficePlanKind::kHall
+                                  : o.sim_plan == "random" ? sim::OfficePlanKind::kRandom
+                                                           : sim::OfficePlanKind::kDefault);
           std::lock_guard<std::mutex> lock(mutex);
           bar(++done, dirs.size());
         });
@@ -185,7 +189,7 @@ void addReportCommand(CLI::App& app) {
                       "of Table II, Fig. 7 and Fig. 1)")
           ->delimiter(',')
           ->capture_default_str()
-          ->check(CLI::IsMember({"d-isam2", "isam2", "dogleg"}));
+          ->check(CLI::IsMember(estimatorNames()));
   cmd->add_option("--noises", o->noises,
                   "Range noise models (comma separated; asymmetric, else the first, is the headline model of Fig. 1 "
                   "and Table III)")
@@ -204,6 +208,9 @@ void addReportCommand(CLI::App& app) {
   cmd->add_option("--sim-minutes", o->sim_minutes, "Duration of each simulated session (min)")
       ->capture_default_str()
       ->check(CLI::Range(0.05, 600.0));
+  cmd->add_option("--sim-plan", o->sim_plan, "Plan of the simulated sessions (as rilo sim --plan)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"default", "random", "hall"}));
   cmd->add_option("--lag", o->lag_s, "Fixed lag of every smoother (s)")->capture_default_str()->check(CLI::Range(0.5, 600.0));
   cmd->callback([o, rates, smoothers] {
     ReportCommandOptions run = *o;

@@ -25,6 +25,7 @@ struct ReportCommandOptions {
   bool quick = false;  ///< applied by addReportCommand to the lists not given explicitly
   std::vector<std::uint64_t> sim_seeds;
   double sim_minutes = 2.0;
+  std::string sim_plan = "default";  ///< default | random | hall (as rilo sim --plan)
   double lag_s = 5.0;
 };
 

@@ -10,14 +10,9 @@
 #include <cstdio>
 #include <memory>
 
-#include "hal/bmi263/bmi263_source.h"
-#include "hal/bus/clock.h"
-#include "hal/bus/gpio_linux.h"
-#include "hal/bus/i2c_linux.h"
-#include "hal/bus/spi_linux.h"
-#include "hal/dw3000/dw3000_source.h"
 #include "hal/replay/replay_source.h"
 #include "rilod/config.h"
+#include "rilod/hardware_sources.h"
 #include "rilod/notify.h"
 #include "rilod/recorder.h"
 #include "rilod/recorder_config.h"
@@ -55,22 +50,12 @@ class RecordedSource final : public rilo::SampleSource {
   rilo::SampleSink& recorder_;
 };
 
-/// Hardware buses live as long as the sources using them.
-struct Hardware {
-  rilo::hal::MonotonicClock clock;
-  std::unique_ptr<rilo::hal::SpiLinux> spi;
-  std::unique_ptr<rilo::hal::GpioInterruptLine> uwb_irq;
-  std::unique_ptr<rilo::hal::GpioOutputLine> uwb_reset;
-  std::unique_ptr<rilo::hal::I2cLinux> i2c;
-  std::unique_ptr<rilo::hal::GpioInterruptLine> imu_irq;
-};
-
 int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   for (const std::string& w : rilo::applyProcessRealtime(cfg.realtime.process)) spdlog::warn("real-time: {}", w);
 
   // Sources.
   std::vector<std::unique_ptr<rilo::SampleSource>> sources;
-  Hardware hw;
+  rilo::LinuxHardware hw;  // buses live as long as the sources using them
   if (cfg.sources.mode == rilo::SourceMode::kReplay) {
     rilo::ReplayOptions ro;
     ro.pacing = cfg.sources.replay.pace == rilo::ReplayPace::kRealTime ? rilo::ReplayOptions::Pacing::kRealTime
@@ -79,15 +64,8 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
     ro.shift_to_now = cfg.sources.replay.shift_to_now && ro.pacing == rilo::ReplayOptions::Pacing::kRealTime;
     sources.push_back(std::make_unique<rilo::ReplaySource>(cfg.sources.replay.path, ro));
   } else {
-    const auto& u = cfg.sources.hardware.uwb;
-    const auto& m = cfg.sources.hardware.imu;
-    hw.spi = std::make_unique<rilo::hal::SpiLinux>(u.spi_device, u.dw3000.spi_slow_hz);
-    hw.uwb_irq = std::make_unique<rilo::hal::GpioInterruptLine>(u.irq.chip, u.irq.line, "rilod-uwb");
-    if (u.reset) hw.uwb_reset = std::make_unique<rilo::hal::GpioOutputLine>(u.reset->chip, u.reset->line, true);
-    hw.i2c = std::make_unique<rilo::hal::I2cLinux>(m.i2c_device, m.i2c_address);
-    hw.imu_irq = std::make_unique<rilo::hal::GpioInterruptLine>(m.irq.chip, m.irq.line, "rilod-imu");
-    sources.push_back(std::make_unique<rilo::dw3000::Dw3000Source>(u.dw3000, *hw.spi, *hw.uwb_irq, hw.uwb_reset.get(), hw.clock));
-    sources.push_back(std::make_unique<rilo::bmi263::Bmi263Source>(*hw.i2c, *hw.imu_irq, hw.clock, m.bmi263));
+    hw.openAll(cfg.sources.hardware, "rilod");
+    sources = rilo::makeHardwareSources(cfg.sources.hardware, hw.uwb(), hw.imu());
   }
   for (const auto& s : sources) spdlog::info("source: {}", s->describe());
 

@@ -9,6 +9,8 @@
 #include "eval_command.h"
 #include "import_command.h"
 #include "listen.h"
+#include "probe_command.h"
+#include "record_command.h"
 #include "replay_command.h"
 #include "report_command.h"
 #include "sim_command.h"
@@ -31,6 +33,8 @@ int main(int argc, char** argv) {
   rilo::tool::addEvalCommand(app);
   rilo::tool::addImportUtilCommand(app);
   rilo::tool::addListenCommand(app);
+  rilo::tool::addProbeCommand(app);
+  rilo::tool::addRecordCommand(app);
 
   CLI11_PARSE(app, argc, argv);
   try {

@@ -1,0 +1,638 @@
+#include "rilod/hardware_probe.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <exception>
+#include <memory>
+#include <stdexcept>
+#include <thread>
+#include <variant>
+
+#include "hal/bmi263/bmi263_driver.h"
+#include "hal/bmi263/bmi263_registers.h"
+#include "hal/bmi263/bmi263_source.h"
+#include "hal/dw3000/dw3000_device.h"
+#include "hal/dw3000/registers.h"
+
+namespace rilo {
+namespace {
+
+// CIA diagnostics of the last reception (file 0x0C), read after a good
+// exchange. Offsets from Qorvo's register map; not in the hardware notes.
+constexpr dw3000::RegAddr kIpDiag1{0x0C, 0x2C};   // C: CIR power, bits 16:0; IP_DIAG_2..4 follow at 0x30/0x34/0x38
+constexpr dw3000::RegAddr kIpDiag12{0x0C, 0x58};  // N: preamble accumulation count, bits 11:0
+constexpr std::uint32_t kCirPowerMask = 0x1FFFF;
+constexpr std::uint32_t kFirstPathMask = 0x3FFFFF;
+constexpr std::uint32_t kAccumulationMask = 0xFFF;
+constexpr std::size_t kMaxFaultMessages = 8;
+
+std::uint32_t le32(const std::uint8_t* p) {
+  return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
+         (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
+}
+
+std::int64_t secondsToNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
+const char* dataRateName(dw3000::DataRate rate) { return rate == dw3000::DataRate::k6M8 ? "6.8 Mb/s" : "850 kb/s"; }
+
+const char* clockOffsetName(dw3000::ClockOffsetSource source) {
+  switch (source) {
+    case dw3000::ClockOffsetSource::kCiaDiag0: return "cia_diag0";
+    case dw3000::ClockOffsetSource::kCarrierIntegrator: return "carrier_integrator";
+    case dw3000::ClockOffsetSource::kNone: return "none";
+  }
+  return "?";
+}
+
+const char* partName(std::uint32_t dev_id) {
+  if (dev_id == dw3000::kDevIdDw3110) return "DW3110";
+  if (dev_id == dw3000::kDevIdDw3120) return "DW3120";
+  return "unknown part";
+}
+
+std::string hex(std::uint32_t v, int digits) {
+  char text[16];
+  std::snprintf(text, sizeof text, "0x%0*X", digits, static_cast<unsigned>(v));
+  return text;
+}
+
+std::string i2cName(const ImuHardwareConfig& config) { return config.i2c_device + "@" + hex(config.i2c_address, 2); }
+
+/// RSSI and first-path power of the last good reception (NaN if unreadable).
+RxPower readRxPower(dw3000::Dw3000Device& device, bool prf64) {
+  std::array<std::uint8_t, 16> diag{};  // IP_DIAG_1..4
+  std::uint32_t n = 0;
+  if (device.read(kIpDiag1, diag) || device.read32(kIpDiag12, n)) return {};
+  return rxPowerFromDiagnostics(le32(diag.data()) & kCirPowerMask, le32(diag.data() + 4) & kFirstPathMask,
+                                le32(diag.data() + 8) & kFirstPathMask, le32(diag.data() + 12) & kFirstPathMask,
+                                n & kAccumulationMask, prf64);
+}
+
+bool interrupted(const std::atomic<bool>* interrupt) {
+  return interrupt != nullptr && interrupt->load(std::memory_order_relaxed);
+}
+
+// --- DWM3000 ------------------------------------------------------------------
+
+void fillUwbConfig(const UwbHardwareConfig& config, UwbProbe& out) {
+  const dw3000::Dw3000Config& c = config.dw3000;
+  out.device = config.spi_device;
+  out.channel = static_cast<int>(c.channel);
+  out.preamble_code = c.preamble_code;
+  out.preamble_length = c.preamble_length;
+  out.data_rate = dataRateName(c.data_rate);
+  out.tx_antenna_delay = c.tx_antenna_delay;
+  out.rx_antenna_delay = c.rx_antenna_delay;
+  out.clock_offset_source = clockOffsetName(c.clock_offset_source);
+  out.reply_delay_us = c.reply_delay_us;
+  for (const dw3000::AnchorConfig& a : c.anchors) {
+    AnchorProbe probe;
+    probe.id = a.id;
+    probe.short_address = a.short_address;
+    out.anchors.push_back(probe);
+  }
+}
+
+void readUwbStatus(dw3000::Dw3000Device& device, UwbProbe& out) {
+  out.dev_id = device.devId();
+  out.spi_crc = device.spiCrcEnabled();
+  out.irq_mask = device.irqMask();
+  std::array<std::uint8_t, 2> tx_antd{};
+  std::uint32_t cia_conf = 0;
+  if (!device.read(dw3000::reg::kTxAntd, tx_antd)) {
+    out.tx_antenna_delay_read = static_cast<std::uint16_t>(tx_antd[0] | (tx_antd[1] << 8));
+  }
+  if (!device.read32(dw3000::reg::kCiaConf, cia_conf)) out.rx_antenna_delay_read = static_cast<std::uint16_t>(cia_conf & 0xFFFF);
+  (void)device.read32(dw3000::reg::kSysStatus, out.sys_status);
+  (void)device.read32(dw3000::reg::kSysState, out.sys_state);
+}
+
+/// Brings the chip up; false (error filled) on failure.
+bool bringUpUwb(dw3000::Dw3000Device& device, UwbProbe& out, const char* what) {
+  try {
+    device.bringUp();
+    return true;
+  } catch (const std::exception& e) {
+    out.error = std::string("DWM3000 ") + what + " failed on " + out.device + ": " + e.what();
+    return false;
+  }
+}
+
+/// SS-TWR with every configured anchor in turn, each at the scheduler's
+/// per-anchor rate, for `seconds`. No strongest-N selection: a bring-up wants
+/// to see every anchor, weak ones included.
+void measureUwb(dw3000::Dw3000Device& device, const dw3000::Dw3000Config& config, hal::Clock& clock, double seconds,
+                const std::atomic<bool>* interrupt, UwbProbe& out) {
+  const bool prf64 = config.preamble_code >= 9;
+  const std::int64_t period_ns = std::max<std::int64_t>(1, secondsToNs(1.0 / config.scheduler.range_rate_hz));
+  const std::int64_t start_ns = clock.nowNs();
+  const std::int64_t end_ns = start_ns + secondsToNs(seconds);
+  std::int64_t cycle_ns = start_ns;
+  int device_faults_in_row = 0;
+  while (clock.nowNs() < end_ns && !interrupted(interrupt)) {
+    for (std::size_t i = 0; i < config.anchors.size() && clock.nowNs() < end_ns && !interrupted(interrupt); ++i) {
+      AnchorProbe& anchor = out.anchors[i];
+      ++anchor.attempts;
+      const dw3000::ExchangeResult r = device.range(config.anchors[i]);
+      bool reinit = false;
+      if (r.status == dw3000::ExchangeStatus::kOk) {
+        device_faults_in_row = 0;
+        anchor.range_m.add(r.range_m);
+        anchor.clock_offset_ppm.add(r.clock_offset_ratio * 1e6);
+        const RxPower power = readRxPower(device, prf64);
+        if (std::isfinite(power.rssi_dbm)) anchor.rssi_dbm.add(power.rssi_dbm);
+        if (std::isfinite(power.fp_power_dbm)) anchor.fp_power_dbm.add(power.fp_power_dbm);
+      } else if (dw3000::isDeviceFault(r.status)) {
+        ++out.device_faults[dw3000::toString(r.status)];
+        ++device_faults_in_row;
+        reinit = r.status == dw3000::ExchangeStatus::kTxFailed ||
+                 device_faults_in_row >= config.device_faults_before_reinit;
+      } else {
+        device_faults_in_row = 0;
+        ++anchor.errors[dw3000::toString(r.status)];
+      }
+      if (r.irq == dw3000::IrqCheck::kRecovered) ++out.device_faults["IRQ high after clearing (recovered)"];
+      if (r.irq == dw3000::IrqCheck::kStuck) {
+        ++out.device_faults["IRQ stuck high"];
+        reinit = true;
+      }
+      if (reinit) {
+        ++out.reinitializations;
+        device_faults_in_row = 0;
+        if (!bringUpUwb(device, out, "re-initialization")) {
+          out.up = false;
+          break;
+        }
+      }
+    }
+    if (!out.up) break;
+    cycle_ns += period_ns;
+    const std::int64_t now_ns = clock.nowNs();
+    if (cycle_ns > now_ns) {
+      clock.sleepForNs(std::min(cycle_ns, end_ns) - now_ns);
+    } else {
+      cycle_ns = now_ns;  // slower than the rate (timeouts): no catching up
+    }
+  }
+  out.seconds = static_cast<double>(clock.nowNs() - start_ns) * 1e-9;
+}
+
+void probeUwb(const UwbHardwareConfig& config, const UwbProbeTarget& target, double seconds,
+              const std::atomic<bool>* interrupt, UwbProbe& out) {
+  fillUwbConfig(config, out);
+  if (!target.open_error.empty()) {
+    out.error = target.open_error;
+    return;
+  }
+  if (target.buses.spi == nullptr || target.buses.irq == nullptr || target.buses.clock == nullptr) {
+    throw std::invalid_argument("runProbe: uwb.buses: the SPI device, IRQ line and clock are required");
+  }
+  out.opened = true;
+  out.device = target.buses.spi->path();
+  dw3000::Dw3000Device device(config.dw3000, *target.buses.spi, *target.buses.irq, target.buses.reset,
+                              *target.buses.clock);
+  if (!bringUpUwb(device, out, "bring-up")) return;
+  out.up = true;
+  readUwbStatus(device, out);
+  measureUwb(device, config.dw3000, *target.buses.clock, seconds, interrupt, out);
+}
+
+// --- BMI263 -------------------------------------------------------------------
+
+/// Accumulates the IMU stream and ends the run `seconds` after the first
+/// sample (checked on every sample and fault: the source reports a fault at
+/// least every irq_timeout_ns while no sample arrives).
+class ImuProbeSink final : public SampleSink {
+ public:
+  ImuProbeSink(hal::Clock& clock, double seconds, const std::atomic<bool>* interrupt, ImuProbe& out)
+      : clock_(clock),
+        window_ns_(secondsToNs(seconds)),
+        // No first sample this long after the start: give up (bring-up retries included).
+        give_up_ns_(clock.nowNs() + window_ns_ + 5'000'000'000),
+        interrupt_(interrupt),
+        out_(out) {}
+
+  void push(const Sample& sample) noexcept override {
+    if (const auto* imu = std::get_if<ImuSample>(&sample)) add(*imu);
+    checkDeadline();
+  }
+
+  void fault(const SourceFault& fault) noexcept override {
+    ++out_.fault_count;
+    if (out_.faults.size() < kMaxFaultMessages) {
+      try {
+        out_.faults.push_back((fault.fatal ? "[fatal] " : "") + fault.device + ": " + fault.what);
+      } catch (...) {  // out of memory: the count is enough
+      }
+    }
+    checkDeadline();
+  }
+
+  const std::atomic<bool>& stop() const { return stop_; }
+
+  void finish() {
+    ImuProbe& o = out_;
+    if (o.samples == 0) return;
+    const double n = static_cast<double>(o.samples);
+    o.seconds = static_cast<double>(last_ns_ - first_ns_) * 1e-9;
+    o.rate_hz = o.samples > 1 && o.seconds > 0.0 ? (n - 1.0) / o.seconds : 0.0;
+    o.max_gap_ms = static_cast<double>(max_gap_ns_) * 1e-6;
+    o.mean_accel_norm_m_s2 = accel_norm_sum_ / n;
+    for (int k = 0; k < 3; ++k) {
+      o.mean_accel_m_s2[static_cast<std::size_t>(k)] = accel_sum_[k] / n;
+      o.mean_gyro_rad_s[static_cast<std::size_t>(k)] = gyro_sum_[k] / n;
+    }
+  }
+
+ private:
+  void add(const ImuSample& s) noexcept {
+    if (out_.samples == 0) {
+      first_ns_ = s.t_ns;
+      deadline_ns_ = clock_.nowNs() + window_ns_;
+    } else {
+      max_gap_ns_ = std::max(max_gap_ns_, s.t_ns - last_ns_);
+    }
+    last_ns_ = s.t_ns;
+    ++out_.samples;
+    accel_sum_ += s.accel_m_s2;
+    gyro_sum_ += s.gyro_rad_s;
+    accel_norm_sum_ += s.accel_m_s2.norm();
+  }
+
+  void checkDeadline() noexcept {
+    const std::int64_t now_ns = clock_.nowNs();
+    const bool done = out_.samples > 0 ? now_ns >= deadline_ns_ : now_ns >= give_up_ns_;
+    if (done || interrupted(interrupt_)) stop_.store(true, std::memory_order_relaxed);
+  }
+
+  hal::Clock& clock_;
+  std::int64_t window_ns_;
+  std::int64_t give_up_ns_;
+  const std::atomic<bool>* interrupt_;
+  ImuProbe& out_;
+  std::atomic<bool> stop_{false};
+  std::int64_t deadline_ns_ = 0;
+  std::int64_t first_ns_ = 0;
+  std::int64_t last_ns_ = 0;
+  std::int64_t max_gap_ns_ = 0;
+  Eigen::Vector3d accel_sum_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gyro_sum_ = Eigen::Vector3d::Zero();
+  double accel_norm_sum_ = 0.0;
+};
+
+void fillImuConfig(const ImuHardwareConfig& config, ImuProbe& out) {
+  const bmi263::Bmi263Config& c = config.bmi263;
+  out.device = i2cName(config);
+  out.odr_hz = bmi263::odrHz(c.odr);
+  out.accel_range_g = bmi263::accelRangeG(c.accel_range);
+  out.gyro_range_dps = bmi263::gyroRangeDps(c.gyro_range);
+  out.interrupt_mode = bmi263::toString(c.interrupt_mode);
+}
+
+/// Bring-up through the driver (for the chip id and INTERNAL_STATUS), then
+/// the stream through the source rilod runs (its own bring-up, its time fit).
+void probeImu(const ImuHardwareConfig& config, const ImuProbeTarget& target, double seconds,
+              const std::atomic<bool>* interrupt, ImuProbe& out) {
+  fillImuConfig(config, out);
+  if (!target.open_error.empty()) {
+    out.error = target.open_error;
+    return;
+  }
+  if (target.buses.i2c == nullptr || target.buses.irq == nullptr || target.buses.clock == nullptr) {
+    throw std::invalid_argument("runProbe: imu.buses: the I2C device, IRQ line and clock are required");
+  }
+  out.opened = true;
+  out.device = target.buses.i2c->path();
+  hal::Clock& clock = *target.buses.clock;
+  {
+    bmi263::Bmi263Driver driver(*target.buses.i2c, clock, config.bmi263);
+    const bmi263::BringUpResult r = driver.bringUp();
+    out.chip_id = r.chip_id;
+    out.internal_status = r.internal_status;
+    if (!r.ok) {
+      out.error = "BMI263 bring-up failed on " + out.device + ": " + r.error;
+      return;
+    }
+  }
+  out.up = true;
+  bmi263::Bmi263Source source(*target.buses.i2c, *target.buses.irq, clock, config.bmi263);
+  ImuProbeSink sink(clock, seconds, interrupt, out);
+  const SourceEnd end = source.run(sink, sink.stop());
+  sink.finish();
+  const bmi263::Bmi263Counters c = source.counters();
+  out.temperature_degc = c.temperature_reads > 0 ? c.temperature_degc : std::numeric_limits<double>::quiet_NaN();
+  out.missed_samples = c.missed_samples;
+  out.i2c_retries = c.i2c_retries;
+  out.i2c_failures = c.i2c_failures;
+  out.recoveries = c.recoveries;
+  if (end == SourceEnd::kFailed) {
+    out.up = false;
+    out.error = "BMI263 on " + out.device + " stopped: " + (out.faults.empty() ? "fatal fault" : out.faults.back());
+  }
+}
+
+// --- text ---------------------------------------------------------------------
+
+std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
+std::string format(const char* fmt, ...) {
+  char text[512];
+  va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(text, sizeof text, fmt, args);
+  va_end(args);
+  return text;
+}
+
+/// `v` with `decimals` digits after the point (and a sign if `sign`).
+std::string fixed(double v, int decimals, bool sign = false) {
+  return sign ? format("%+.*f", decimals, v) : format("%.*f", decimals, v);
+}
+
+std::string statOrDash(const RunningStats& s, int decimals, bool sign = false) {
+  return s.count > 0 ? fixed(s.mean, decimals, sign) : std::string("-");
+}
+
+std::string countsText(const std::map<std::string, std::uint64_t>& counts) {
+  std::string text;
+  for (const auto& [kind, n] : counts) {
+    if (!text.empty()) text += ", ";
+    text += kind + " " + std::to_string(n);
+  }
+  return text.empty() ? std::string("none") : text;
+}
+
+// --- JSON ---------------------------------------------------------------------
+
+std::string jsonText(const std::string& s) {
+  std::string out = "\"";
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (c < 0x20) {
+      out += format("\\u%04x", static_cast<unsigned>(c));
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
+/// `v` with `decimals` digits after the point (6 significant digits if < 0); null if not finite.
+std::string jsonNumber(double v, int decimals = -1) {
+  if (!std::isfinite(v)) return "null";
+  return decimals < 0 ? format("%.6g", v) : fixed(v, decimals);
+}
+
+std::string jsonStat(const RunningStats& s, int decimals) {
+  return s.count > 0 ? jsonNumber(s.mean, decimals) : std::string("null");
+}
+
+std::string jsonCounts(const std::map<std::string, std::uint64_t>& counts) {
+  std::string out = "{";
+  for (const auto& [kind, n] : counts) {
+    if (out.size() > 1) out += ", ";
+    out += jsonText(kind) + ": " + std::to_string(n);
+  }
+  return out + "}";
+}
+
+std::string jsonBool(bool b) { return b ? "true" : "false"; }
+
+std::string jsonError(const std::string& e) { return e.empty() ? std::string("null") : jsonText(e); }
+
+std::string jsonVec(const std::array<double, 3>& v) {
+  return "[" + jsonNumber(v[0], 6) + ", " + jsonNumber(v[1], 6) + ", " + jsonNumber(v[2], 6) + "]";
+}
+
+}  // namespace
+
+RxPower rxPowerFromDiagnostics(std::uint32_t c_power, std::uint32_t f1, std::uint32_t f2, std::uint32_t f3,
+                               std::uint32_t accumulation_count, bool prf64) {
+  RxPower p;
+  if (accumulation_count == 0) return p;
+  const double a_db = prf64 ? 121.7 : 113.8;
+  const double n2 = static_cast<double>(accumulation_count) * static_cast<double>(accumulation_count);
+  if (c_power > 0) p.rssi_dbm = 10.0 * std::log10(static_cast<double>(c_power) * 2097152.0 / n2) - a_db;
+  // F1..F3 carry 2 fractional bits.
+  const double a1 = f1 / 4.0, a2 = f2 / 4.0, a3 = f3 / 4.0;
+  const double fp = a1 * a1 + a2 * a2 + a3 * a3;
+  if (fp > 0.0) p.fp_power_dbm = 10.0 * std::log10(fp / n2) - a_db;
+  return p;
+}
+
+void RunningStats::add(double x) noexcept {
+  ++count;
+  const double delta = x - mean;
+  mean += delta / static_cast<double>(count);
+  m2 += delta * (x - mean);
+  min = std::min(min, x);
+  max = std::max(max, x);
+}
+
+double RunningStats::stddev() const noexcept {
+  return count > 1 ? std::sqrt(m2 / static_cast<double>(count - 1)) : 0.0;
+}
+
+double AnchorProbe::successRate() const noexcept {
+  return attempts > 0 ? static_cast<double>(ranges()) / static_cast<double>(attempts) : 0.0;
+}
+
+std::vector<std::string> ProbeReport::problems() const {
+  std::vector<std::string> p;
+  if (!uwb.error.empty()) p.push_back(uwb.error);
+  if (!imu.error.empty()) p.push_back(imu.error);
+  if (uwb.up) {
+    std::uint64_t ranges = 0;
+    for (const AnchorProbe& a : uwb.anchors) ranges += a.ranges();
+    if (ranges == 0) p.push_back("DWM3000 on " + uwb.device + ": no anchor answered (check the responders' short addresses, PAN id, channel and preamble code)");
+  }
+  if (imu.up && imu.samples == 0) p.push_back("BMI263 on " + imu.device + ": no sample arrived (check the INT1 line)");
+  return p;
+}
+
+int ProbeReport::exitCode() const noexcept {
+  if (!uwb.up || !imu.up) return 2;
+  std::uint64_t ranges = 0;
+  for (const AnchorProbe& a : uwb.anchors) ranges += a.ranges();
+  return ranges == 0 || imu.samples == 0 ? 3 : 0;
+}
+
+ProbeReport runProbe(const HardwareSourceConfig& config, const UwbProbeTarget& uwb, const ImuProbeTarget& imu,
+                     const ProbeOptions& options, const std::atomic<bool>* interrupt) {
+  if (!(options.seconds > 0.0 && options.seconds <= 3600.0)) {
+    throw std::invalid_argument("ProbeOptions: seconds must be in (0, 3600], got " + std::to_string(options.seconds));
+  }
+  ProbeReport report;
+  // The IMU in its own thread while the UWB ranges here (as in rilod).
+  std::exception_ptr imu_error;
+  std::thread imu_thread([&] {
+    try {
+      probeImu(config.imu, imu, options.seconds, interrupt, report.imu);
+    } catch (...) {
+      imu_error = std::current_exception();
+    }
+  });
+  std::exception_ptr uwb_error;
+  try {
+    probeUwb(config.uwb, uwb, options.seconds, interrupt, report.uwb);
+  } catch (...) {
+    uwb_error = std::current_exception();
+  }
+  imu_thread.join();
+  if (uwb_error) std::rethrow_exception(uwb_error);
+  if (imu_error) std::rethrow_exception(imu_error);
+  return report;
+}
+
+std::string probeReportText(const ProbeReport& report) {
+  std::string t;
+  const UwbProbe& u = report.uwb;
+  t += "DWM3000 on " + u.device + ": ";
+  if (!u.opened || (!u.up && u.dev_id == 0)) {
+    t += "FAILED\n  " + u.error + "\n";
+  } else {
+    t += std::string(u.up ? "up" : "FAILED") + "\n";
+    if (!u.error.empty()) t += "  " + u.error + "\n";
+    t += format("  DEV_ID %s (%s), SPI CRC %s, SYS_STATUS %s, SYS_STATE %s, IRQ mask %s\n", hex(u.dev_id, 8).c_str(),
+                partName(u.dev_id), u.spi_crc ? "on" : "off", hex(u.sys_status, 8).c_str(),
+                hex(u.sys_state, 8).c_str(), hex(u.irq_mask, 8).c_str());
+    t += format("  channel %d, preamble code %d, %d symbols, %s; reply delay %.0f us, clock offset from %s\n", u.channel,
+                u.preamble_code, u.preamble_length, u.data_rate.c_str(), u.reply_delay_us,
+                u.clock_offset_source.c_str());
+    t += format("  antenna delays: TX %u (read back %u), RX %u (read back %u) device units\n",
+                static_cast<unsigned>(u.tx_antenna_delay), static_cast<unsigned>(u.tx_antenna_delay_read),
+                static_cast<unsigned>(u.rx_antenna_delay), static_cast<unsigned>(u.rx_antenna_delay_read));
+    t += format("  ranging %.1f s, each anchor in turn:\n", u.seconds);
+    t += format("  %6s %7s %6s %6s %5s %10s %9s %9s %9s %9s  %s\n", "anchor", "address", "polls", "ranges", "ok%",
+                "mean (m)", "std (cm)", "RSSI dBm", "FP dBm", "offs ppm", "errors");
+    for (const AnchorProbe& a : u.anchors) {
+      t += format("  %6u %7s %6llu %6llu %5.1f %10s %9s %9s %9s %9s  %s\n", static_cast<unsigned>(a.id),
+                  hex(a.short_address, 4).c_str(), static_cast<unsigned long long>(a.attempts),
+                  static_cast<unsigned long long>(a.ranges()), 100.0 * a.successRate(),
+                  statOrDash(a.range_m, 4).c_str(),
+                  a.range_m.count > 1 ? format("%.2f", 100.0 * a.range_m.stddev()).c_str() : "-",
+                  statOrDash(a.rssi_dbm, 1).c_str(), statOrDash(a.fp_power_dbm, 1).c_str(),
+                  statOrDash(a.clock_offset_ppm, 2, true).c_str(), countsText(a.errors).c_str());
+    }
+    t += "  device faults: " + countsText(u.device_faults) + "; re-initializations " +
+         std::to_string(u.reinitializations) + "\n";
+  }
+  const ImuProbe& m = report.imu;
+  t += "BMI263 on " + m.device + ": ";
+  if (!m.opened || (!m.up && m.chip_id == 0)) {
+    t += "FAILED\n  " + m.error + "\n";
+  } else {
+    t += std::string(m.up ? "up" : "FAILED") + "\n";
+    if (!m.error.empty()) t += "  " + m.error + "\n";
+    t += format("  chip id %s, INTERNAL_STATUS %s (%s)\n", hex(m.chip_id, 2).c_str(), hex(m.internal_status, 2).c_str(),
+                bmi263::internal_status::name(m.internal_status));
+    t += format("  configured: %.0f Hz, +-%.0f g, +-%.0f dps, %s interrupt\n", m.odr_hz, m.accel_range_g,
+                m.gyro_range_dps, m.interrupt_mode.c_str());
+    if (m.samples > 0) {
+      t += format("  %llu samples in %.2f s: %.1f Hz from the host timestamps (largest gap %.2f ms), %llu missed\n",
+                  static_cast<unsigned long long>(m.samples), m.seconds, m.rate_hz, m.max_gap_ms,
+                  static_cast<unsigned long long>(m.missed_samples));
+      t += format("  mean |accel| %.4f m/s^2 (9.81 at rest); mean accel (%.4f, %.4f, %.4f) m/s^2\n",
+                  m.mean_accel_norm_m_s2, m.mean_accel_m_s2[0], m.mean_accel_m_s2[1], m.mean_accel_m_s2[2]);
+      constexpr double kDegPerRad = 180.0 / 3.14159265358979323846;
+      t += format("  mean gyro (%.5f, %.5f, %.5f) rad/s = (%.3f, %.3f, %.3f) deg/s\n", m.mean_gyro_rad_s[0],
+                  m.mean_gyro_rad_s[1], m.mean_gyro_rad_s[2], m.mean_gyro_rad_s[0] * kDegPerRad,
+                  m.mean_gyro_rad_s[1] * kDegPerRad, m.mean_gyro_rad_s[2] * kDegPerRad);
+    } else if (m.up) {
+      t += "  no samples\n";
+    }
+    if (std::isfinite(m.temperature_degc)) t += format("  temperature %.1f degC\n", m.temperature_degc);
+    t += format("  I2C retries %llu, failures %llu, recoveries %llu, faults %llu\n",
+                static_cast<unsigned long long>(m.i2c_retries), static_cast<unsigned long long>(m.i2c_failures),
+                static_cast<unsigned long long>(m.recoveries), static_cast<unsigned long long>(m.fault_count));
+    for (const std::string& f : m.faults) t += "    " + f + "\n";
+  }
+  const std::vector<std::string> problems = report.problems();
+  if (problems.empty()) {
+    t += "probe: OK\n";
+  } else {
+    for (const std::string& p : problems) t += "probe: " + p + "\n";
+  }
+  return t;
+}
+
+std::string probeReportJson(const ProbeReport& report) {
+  const UwbProbe& u = report.uwb;
+  const ImuProbe& m = report.imu;
+  std::string j = "{\n";
+  j += "  \"ok\": " + jsonBool(report.exitCode() == 0) + ",\n";
+  j += "  \"exit_code\": " + std::to_string(report.exitCode()) + ",\n";
+  j += "  \"problems\": [";
+  const std::vector<std::string> problems = report.problems();
+  for (std::size_t i = 0; i < problems.size(); ++i) j += (i > 0 ? ", " : "") + jsonText(problems[i]);
+  j += "],\n";
+  j += "  \"uwb\": {\n";
+  j += "    \"device\": " + jsonText(u.device) + ", \"opened\": " + jsonBool(u.opened) + ", \"up\": " + jsonBool(u.up) +
+       ", \"error\": " + jsonError(u.error) + ",\n";
+  j += "    \"dev_id\": " + (u.dev_id != 0 ? jsonText(hex(u.dev_id, 8)) : "null") + ", \"part\": " +
+       (u.dev_id != 0 ? jsonText(partName(u.dev_id)) : "null") + ",\n";
+  j += "    \"channel\": " + std::to_string(u.channel) + ", \"preamble_code\": " + std::to_string(u.preamble_code) +
+       ", \"preamble_length\": " + std::to_string(u.preamble_length) + ", \"data_rate\": " + jsonText(u.data_rate) +
+       ",\n";
+  j += "    \"tx_antenna_delay\": " + std::to_string(u.tx_antenna_delay) +
+       ", \"rx_antenna_delay\": " + std::to_string(u.rx_antenna_delay) +
+       ", \"tx_antenna_delay_read\": " + std::to_string(u.tx_antenna_delay_read) +
+       ", \"rx_antenna_delay_read\": " + std::to_string(u.rx_antenna_delay_read) + ",\n";
+  j += "    \"spi_crc\": " + jsonBool(u.spi_crc) + ", \"sys_status\": " + jsonText(hex(u.sys_status, 8)) +
+       ", \"sys_state\": " + jsonText(hex(u.sys_state, 8)) + ", \"irq_mask\": " + jsonText(hex(u.irq_mask, 8)) +
+       ", \"clock_offset_source\": " + jsonText(u.clock_offset_source) +
+       ", \"reply_delay_us\": " + jsonNumber(u.reply_delay_us) + ",\n";
+  j += "    \"seconds\": " + jsonNumber(u.seconds, 3) + ",\n";
+  j += "    \"anchors\": [";
+  for (std::size_t i = 0; i < u.anchors.size(); ++i) {
+    const AnchorProbe& a = u.anchors[i];
+    j += i > 0 ? ",\n      " : "\n      ";
+    j += "{\"id\": " + std::to_string(a.id) + ", \"short_address\": " + jsonText(hex(a.short_address, 4)) +
+         ", \"polls\": " + std::to_string(a.attempts) + ", \"ranges\": " + std::to_string(a.ranges()) +
+         ", \"success_rate\": " + jsonNumber(a.successRate(), 4) +
+         ", \"mean_range_m\": " + jsonStat(a.range_m, 5) +
+         ", \"std_range_m\": " + (a.range_m.count > 1 ? jsonNumber(a.range_m.stddev(), 5) : "null") +
+         ", \"min_range_m\": " + (a.range_m.count > 0 ? jsonNumber(a.range_m.min, 5) : "null") +
+         ", \"max_range_m\": " + (a.range_m.count > 0 ? jsonNumber(a.range_m.max, 5) : "null") +
+         ", \"mean_rssi_dbm\": " + jsonStat(a.rssi_dbm, 2) +
+         ", \"mean_fp_power_dbm\": " + jsonStat(a.fp_power_dbm, 2) +
+         ", \"mean_clock_offset_ppm\": " + jsonStat(a.clock_offset_ppm, 3) + ", \"errors\": " + jsonCounts(a.errors) +
+         "}";
+  }
+  j += u.anchors.empty() ? "],\n" : "\n    ],\n";
+  j += "    \"device_faults\": " + jsonCounts(u.device_faults) +
+       ", \"reinitializations\": " + std::to_string(u.reinitializations) + "\n";
+  j += "  },\n";
+  j += "  \"imu\": {\n";
+  j += "    \"device\": " + jsonText(m.device) + ", \"opened\": " + jsonBool(m.opened) + ", \"up\": " + jsonBool(m.up) +
+       ", \"error\": " + jsonError(m.error) + ",\n";
+  j += "    \"chip_id\": " + (m.opened ? jsonText(hex(m.chip_id, 2)) : "null") +
+       ", \"internal_status\": " + (m.opened ? jsonText(hex(m.internal_status, 2)) : "null") +
+       ", \"internal_status_name\": " +
+       (m.opened ? jsonText(bmi263::internal_status::name(m.internal_status)) : "null") + ",\n";
+  j += "    \"odr_hz\": " + jsonNumber(m.odr_hz) + ", \"accel_range_g\": " + jsonNumber(m.accel_range_g) +
+       ", \"gyro_range_dps\": " + jsonNumber(m.gyro_range_dps) + ", \"interrupt_mode\": " + jsonText(m.interrupt_mode) +
+       ",\n";
+  const bool have = m.samples > 0;
+  j += "    \"samples\": " + std::to_string(m.samples) + ", \"seconds\": " + jsonNumber(m.seconds, 4) +
+       ", \"rate_hz\": " + (have ? jsonNumber(m.rate_hz, 3) : "null") +
+       ", \"max_gap_ms\": " + (have ? jsonNumber(m.max_gap_ms, 3) : "null") + ",\n";
+  j += "    \"mean_accel_norm_m_s2\": " + (have ? jsonNumber(m.mean_accel_norm_m_s2, 5) : "null") +
+       ", \"mean_accel_m_s2\": " + (have ? jsonVec(m.mean_accel_m_s2) : "null") +
+       ", \"mean_gyro_rad_s\": " + (have ? jsonVec(m.mean_gyro_rad_s) : "null") + ",\n";
+  j += "    \"temperature_degc\": " + jsonNumber(m.temperature_degc, 2) +
+       ", \"missed_samples\": " + std::to_string(m.missed_samples) + ", \"i2c_retries\": " + std::to_string(m.i2c_retries) +
+       ", \"i2c_failures\": " + std::to_string(m.i2c_failures) + ", \"recoveries\": " + std::to_string(m.recoveries) +
+       ", \"fault_count\": " + std::to_string(m.fault_count) + ",\n";
+  j += "    \"faults\": [";
+  for (std::size_t i = 0; i < m.faults.size(); ++i) j += (i > 0 ? ", " : "") + jsonText(m.faults[i]);
+  j += "]\n  }\n}\n";
+  return j;
+}
+
+}  // namespace rilo

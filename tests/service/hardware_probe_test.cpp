@@ -1,0 +1,267 @@
+// `rilo probe`'s logic against the DW3000 and BMI263 emulators: bring-up
+// facts, ranges to responders at known distances (within 1 cm, clock offsets
+// corrected), the IMU stream at rest, and every failure naming its device.
+#include "rilod/hardware_probe.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "evaluation/eval_test_support.h"
+#include "rilod/config.h"
+#include "service/emulated_board.h"
+#include "service/service_test_support.h"
+
+namespace rilo {
+namespace {
+
+using testing::BoardTruth;
+using testing::EmulatedBoard;
+using testing::jsonNumberAt;
+using testing::TempDir;
+
+constexpr double kGravity = 9.80665;
+
+/// The JSON line of the anchor with this short address (one anchor per line).
+std::string anchorLine(const std::string& json, const std::string& address) {
+  const std::size_t at = json.find("\"short_address\": \"" + address + "\"");
+  if (at == std::string::npos) return {};
+  return json.substr(at, json.find('\n', at) - at);
+}
+
+class HardwareProbeTest : public ::testing::Test {
+ protected:
+  HardwareProbeTest() {
+    testing::writeBlob(dir_ / "blob.bin");
+    // Anchors 0..2 answer (clock offsets up to 20 ppm), anchor 3 is switched off.
+    truth_.responders[0] = {2.5, 15.0};
+    truth_.responders[1] = {4.0, -20.0};
+    truth_.responders[2] = {7.25, 0.0};
+  }
+
+  ServiceConfig config(const std::string& extra = "") {
+    return parseServiceConfig(testing::boardYaml(extra), dir_ / "rilod.yaml");
+  }
+
+  ProbeReport probe(const ServiceConfig& cfg, EmulatedBoard& board, double seconds = 3.0) {
+    ProbeOptions options;
+    options.seconds = seconds;
+    return runProbe(cfg.sources.hardware, UwbProbeTarget{board.uwb(), ""}, ImuProbeTarget{board.imu(), ""}, options);
+  }
+
+  TempDir dir_{"probe"};
+  BoardTruth truth_;
+};
+
+TEST_F(HardwareProbeTest, ReportsBringUpRangesAndTheImuAtRest) {
+  const ServiceConfig cfg = config();
+  EmulatedBoard board(cfg.sources.hardware, truth_);
+  const ProbeReport report = probe(cfg, board);
+
+  // DWM3000 bring-up.
+  const UwbProbe& u = report.uwb;
+  ASSERT_TRUE(u.up) << u.error;
+  EXPECT_EQ(u.device, "emu:spidev0.0");
+  EXPECT_EQ(u.dev_id, 0xDECA0302u);
+  EXPECT_EQ(u.channel, 5);
+  EXPECT_EQ(u.tx_antenna_delay, 16390);
+  EXPECT_EQ(u.rx_antenna_delay, 16380);
+  EXPECT_EQ(u.tx_antenna_delay_read, 16390);  // written to the chip
+  EXPECT_EQ(u.rx_antenna_delay_read, 16380);
+  EXPECT_NE(u.irq_mask, 0u);
+  EXPECT_EQ(u.reinitializations, 0u);
+  EXPECT_TRUE(u.device_faults.empty());
+  EXPECT_NEAR(u.seconds, 3.0, 0.1);
+
+  // Ranges: each anchor polled at 10 Hz for 3 s, answering ones within 1 cm.
+  ASSERT_EQ(u.anchors.size(), 4u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const AnchorProbe& a = u.anchors[i];
+    SCOPED_TRACE(a.id);
+    EXPECT_GE(a.attempts, 29u);
+    EXPECT_LE(a.attempts, 31u);
+    EXPECT_EQ(a.ranges(), a.attempts);
+    EXPECT_DOUBLE_EQ(a.successRate(), 1.0);
+    EXPECT_NEAR(a.range_m.mean, truth_.responders[a.id].distance_m, 0.01);
+    EXPECT_NEAR(a.range_m.min, truth_.responders[a.id].distance_m, 0.01);
+    EXPECT_NEAR(a.range_m.max, truth_.responders[a.id].distance_m, 0.01);
+    EXPECT_LT(a.range_m.stddev(), 0.01);
+    EXPECT_TRUE(a.errors.empty());
+    // Positive when our clock (0 ppm) is slower than the responder's.
+    EXPECT_NEAR(a.clock_offset_ppm.mean, truth_.responders[a.id].clock_ppm, 0.5);
+    EXPECT_EQ(a.rssi_dbm.count, 0u);  // the emulator has no CIA diagnostics
+  }
+  const AnchorProbe& off = u.anchors[3];
+  EXPECT_GE(off.attempts, 29u);
+  EXPECT_EQ(off.ranges(), 0u);
+  EXPECT_DOUBLE_EQ(off.successRate(), 0.0);
+  ASSERT_EQ(off.errors.count("RX timeout"), 1u);
+  EXPECT_EQ(off.errors.at("RX timeout"), off.attempts);
+
+  // BMI263 bring-up and stream.
+  const ImuProbe& m = report.imu;
+  ASSERT_TRUE(m.up) << m.error;
+  EXPECT_EQ(m.device, "emu:bmi263@0x68");
+  EXPECT_EQ(m.chip_id, 0x24);
+  EXPECT_EQ(m.internal_status, 0x01);
+  EXPECT_DOUBLE_EQ(m.odr_hz, 800.0);
+  EXPECT_DOUBLE_EQ(m.accel_range_g, 8.0);
+  EXPECT_DOUBLE_EQ(m.gyro_range_dps, 2000.0);
+  EXPECT_NEAR(m.seconds, 3.0, 0.01);
+  EXPECT_NEAR(static_cast<double>(m.samples), 2400.0, 3.0);
+  EXPECT_NEAR(m.rate_hz, 800.0, 0.5);
+  EXPECT_LT(m.max_gap_ms, 1.3);
+  EXPECT_EQ(m.missed_samples, 0u);
+  EXPECT_NEAR(m.mean_accel_norm_m_s2, kGravity, 0.01);
+  EXPECT_NEAR(m.mean_accel_m_s2[2], kGravity, 0.01);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(m.mean_gyro_rad_s[static_cast<std::size_t>(k)], truth_.gyro_rad_s[k], 2e-3) << k;
+  }
+  EXPECT_NEAR(m.temperature_degc, 31.5, 0.1);
+  EXPECT_EQ(m.fault_count, 0u) << (m.faults.empty() ? "" : m.faults.front());
+
+  EXPECT_EQ(report.exitCode(), 0);
+  EXPECT_TRUE(report.problems().empty());
+}
+
+TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
+  const ServiceConfig cfg = config();
+  EmulatedBoard board(cfg.sources.hardware, truth_);
+  const ProbeReport report = probe(cfg, board, 1.0);
+  ASSERT_EQ(report.exitCode(), 0) << probeReportText(report);
+
+  const std::string text = probeReportText(report);
+  EXPECT_NE(text.find("DWM3000 on emu:spidev0.0: up"), std::string::npos) << text;
+  EXPECT_NE(text.find("DEV_ID 0xDECA0302 (DW3110)"), std::string::npos) << text;
+  EXPECT_NE(text.find("TX 16390 (read back 16390), RX 16380 (read back 16380)"), std::string::npos) << text;
+  EXPECT_NE(text.find("BMI263 on emu:bmi263@0x68: up"), std::string::npos) << text;
+  EXPECT_NE(text.find("chip id 0x24, INTERNAL_STATUS 0x01 (init_ok)"), std::string::npos) << text;
+  EXPECT_NE(text.find("RX timeout"), std::string::npos) << text;  // anchor 3
+  EXPECT_NE(text.find("probe: OK"), std::string::npos) << text;
+
+  const std::string json = probeReportJson(report);
+  EXPECT_NE(json.find("\"ok\": true"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"dev_id\": \"0xDECA0302\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"chip_id\": \"0x24\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"internal_status_name\": \"init_ok\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"mean_rssi_dbm\": null"), std::string::npos) << json;
+  EXPECT_EQ(jsonNumberAt(json, {"exit_code"}), 0.0);
+  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_range_m"}), 2.5, 0.01);
+  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0002"), {"mean_range_m"}), 4.0, 0.01);
+  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0003"), {"mean_range_m"}), 7.25, 0.01);
+  EXPECT_EQ(jsonNumberAt(anchorLine(json, "0x0004"), {"ranges"}), 0.0);
+  EXPECT_GT(jsonNumberAt(anchorLine(json, "0x0004"), {"RX timeout"}), 5.0);
+  EXPECT_NEAR(jsonNumberAt(json, {"imu", "rate_hz"}), 800.0, 1.0);
+  EXPECT_NEAR(jsonNumberAt(json, {"imu", "mean_accel_norm_m_s2"}), kGravity, 0.01);
+  EXPECT_NEAR(jsonNumberAt(json, {"imu", "odr_hz"}), 800.0, 1e-9);
+}
+
+TEST_F(HardwareProbeTest, WrongDevIdFailsTheUwbNamingTheDeviceAndStillProbesTheImu) {
+  const ServiceConfig cfg = config();
+  truth_.dev_id = 0x12345678;
+  EmulatedBoard board(cfg.sources.hardware, truth_);
+  const ProbeReport report = probe(cfg, board, 0.5);
+  EXPECT_FALSE(report.uwb.up);
+  EXPECT_NE(report.uwb.error.find("emu:spidev0.0"), std::string::npos) << report.uwb.error;
+  EXPECT_NE(report.uwb.error.find("0x12345678"), std::string::npos) << report.uwb.error;
+  EXPECT_TRUE(report.imu.up) << report.imu.error;
+  EXPECT_GT(report.imu.samples, 300u);
+  EXPECT_EQ(report.exitCode(), 2);
+  ASSERT_FALSE(report.problems().empty());
+  EXPECT_NE(report.problems().front().find("emu:spidev0.0"), std::string::npos);
+  const std::string text = probeReportText(report);
+  EXPECT_NE(text.find("DWM3000 on emu:spidev0.0: FAILED"), std::string::npos) << text;
+}
+
+TEST_F(HardwareProbeTest, WrongChipIdFailsTheImuNamingTheDevice) {
+  const ServiceConfig cfg = config();
+  truth_.chip_id = 0x99;
+  EmulatedBoard board(cfg.sources.hardware, truth_);
+  const ProbeReport report = probe(cfg, board, 0.5);
+  EXPECT_TRUE(report.uwb.up) << report.uwb.error;
+  EXPECT_FALSE(report.imu.up);
+  EXPECT_EQ(report.imu.chip_id, 0x99);
+  EXPECT_NE(report.imu.error.find("emu:bmi263@0x68"), std::string::npos) << report.imu.error;
+  EXPECT_EQ(report.exitCode(), 2);
+  const std::string json = probeReportJson(report);
+  EXPECT_NE(json.find("\"chip_id\": \"0x99\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"ok\": false"), std::string::npos) << json;
+}
+
+TEST_F(HardwareProbeTest, DevicesThatCouldNotBeOpenedAreReportedWithTheirError) {
+  const ServiceConfig cfg = config();
+  const std::string uwb_error = "cannot open /dev/spidev0.0 (sources.hardware.uwb.spi_device): no such file";
+  const std::string imu_error = "cannot open /dev/i2c-1@0x68 (sources.hardware.imu.i2c_device): no such file";
+  const ProbeReport report =
+      runProbe(cfg.sources.hardware, UwbProbeTarget{{}, uwb_error}, ImuProbeTarget{{}, imu_error}, ProbeOptions{});
+  EXPECT_FALSE(report.uwb.opened);
+  EXPECT_FALSE(report.imu.opened);
+  EXPECT_EQ(report.exitCode(), 2);
+  ASSERT_EQ(report.problems().size(), 2u);
+  EXPECT_EQ(report.problems()[0], uwb_error);
+  EXPECT_EQ(report.problems()[1], imu_error);
+  const std::string text = probeReportText(report);
+  EXPECT_NE(text.find("DWM3000 on /dev/spidev0.0: FAILED\n  " + uwb_error), std::string::npos) << text;
+  EXPECT_NE(text.find("BMI263 on /dev/i2c-1@0x68: FAILED\n  " + imu_error), std::string::npos) << text;
+}
+
+TEST_F(HardwareProbeTest, NoAnchorAnsweringIsExitCodeThree) {
+  const ServiceConfig cfg = config();
+  truth_.responders.clear();
+  EmulatedBoard board(cfg.sources.hardware, truth_);
+  const ProbeReport report = probe(cfg, board, 0.5);
+  EXPECT_TRUE(report.uwb.up);
+  EXPECT_TRUE(report.imu.up);
+  EXPECT_EQ(report.exitCode(), 3);
+  ASSERT_EQ(report.problems().size(), 1u);
+  EXPECT_NE(report.problems()[0].find("no anchor answered"), std::string::npos);
+}
+
+TEST_F(HardwareProbeTest, InterruptEndsTheMeasurementEarly) {
+  const ServiceConfig cfg = config();
+  EmulatedBoard board(cfg.sources.hardware, truth_);
+  std::atomic<bool> interrupt{true};
+  ProbeOptions options;
+  options.seconds = 600.0;
+  const ProbeReport report = runProbe(cfg.sources.hardware, UwbProbeTarget{board.uwb(), ""},
+                                      ImuProbeTarget{board.imu(), ""}, options, &interrupt);
+  EXPECT_TRUE(report.uwb.up);
+  EXPECT_LT(report.uwb.seconds, 1.0);
+  EXPECT_LT(report.imu.samples, 10u);
+}
+
+TEST_F(HardwareProbeTest, RejectsABadMeasurementTime) {
+  const ServiceConfig cfg = config();
+  ProbeOptions options;
+  options.seconds = 0.0;
+  EXPECT_THROW(runProbe(cfg.sources.hardware, UwbProbeTarget{{}, "x"}, ImuProbeTarget{{}, "y"}, options),
+               std::invalid_argument);
+}
+
+TEST(RxPowerFromDiagnostics, FollowsTheUserManualFormula) {
+  // C = 2^15, N = 128: 10 log10(2^15 * 2^21 / 2^14) - 121.7 = 10 log10(2^22) - 121.7.
+  const RxPower p = rxPowerFromDiagnostics(1u << 15, 4000, 4000, 4000, 128);
+  EXPECT_NEAR(p.rssi_dbm, 10.0 * std::log10(4194304.0) - 121.7, 1e-9);
+  // F carry 2 fractional bits: 1000 each, 3e6 / 16384.
+  EXPECT_NEAR(p.fp_power_dbm, 10.0 * std::log10(3e6 / 16384.0) - 121.7, 1e-9);
+  const RxPower prf16 = rxPowerFromDiagnostics(1u << 15, 4000, 4000, 4000, 128, false);
+  EXPECT_NEAR(prf16.rssi_dbm - p.rssi_dbm, 121.7 - 113.8, 1e-9);
+  // No diagnostics: NaN, not -inf.
+  EXPECT_TRUE(std::isnan(rxPowerFromDiagnostics(1000, 1, 1, 1, 0).rssi_dbm));
+  EXPECT_TRUE(std::isnan(rxPowerFromDiagnostics(0, 0, 0, 0, 128).rssi_dbm));
+  EXPECT_TRUE(std::isnan(rxPowerFromDiagnostics(0, 0, 0, 0, 128).fp_power_dbm));
+}
+
+TEST(RunningStats, MeanAndSampleStandardDeviation) {
+  RunningStats s;
+  EXPECT_EQ(s.stddev(), 0.0);
+  for (double x : {2.0, 4.0, 4.0, 4.0, 5.0, 5.0, 7.0, 9.0}) s.add(x);
+  EXPECT_DOUBLE_EQ(s.mean, 5.0);
+  EXPECT_NEAR(s.stddev(), std::sqrt(32.0 / 7.0), 1e-12);
+  EXPECT_DOUBLE_EQ(s.min, 2.0);
+  EXPECT_DOUBLE_EQ(s.max, 9.0);
+}
+
+}  // namespace
+}  // namespace rilo

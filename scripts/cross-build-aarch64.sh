@@ -13,6 +13,7 @@
 #   --targets       build only these targets (default: all). A quick check:
 #                   --targets "rilo_test_core rilo_test_devices"
 #   --no-tests      build only; do not run the tests under qemu
+#   --test-timeout  seconds per test binary under qemu (default 7200)
 #
 # DEPENDENCIES (Debian 12 package names)
 #   host tools:  crossbuild-essential-arm64 (aarch64-linux-gnu-g++), cmake,
@@ -39,6 +40,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD_DIR="${ROOT}/build-aarch64"
 JOBS=2
 TARGETS=""
+TEST_TIMEOUT=7200
 INSTALL_DEPS=0
 RUN_TESTS=1
 TRIPLE=aarch64-linux-gnu
@@ -50,6 +52,7 @@ while [[ $# -gt 0 ]]; do
     --jobs) JOBS="$2"; shift ;;
     --targets) TARGETS="$2"; shift ;;
     --no-tests) RUN_TESTS=0 ;;
+    --test-timeout) TEST_TIMEOUT="$2"; shift ;;
     -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "cross-build-aarch64: unknown option $1 (see --help)" >&2; exit 2 ;;
   esac
@@ -135,7 +138,13 @@ fi
 # /usr/aarch64-linux-gnu, the rest from /usr/lib/aarch64-linux-gnu). Tests that
 # need real-time scheduling, DDS multicast or systemd may not behave under
 # emulation; the core, hal, devices and replay suites do not need them.
-echo "== tests under qemu-aarch64"
+# Tests that cannot pass under qemu-user (not under test on the board):
+#  - RecordingWriter.KilledChildLeavesPrefixUpToLastFlush: fork() of a
+#    qemu-user process; the child deadlocks inside qemu (7.2) and never exits;
+#  - Dw3000SpiLinux.NodeThatIsNoSpidevFailsAtTheModeIoctl: qemu-user answers
+#    ioctls it does not know (SPI_IOC_*) with ENOSYS, the kernel with ENOTTY.
+QEMU_EXCLUDE="RecordingWriter.KilledChildLeavesPrefixUpToLastFlush:Dw3000SpiLinux.NodeThatIsNoSpidevFailsAtTheModeIoctl"
+echo "== tests under qemu-aarch64 (excluded under emulation: ${QEMU_EXCLUDE})"
 export QEMU_LD_PREFIX=/usr/${TRIPLE}
 export RILO_SOURCE_DIR="${ROOT}"
 status=0
@@ -146,10 +155,12 @@ for suite in "${BUILD_DIR}"/bin/rilo_test_*; do
   if [[ -n "${TARGETS}" && " ${TARGETS} " != *" ${name} "* ]]; then continue; fi
   echo "-- ${name}"
   ran=$((ran + 1))
-  if ! qemu-aarch64 "${suite}" --gtest_brief=1; then
-    echo "-- ${name}: FAILED"
+  start=${SECONDS}
+  if ! timeout "${TEST_TIMEOUT}" qemu-aarch64 "${suite}" --gtest_brief=1 --gtest_filter="-${QEMU_EXCLUDE}"; then
+    echo "-- ${name}: FAILED (or over ${TEST_TIMEOUT} s)"
     status=1
   fi
+  echo "-- ${name}: $((SECONDS - start)) s"
 done
 echo "== ${ran} test binaries run under qemu-aarch64, $([[ ${status} -eq 0 ]] && echo "all passed" || echo "some FAILED")"
 exit ${status}

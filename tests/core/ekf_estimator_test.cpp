@@ -62,6 +62,44 @@ TEST(EkfEstimator, TracksThroughNlosWithTheAsymmetricLoss) {
   EXPECT_LT(run.mean_error_m, 0.7);  // measured 0.46 m (max 1.5)
 }
 
+TEST(EkfEstimator, GroupsMostlyGatedCountAsRejectedSteps) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 10.0;
+  sp.seed = 3;
+  sp.nlos_fraction = 0.0;
+  const sim::Scenario s = sim::simulateScenario(sp);
+  const RangeImuGraphParams gp = testing::graphParamsFor(s, "gaussian");
+  // Healthy: started at the truth, (nearly) every group is accepted.
+  // Lock lost: started 6 m off with a confident covariance, the gate refuses the ranges.
+  for (const double offset_m : {0.0, 6.0}) {
+    EkfEstimator ekf(s.p_w_anchors, gp);
+    const std::int64_t t0 = s.ranges.front().t_ns;
+    const sim::KinematicState x0 = s.truthAt(t0);
+    ekf.start(t0, Pose3(x0.T_w_b.R, x0.T_w_b.p + Vec3(offset_m, 0.0, 0.0)), x0.v_w, ImuBias());
+    std::vector<UpdateStats> stats;
+    std::size_t i = 0, r = 0;
+    while (i < s.imu.size() && s.imu[i].t_ns < t0) ++i;
+    while (i < s.imu.size() || r < s.ranges.size()) {
+      if (r < s.ranges.size() && (i >= s.imu.size() || s.ranges[r].t_ns <= s.imu[i].t_ns)) {
+        ekf.addRange(s.ranges[r++]);
+      } else {
+        ekf.addImu(s.imu[i++]);
+      }
+      ekf.process(&stats);
+      if (stats.size() >= 100) break;
+    }
+    ASSERT_GE(stats.size(), 100u);
+    int rejected = 0;
+    for (const UpdateStats& st : stats) rejected += !st.step_accepted;
+    if (offset_m == 0.0) {
+      EXPECT_LT(rejected, 5) << "healthy tracking";
+    } else {
+      // Measured 81 of 100 (a lucky single range passes now and then).
+      EXPECT_GT(rejected, 70) << "a filter that gates most measurements reports rejected steps";
+    }
+  }
+}
+
 TEST(EkfEstimator, HeightBandPullsTheFilterBackIntoTheBand) {
   ErrorStateEkf ekf;
   EkfState x;

@@ -12,6 +12,7 @@
 
 #include "hal/replay/replay_source.h"
 #include "rilod/config.h"
+#include "rilod/fault_injection.h"
 #include "rilod/hardware_sources.h"
 #include "rilod/notify.h"
 #include "rilod/recorder.h"
@@ -62,7 +63,12 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
                                                                        : rilo::ReplayOptions::Pacing::kAsFastAsPossible;
     ro.speed = cfg.sources.replay.speed;
     ro.shift_to_now = cfg.sources.replay.shift_to_now && ro.pacing == rilo::ReplayOptions::Pacing::kRealTime;
-    sources.push_back(std::make_unique<rilo::ReplaySource>(cfg.sources.replay.path, ro));
+    std::unique_ptr<rilo::SampleSource> replay = std::make_unique<rilo::ReplaySource>(cfg.sources.replay.path, ro);
+    if (!cfg.sources.replay.faults.empty()) {
+      replay = std::make_unique<rilo::FaultInjectingSource>(std::move(replay), cfg.sources.replay.faults);
+      spdlog::warn("fault injection is on (sources.replay.faults): the replayed data is damaged on purpose");
+    }
+    sources.push_back(std::move(replay));
   } else {
     hw.openAll(cfg.sources.hardware, "rilod");
     sources = rilo::makeHardwareSources(cfg.sources.hardware, hw.uwb(), hw.imu());
@@ -106,16 +112,29 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   so.backpressure = cfg.sources.mode == rilo::SourceMode::kReplay && cfg.sources.replay.pace == rilo::ReplayPace::kAsFastAsPossible;
   so.status_period_s = static_cast<double>(cfg.status.period_ns) * 1e-9;
   so.sensor_silence_s = static_cast<double>(cfg.status.imu_timeout_ns) * 1e-9;
+  so.ranging_silence_s = static_cast<double>(cfg.status.range_timeout_ns) * 1e-9;
   so.on_status = [](const rilo::ServiceStatus& s) {
-    char line[256];
+    auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
+    char line[512];
     std::snprintf(line, sizeof line,
-                  "%s: imu %llu, ranges %llu, odometry %llu; update mean %.2f ms, max %.2f ms; faults %llu, overflows %llu, re-inits %llu",
-                  stateName(s.state), static_cast<unsigned long long>(s.imu_samples),
-                  static_cast<unsigned long long>(s.range_samples), static_cast<unsigned long long>(s.published_odometry),
-                  s.mean_update_ms, s.max_update_ms, static_cast<unsigned long long>(s.sensor_faults),
-                  static_cast<unsigned long long>(s.queue_overflows), static_cast<unsigned long long>(s.reinitializations));
-    spdlog::info("{}", line);
-    rilo::notify::status(line);
+                  "%s: imu %llu, ranges %llu (rejected %llu), odometry %llu (latency max %.2f ms); update mean %.2f ms, "
+                  "max %.2f ms; faults %llu, overflows %llu, re-inits %llu; dropped non-finite %llu, duplicate %llu, "
+                  "out-of-order %llu; gaps imu %llu, ranging %llu%s%s",
+                  stateName(s.state), u(s.imu_samples), u(s.range_samples), u(s.rejected_ranges),
+                  u(s.published_odometry), s.odometry_latency_ms, s.mean_update_ms, s.max_update_ms,
+                  u(s.sensor_faults), u(s.queue_overflows), u(s.reinitializations), u(s.non_finite_samples),
+                  u(s.duplicate_samples), u(s.out_of_order_samples), u(s.imu_gaps), u(s.ranging_gaps),
+                  s.reason[0] != '\0' ? " -- " : "", s.reason.data());
+    // The status line is the log's rate limit: once per status period.
+    if (s.state == rilo::TrackingState::kTracking || s.state == rilo::TrackingState::kInitializing) {
+      spdlog::info("{}", line);
+    } else {
+      spdlog::warn("{}", line);
+    }
+    char short_line[256];
+    std::snprintf(short_line, sizeof short_line, "%s: odometry %llu, re-inits %llu%s%s", stateName(s.state),
+                  u(s.published_odometry), u(s.reinitializations), s.reason[0] != '\0' ? "; " : "", s.reason.data());
+    rilo::notify::status(short_line);
   };
   so.on_fault = [](const rilo::SourceFault& f) {
     if (f.fatal) {

@@ -16,14 +16,16 @@
 #include "dds/participant.h"
 #include "dds/subscriber.h"
 #include "hal/recording/recording_reader.h"
+#include "rilod_runner.h"
 #include "service_test_support.h"
 
 namespace rilo {
 namespace {
 
 using namespace std::chrono_literals;
-
-std::uint32_t testDomain() { return 100 + static_cast<std::uint32_t>(::getpid() % 130); }
+using testing::startRilod;
+using testing::testDomain;
+using testing::waitExit;
 
 /// The default configuration, pointed at the demo recording by absolute
 /// path, on a private loopback domain, with recording times kept (so poses
@@ -35,30 +37,6 @@ std::string configText(const std::string& pace, double speed) {
          "anchors:\n  file: " + rec + "/anchors.csv\n" +
          "estimator:\n  smoother: d-isam2\n  range:\n    lever_arm_m: [0.06, 0.0, 0.10]\n" +
          "dds:\n  domain: " + std::to_string(testDomain()) + "\n  loopback_only: true\n";
-}
-
-pid_t startRilod(const std::filesystem::path& config, double duration_s) {
-  const std::string exe = (testing::binaryDir() / "rilod").string();
-  const std::string cfg = config.string();
-  const std::string dur = std::to_string(duration_s);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    ::execl(exe.c_str(), exe.c_str(), "--config", cfg.c_str(), "--duration", dur.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  return pid;
-}
-
-int waitExit(pid_t pid, std::chrono::milliseconds timeout) {
-  const auto end = std::chrono::steady_clock::now() + timeout;
-  int status = 0;
-  while (std::chrono::steady_clock::now() < end) {
-    if (::waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    std::this_thread::sleep_for(10ms);
-  }
-  ::kill(pid, SIGKILL);
-  ::waitpid(pid, &status, 0);
-  return -1;
 }
 
 TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {

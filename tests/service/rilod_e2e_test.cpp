@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -74,9 +75,26 @@ TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {
   EXPECT_GT(odometry.size(), 5000u);
   EXPECT_GT(poses.size(), 300u);
   ASSERT_FALSE(status.empty());
-  bool saw_tracking = false;
-  for (const auto& s : status) saw_tracking |= s.state_name == "tracking" || s.state_name == "degraded";
+  bool saw_tracking = false, saw_init_reason = false, saw_latency = false;
+  for (const auto& s : status) {
+    saw_tracking |= s.state_name == "tracking" || s.state_name == "degraded";
+    // While initializing, the reason is the initializer's own message.
+    if (s.state_name == "initializing") {
+      const std::string reason(s.status.reason.data());
+      EXPECT_EQ(reason.rfind("initializing: ", 0), 0u) << reason;
+      saw_init_reason |= reason.size() > 14;
+    }
+    saw_latency |= s.status.odometry_latency_ms > 0.0 && s.status.odometry_latency_ms < 1000.0;
+  }
   EXPECT_TRUE(saw_tracking);
+  EXPECT_TRUE(saw_init_reason);
+  EXPECT_TRUE(saw_latency) << "odometry latency (sample in to DDS write) filled while tracking";
+  // The demo office is 74 % NLOS: the robust range model down-weights a good
+  // share of the ranges, never all of them (rilo replay: ~30 %).
+  const auto& last = *std::max_element(status.begin(), status.end(),
+                                       [](const auto& a, const auto& b) { return a.status.t_ns < b.status.t_ns; });
+  EXPECT_GT(last.status.rejected_ranges, last.status.range_samples / 20);
+  EXPECT_LT(last.status.rejected_ranges, last.status.range_samples / 2);
   ASSERT_FALSE(poses.empty());
   EXPECT_EQ(poses.front().frame_id, "map");
 

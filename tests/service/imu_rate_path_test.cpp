@@ -63,7 +63,8 @@ TEST(ImuRatePath, AssembledServiceNeitherAllocatesNorLocksPerImuSampleOutsideCyc
   int code = -1;
   std::thread runner([&] { code = service.run(stop); });
   auto waitFor = [&](auto done) {
-    const auto end = std::chrono::steady_clock::now() + 120s;
+    const auto end = std::chrono::steady_clock::now() +
+                     std::chrono::duration_cast<std::chrono::steady_clock::duration>(120s * testing::timeScale());
     while (!done(service.status()) && std::chrono::steady_clock::now() < end) std::this_thread::sleep_for(1ms);
     return done(service.status());
   };

@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <thread>
@@ -19,6 +20,14 @@
 #include "service_test_support.h"
 
 namespace rilo::testing {
+
+/// Factor on the tests' wall-clock limits: RILO_TEST_TIME_SCALE (default 1),
+/// e.g. 10 under ThreadSanitizer (scripts/tsan-service.sh). Never shortens them.
+inline double timeScale() {
+  const char* env = std::getenv("RILO_TEST_TIME_SCALE");
+  const double scale = env != nullptr ? std::atof(env) : 1.0;
+  return scale > 1.0 ? scale : 1.0;
+}
 
 /// A domain of its own per test process (tests run in parallel under ctest -j).
 inline std::uint32_t testDomain() { return 100 + static_cast<std::uint32_t>(::getpid() % 130); }
@@ -70,7 +79,7 @@ struct RilodOutput {
 
 /// Writes `config_text` into `dir`, runs rilod on it (stopped by --duration
 /// after `duration_s`) while subscribing on testDomain(), and returns what
-/// arrived once rilod exited (killed after `timeout`).
+/// arrived once rilod exited (killed after `timeout` x timeScale()).
 inline RilodOutput runRilod(const TempDir& dir, const std::string& config_text, double duration_s,
                             std::chrono::seconds timeout) {
   writeFile(dir / "rilod.yaml", config_text);
@@ -84,7 +93,7 @@ inline RilodOutput runRilod(const TempDir& dir, const std::string& config_text, 
   const auto t0 = std::chrono::steady_clock::now();
   const pid_t pid = startRilod(dir / "rilod.yaml", duration_s, dir / "rilod.log");
   if (pid <= 0) return out;
-  const auto end = t0 + timeout;
+  const auto end = t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(timeout * timeScale());
   while (std::chrono::steady_clock::now() < end) {
     subscriber.waitForData(std::chrono::milliseconds(20));
     subscriber.takeOdometry(out.odometry);

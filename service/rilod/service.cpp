@@ -65,6 +65,7 @@ class Service::LaneSink final : public SampleSink {
       if (!lane_.carries_imu.load(std::memory_order_relaxed)) lane_.carries_imu.store(true, std::memory_order_relaxed);
       counters.imu_samples.add();
       if (!pushOrWait(lane_.imu, TimedImu{*imu, now})) counters.queue_overflows.add();
+      service_.publisher_wake_.notify();
     } else if (std::holds_alternative<RangeSample>(sample)) {
       counters.range_samples.add();
     }
@@ -411,16 +412,20 @@ NavigationState Service::navigationState() {
 }
 
 void Service::publisherLoop() {
+  // Longest sleep without an IMU sample: bounds the reaction to stop and the
+  // heartbeat's period while a sensor is silent.
+  constexpr std::int64_t kMaxSleepNs = 10'000'000;
   std::uint64_t smoothed_version = 0;
   NavigationState smoothed;
   TimedImu item;
-  while (!stop_threads_.load(std::memory_order_relaxed)) {
-    publisher_beat_.beat(hal::monotonicNowNs());
-    if (smoothed_.readIfNewer(smoothed, smoothed_version)) predictor_.onSmoothed(smoothed);
+  // Publishes every queued IMU sample; true if there was any.
+  auto drain = [&]() noexcept {
     bool any = false;
     for (auto& lane : lanes_) {
       while (lane->imu.tryPop(item)) {
         any = true;
+        // A newer smoothed state first: the odometry of this sample starts from it.
+        if (smoothed_.readIfNewer(smoothed, smoothed_version)) predictor_.onSmoothed(smoothed);
         const NavigationState& out = predictor_.onImu(item.sample);
         if (out.valid && publisher_.publishOdometry(out).ok()) {
           counters_.published_odometry.add();
@@ -428,7 +433,21 @@ void Service::publisherLoop() {
         }
       }
     }
-    if (!any) std::this_thread::sleep_for(std::chrono::microseconds(200));
+    return any;
+  };
+  while (!stop_threads_.load(std::memory_order_relaxed)) {
+    publisher_beat_.beat(hal::monotonicNowNs());
+    if (smoothed_.readIfNewer(smoothed, smoothed_version)) predictor_.onSmoothed(smoothed);
+    if (drain()) continue;
+    // Nothing queued: sleep until the next IMU sample (its source notifies).
+    // Look once more after announcing the wait: a sample pushed just before
+    // would not wake us (wake_signal.h).
+    const std::uint32_t token = publisher_wake_.prepareWait();
+    if (drain()) {
+      publisher_wake_.cancelWait();
+      continue;
+    }
+    publisher_wake_.wait(token, kMaxSleepNs);
   }
 }
 

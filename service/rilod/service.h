@@ -32,6 +32,7 @@
 #include "runtime/output_predictor.h"
 #include "runtime/runtime_counters.h"
 #include "runtime/service_status.h"
+#include "runtime/wake_signal.h"
 #include "rilod/range_trust_monitor.h"
 #include "rilod/sensor_gap_monitor.h"
 
@@ -127,6 +128,7 @@ class Service {
   LatestValue<ServiceStatus> status_;
   RuntimeCounters counters_;
   Heartbeat estimator_beat_, publisher_beat_;
+  WakeSignal publisher_wake_;  ///< sources notify per IMU sample; the publisher sleeps on it
   std::atomic<bool> stop_sources_{false};
   std::atomic<bool> estimator_done_{false};
   std::atomic<bool> stop_threads_{false};

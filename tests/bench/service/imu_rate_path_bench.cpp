@@ -2,7 +2,8 @@
 // service.cpp runs them:
 //  - source side (Service::LaneSink::push): clock read, entrance screen
 //    (SampleScreen), push into the estimator's queue and into the
-//    publisher's IMU queue, counters;
+//    publisher's IMU queue, counters, the publisher's wake-up signal (here
+//    without a sleeping publisher: no system call);
 //  - publisher side (the body of Service::publisherLoop): pop, output
 //    predictor, odometry fill and Cyclone dds_write_ts on loopback, counter,
 //    clock read, latency maximum.
@@ -28,6 +29,7 @@
 #include "runtime/output_predictor.h"
 #include "runtime/runtime_counters.h"
 #include "runtime/spsc_queue.h"
+#include "runtime/wake_signal.h"
 
 namespace rilo {
 namespace {
@@ -98,6 +100,7 @@ struct Path {
     if (!samples.tryPush(sample)) counters.queue_overflows.add();
     counters.imu_samples.add();
     if (!imu.tryPush(TimedImu{s, now})) counters.queue_overflows.add();
+    wake.notify();  // no waiter here: the increment and the load, not the system call
   }
   // One sample of Service::publisherLoop.
   void publish() noexcept {
@@ -125,6 +128,7 @@ struct Path {
   SpscQueue<TimedImu> imu;
   OutputPredictor predictor;
   RuntimeCounters counters;
+  WakeSignal wake;
   std::atomic<std::int64_t> latency_max_ns{0};
 };
 

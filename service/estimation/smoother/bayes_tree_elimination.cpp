@@ -266,6 +266,15 @@ void BayesTreeSmoother::linearizeFactor(FactorSlot& f) {
     f.linear.leftCols(cols - 1) = J;
     f.linear.col(cols - 1) = -r;
   }
+  // Rotate [A | b] to upper-triangular form (the same least-squares problem:
+  // Q^T is orthogonal): eliminateClique then knows each row's first nonzero
+  // column, and the staircase QR of a clique skips the zeros below the
+  // diagonal of every re-elimination instead of re-triangularizing the dense
+  // IMU block each time.
+  if (f.linear.rows() > 1) {
+    if (qr_workspace_.size() < cols) qr_workspace_.resize(cols);
+    staircaseQrInPlace(f.linear, cols - 1, nullptr, qr_workspace_.data());
+  }
   f.needs_linearization = false;
 }
 
@@ -312,7 +321,25 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
   const int n = col;
 
   bool regularize = false;
-  std::vector<int> suffix_min;
+  // Factor blocks (triangularized by linearizeFactor) and children's messages
+  // are upper triangular in their own scalar column order: row i is zero
+  // before its i-th scalar column, so its first nonzero in W is at or after
+  // the smallest clique column among the scalars >= i. Rows past the last
+  // scalar are zero on the left (residual rows): leading n.
+  auto appendTriangularLeading = [&](const std::vector<VarId>& block_vars, int block_rows, int& r) {
+    int scalars = 0;
+    for (VarId v : block_vars) scalars += vars_[v].dim;
+    suffix_col_.resize(static_cast<std::size_t>(scalars) + 1);
+    suffix_col_[static_cast<std::size_t>(scalars)] = n;
+    int s = scalars;
+    for (auto it = block_vars.rbegin(); it != block_vars.rend(); ++it) {
+      const VarSlot& slot = vars_[*it];
+      for (int o = slot.dim - 1; o >= 0; --o, --s) {
+        suffix_col_[static_cast<std::size_t>(s) - 1] = std::min(suffix_col_[static_cast<std::size_t>(s)], slot.col + o);
+      }
+    }
+    for (int i = 0; i < block_rows; ++i) row_leading_[r++] = suffix_col_[static_cast<std::size_t>(std::min(i, scalars))];
+  };
   for (int attempt = 0; attempt < 2; ++attempt) {
     // Row sources: assigned factors, children's messages, damping rows, and
     // (second attempt) regularization rows; each row with a lower bound of
@@ -328,27 +355,10 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     row_leading_.resize(rows);
     int r = 0;
     for (FactorId f : q.factors) {
-      int lead = n;
-      for (VarId v : factors_[f].vars) lead = std::min(lead, vars_[v].col);
-      for (int i = 0; i < factors_[f].linear.rows(); ++i) row_leading_[r++] = lead;
+      appendTriangularLeading(factors_[f].vars, static_cast<int>(factors_[f].linear.rows()), r);
     }
     for (CliqueId ch : q.children) {
-      const Clique& child = cliques_[ch];
-      // Row i of an upper-triangular message starts within the separator
-      // variable holding scalar i or a later one.
-      int scalar = 0;
-      suffix_min.assign(child.separator.size() + 1, n);
-      for (int k = static_cast<int>(child.separator.size()) - 1; k >= 0; --k) {
-        suffix_min[k] = std::min(suffix_min[k + 1], vars_[child.separator[k]].col);
-      }
-      int k = 0;
-      for (int i = 0; i < child.message.rows(); ++i) {
-        while (scalar + vars_[child.separator[k]].dim <= i) {
-          scalar += vars_[child.separator[k]].dim;
-          ++k;
-        }
-        row_leading_[r++] = suffix_min[k];
-      }
+      appendTriangularLeading(cliques_[ch].separator, static_cast<int>(cliques_[ch].message.rows()), r);
     }
     for (VarId v : q.frontals) {
       if (lambda > 0.0 && vars_[v].damped == damp_stamp_) {
@@ -359,11 +369,11 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
       for (int i = 0; i < fd; ++i) row_leading_[r++] = i;
     }
 
-    // Counting sort of rows by leading column.
+    // Counting sort of rows by leading column (n: no nonzero on the left).
     std::vector<int>& count = rows_with_leading_le_;
-    count.assign(n + 1, 0);
+    count.assign(n + 2, 0);
     for (int i = 0; i < rows; ++i) ++count[row_leading_[i] + 1];
-    for (int k = 0; k < n; ++k) count[k + 1] += count[k];  // count[k] = rows with leading < k
+    for (int k = 0; k <= n; ++k) count[k + 1] += count[k];  // count[k] = rows with leading < k
     std::vector<int> dest(rows);
     {
       std::vector<int> next(count.begin(), count.end() - 1);

@@ -253,6 +253,7 @@ class BayesTreeSmoother final : public Smoother {
   Eigen::VectorXd solve_scratch_;
   std::vector<int> row_leading_;
   std::vector<int> rows_with_leading_le_;
+  std::vector<int> suffix_col_;
 };
 
 }  // namespace rilo

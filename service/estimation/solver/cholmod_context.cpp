@@ -349,6 +349,10 @@ CholmodResult CholmodContext::solve(const CholmodFactor& factor, const double* B
   }
   const int n = factor.size();
   if (n == 0) return {};
+  if (factor.eigen_) {
+    factor.eigen_->solve(static_cast<const double*>(factor.L_->x), B, n_rhs, X);
+    return {};
+  }
   CholmodCallScope scope(this);
   cholmod_dense b{};
   b.nrow = static_cast<std::size_t>(n);

@@ -16,8 +16,14 @@ bool SupernodalCholesky::prepare(const SupernodalStructure& structure, std::span
   st_ = structure;
   const int n = st_.n;
   if (!perm.empty() && perm.size() != static_cast<std::size_t>(n)) return false;
-  std::vector<int> iperm(static_cast<std::size_t>(n));
-  for (int k = 0; k < n; ++k) iperm[static_cast<std::size_t>(perm.empty() ? k : perm[static_cast<std::size_t>(k)])] = k;
+  perm_.resize(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) perm_[static_cast<std::size_t>(k)] = perm.empty() ? k : perm[static_cast<std::size_t>(k)];
+  std::vector<int> iperm(static_cast<std::size_t>(n), -1);
+  for (int k = 0; k < n; ++k) {
+    const int p = perm_[static_cast<std::size_t>(k)];
+    if (p < 0 || p >= n || iperm[static_cast<std::size_t>(p)] != -1) return false;
+    iperm[static_cast<std::size_t>(p)] = k;
+  }
 
   super_of_.assign(static_cast<std::size_t>(n), -1);
   diagonal_.assign(static_cast<std::size_t>(n), -1);
@@ -137,6 +143,50 @@ int SupernodalCholesky::factorize(const double* values, double shift, double* Lx
     }
   }
   return -1;
+}
+
+void SupernodalCholesky::solve(const double* Lx, const double* B, int n_rhs, double* X) {
+  const int n = st_.n;
+  y_.resize(n, n_rhs);
+  int max_below = 0;
+  for (int s = 0; s < st_.nsuper; ++s) {
+    max_below = std::max(max_below, st_.pi[s + 1] - st_.pi[s] - (st_.super[s + 1] - st_.super[s]));
+  }
+  if (below_.rows() < max_below || below_.cols() != n_rhs) below_.resize(max_below, n_rhs);
+  for (int c = 0; c < n_rhs; ++c) {
+    const double* b = B + static_cast<std::ptrdiff_t>(c) * n;
+    for (int k = 0; k < n; ++k) y_(k, c) = b[perm_[static_cast<std::size_t>(k)]];
+  }
+  // Forward: L y = P b, supernode by supernode.
+  for (int s = 0; s < st_.nsuper; ++s) {
+    const int k1 = st_.super[s], nscol = st_.super[s + 1] - k1;
+    const int psi = st_.pi[s], nsrow = st_.pi[s + 1] - psi, nbelow = nsrow - nscol;
+    const ConstPanel S(Lx + st_.px[s], nsrow, nscol, Eigen::OuterStride<>(nsrow));
+    auto ys = y_.middleRows(k1, nscol);
+    S.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(ys);
+    if (nbelow > 0) {
+      auto below = below_.topRows(nbelow);
+      below.noalias() = S.bottomRows(nbelow) * ys;
+      for (int i = 0; i < nbelow; ++i) y_.row(st_.rows[psi + nscol + i]) -= below.row(i);
+    }
+  }
+  // Backward: L^T x = y, in reverse.
+  for (int s = st_.nsuper - 1; s >= 0; --s) {
+    const int k1 = st_.super[s], nscol = st_.super[s + 1] - k1;
+    const int psi = st_.pi[s], nsrow = st_.pi[s + 1] - psi, nbelow = nsrow - nscol;
+    const ConstPanel S(Lx + st_.px[s], nsrow, nscol, Eigen::OuterStride<>(nsrow));
+    auto ys = y_.middleRows(k1, nscol);
+    if (nbelow > 0) {
+      auto below = below_.topRows(nbelow);
+      for (int i = 0; i < nbelow; ++i) below.row(i) = y_.row(st_.rows[psi + nscol + i]);
+      ys.noalias() -= S.bottomRows(nbelow).transpose() * below;
+    }
+    S.topRows(nscol).triangularView<Eigen::Lower>().transpose().solveInPlace(ys);
+  }
+  for (int c = 0; c < n_rhs; ++c) {
+    double* x = X + static_cast<std::ptrdiff_t>(c) * n;
+    for (int k = 0; k < n; ++k) x[perm_[static_cast<std::size_t>(k)]] = y_(k, c);
+  }
 }
 
 }  // namespace rilo

@@ -47,9 +47,14 @@ class SupernodalCholesky {
   /// column (permuted order) whose pivot was not positive; Lx is then partial.
   int factorize(const double* values, double shift, double* Lx);
 
+  /// Solves A X = B with the factor in Lx (after a successful factorize()):
+  /// B and X are column-major n x n_rhs, may be the same array.
+  void solve(const double* Lx, const double* B, int n_rhs, double* X);
+
  private:
   SupernodalStructure st_;
   bool prepared_ = false;
+  std::vector<int> perm_;         // perm_[k] = row/column of A eliminated k-th
   std::vector<int> assembly_;     // per entry of A: index into Lx
   std::vector<int> diagonal_;     // per permuted column: index of L_kk in Lx
   std::vector<int> super_of_;     // per permuted column: its supernode
@@ -58,6 +63,7 @@ class SupernodalCholesky {
   std::vector<int> head_, next_, row_pos_;
   std::vector<int> local_row_;    // row -> position within the current supernode
   Eigen::VectorXd update_;        // dense update block
+  Eigen::MatrixXd y_, below_;     // solve workspace
 };
 
 }  // namespace rilo

@@ -272,22 +272,24 @@ void BayesTreeSmoother::linearizeFactor(FactorSlot& f) {
   // diagonal of every re-elimination instead of re-triangularizing the dense
   // IMU block each time.
   if (f.linear.rows() > 1) {
-    if (qr_workspace_.size() < cols) qr_workspace_.resize(cols);
+    if (qr_workspace_.size() < f.linear.rows() + cols) qr_workspace_.resize(f.linear.rows() + cols);
     staircaseQrInPlace(f.linear, cols - 1, nullptr, qr_workspace_.data());
   }
   f.needs_linearization = false;
 }
 
-void BayesTreeSmoother::scatterRows(const Eigen::MatrixXd& blocks, const std::vector<VarId>& vars,
-                                    Eigen::Ref<Eigen::MatrixXd> W, int rhs_col, const int* dest, int first_row) const {
+void BayesTreeSmoother::scatterRows(const RowMajorMatrixXd& blocks, const std::vector<VarId>& vars,
+                                    Eigen::Ref<RowMajorMatrixXd> W, int rhs_col, const int* dest, int first_row) const {
+  // Both row-major: each variable's segment is a short contiguous copy.
   for (int i = 0; i < blocks.rows(); ++i) {
-    const int row = dest ? dest[i] : first_row + i;
-    int src = 0;
+    double* out = W.data() + static_cast<Eigen::Index>(dest ? dest[i] : first_row + i) * W.outerStride();
+    const double* in = blocks.data() + static_cast<Eigen::Index>(i) * blocks.outerStride();
     for (VarId v : vars) {
-      W.row(row).segment(vars_[v].col, vars_[v].dim) = blocks.row(i).segment(src, vars_[v].dim);
-      src += vars_[v].dim;
+      const VarSlot& slot = vars_[v];
+      std::copy_n(in, slot.dim, out + slot.col);
+      in += slot.dim;
     }
-    W(row, rhs_col) = blocks(i, src);
+    out[rhs_col] = *in;
   }
 }
 
@@ -374,9 +376,11 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     count.assign(n + 2, 0);
     for (int i = 0; i < rows; ++i) ++count[row_leading_[i] + 1];
     for (int k = 0; k <= n; ++k) count[k + 1] += count[k];  // count[k] = rows with leading < k
-    std::vector<int> dest(rows);
+    std::vector<int>& dest = row_dest_;
+    dest.resize(rows);
     {
-      std::vector<int> next(count.begin(), count.end() - 1);
+      std::vector<int>& next = row_next_;
+      next.assign(count.begin(), count.end() - 1);
       for (int i = 0; i < rows; ++i) dest[i] = next[row_leading_[i]]++;
     }
 
@@ -415,13 +419,14 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     }
 
     // rows_with_leading_le[k] = rows with leading <= k = count[k + 1].
-    Eigen::VectorXd column_norms = W.leftCols(fd).colwise().norm().transpose();
-    if (qr_workspace_.size() < n + 1) qr_workspace_.resize(n + 1);
+    column_norms_.resize(fd);
+    for (int k = 0; k < fd; ++k) column_norms_[k] = W.col(k).norm();
+    if (qr_workspace_.size() < rows + n + 1) qr_workspace_.resize(rows + n + 1);
     staircaseQrInPlace(W, n, count.data() + 1, qr_workspace_.data());
 
     bool deficient = rows < fd;
     for (int k = 0; k < fd && !deficient; ++k) {
-      deficient = !(std::abs(W(k, k)) > params_.rank_tolerance * column_norms[k]) || !std::isfinite(W(k, k));
+      deficient = !(std::abs(W(k, k)) > params_.rank_tolerance * column_norms_[k]) || !std::isfinite(W(k, k));
     }
     if (deficient && !regularize) {
       regularize = true;

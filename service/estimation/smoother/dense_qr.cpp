@@ -56,8 +56,51 @@ void applyReflector(double* W, Eigen::Index ld, int k, int length, int first, in
 
 }  // namespace
 
+void staircaseQrInPlace(Eigen::Ref<RowMajorMatrixXd> W, int n, const int* rows_with_leading_le, double* workspace) {
+  const int m = static_cast<int>(W.rows());
+  const int cols = static_cast<int>(W.cols());
+  const int steps = std::min(m, n);
+  const Eigen::Index ld = W.outerStride();
+  double* data = W.data();
+  double* s = workspace;             // cols entries: tau * (w_k + v^T W_tail) over the columns right of k
+  double* column_buf = workspace + cols;  // m entries: column k, rows k..end
+  for (int k = 0; k < steps; ++k) {
+    const int end = rows_with_leading_le ? std::max(k + 1, std::min(m, rows_with_leading_le[k])) : m;
+    const int length = end - k;
+    if (length <= 1) continue;
+    double* pivot_row = data + static_cast<Eigen::Index>(k) * ld;
+    Eigen::Map<Eigen::VectorXd> column(column_buf, length);
+    for (int i = 0; i < length; ++i) column[i] = pivot_row[static_cast<Eigen::Index>(i) * ld + k];
+    double tau = 0.0;
+    double beta = 0.0;
+    column.makeHouseholderInPlace(tau, beta);  // essential part in column[1..]
+    const int first = k + 1;
+    const int nc = cols - first;
+    if (nc > 0 && tau != 0.0) {
+      const double* v = column_buf + 1;
+      for (int j = 0; j < nc; ++j) s[j] = pivot_row[first + j];
+      for (int i = 1; i < length; ++i) {
+        const double vi = v[i - 1];
+        const double* row = pivot_row + static_cast<Eigen::Index>(i) * ld + first;
+        for (int j = 0; j < nc; ++j) s[j] += vi * row[j];
+      }
+      for (int j = 0; j < nc; ++j) {
+        s[j] *= tau;
+        pivot_row[first + j] -= s[j];
+      }
+      for (int i = 1; i < length; ++i) {
+        const double vi = v[i - 1];
+        double* row = pivot_row + static_cast<Eigen::Index>(i) * ld + first;
+        for (int j = 0; j < nc; ++j) row[j] -= vi * s[j];
+      }
+    }
+    pivot_row[k] = beta;
+    for (int i = 1; i < length; ++i) pivot_row[static_cast<Eigen::Index>(i) * ld + k] = 0.0;
+  }
+}
+
 void staircaseQrInPlace(Eigen::Ref<Eigen::MatrixXd> W, int n, const int* rows_with_leading_le, double* workspace) {
-  (void)workspace;  // kept in the interface: callers size it once per clique
+  (void)workspace;  // the column-major kernel needs none
   const int m = static_cast<int>(W.rows());
   const int cols = static_cast<int>(W.cols());
   const int steps = std::min(m, n);

@@ -78,19 +78,13 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
                                      const std::vector<CliqueId>& orphans, const std::vector<Key>& last_keys,
                                      UpdateStats& stats) {
   // 1. Constrained ordering of the top: marginalizable keys first, keys of
-  //    new factors last.
-  std::vector<std::vector<Key>> item_keys;
-  item_keys.reserve(top_factors.size() + orphans.size());
-  for (FactorId f : top_factors) {
-    std::vector<Key> keys;
-    for (VarId v : factors_[f].vars) keys.push_back(vars_[v].key);
-    item_keys.push_back(std::move(keys));
-  }
-  for (CliqueId o : orphans) {
-    std::vector<Key> keys;
-    for (VarId v : cliques_[o].separator) keys.push_back(vars_[v].key);
-    item_keys.push_back(std::move(keys));
-  }
+  //    new factors last. Items are the top's factors, then the orphans'
+  //    separators.
+  const int n_items = static_cast<int>(top_factors.size() + orphans.size());
+  const int n_factors = static_cast<int>(top_factors.size());
+  auto item_vars = [&](int item) -> const std::vector<VarId>& {
+    return item < n_factors ? factors_[top_factors[item]].vars : cliques_[orphans[item - n_factors]].separator;
+  };
   // Groups: marginalizable keys first (they must become leaves); then timed
   // states oldest first (a newer state eliminated below an older one would
   // block the older one's marginalization); then keys without a time
@@ -108,9 +102,17 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
   };
   const std::uint64_t last_stamp = newStamp();
   for (Key k : last_keys) vars_[key_to_var_.at(k)].mark = last_stamp;
-  OrderingConstraints constraints;
-  for (VarId v : top_vars) {
-    const VarSlot& slot = vars_[v];
+  // The variable-item incidence as constrainedOrdering() builds it from key
+  // lists (columns in ascending key order, rows in item order), built here
+  // from the slots directly: same CCOLAMD input, same order.
+  const int n = static_cast<int>(top_vars.size());
+  std::vector<VarId> column_var(top_vars);
+  std::sort(column_var.begin(), column_var.end(), [&](VarId a, VarId b) { return vars_[a].key < vars_[b].key; });
+  std::vector<int> groups(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) {
+    const VarId v = column_var[j];
+    VarSlot& slot = vars_[v];
+    slot.pos = j;  // column index until the order is known
     const bool last = slot.mark == last_stamp;
     int group;
     if (slot.marginalize) {
@@ -120,26 +122,35 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
     } else {
       group = slot.has_time ? 2 + n_times + time_rank(v) : 2 + 2 * n_times;
     }
-    constraints.group[slot.key] = group;
+    groups[static_cast<std::size_t>(j)] = group;
   }
-  const std::vector<Key> order = constrainedOrdering(item_keys, constraints);
-  if (order.size() != top_vars.size()) {
-    throw std::logic_error("BayesTreeSmoother: ordering of the top has " + std::to_string(order.size()) +
-                           " keys, the top has " + std::to_string(top_vars.size()));
+  std::vector<int> col_ptr(static_cast<std::size_t>(n) + 1, 0);
+  for (int item = 0; item < n_items; ++item) {
+    for (VarId v : item_vars(item)) {
+      if (vars_[v].pos < 0) throw std::logic_error("BayesTreeSmoother: a top item holds a variable outside the top");
+      ++col_ptr[static_cast<std::size_t>(vars_[v].pos) + 1];
+    }
   }
-  const int n = static_cast<int>(order.size());
+  for (int j = 0; j < n; ++j) {
+    if (col_ptr[static_cast<std::size_t>(j) + 1] == 0) {
+      throw std::logic_error("BayesTreeSmoother: top variable " + keyString(vars_[column_var[j]].key) +
+                             " is in no factor or separator of the top");
+    }
+    col_ptr[static_cast<std::size_t>(j) + 1] += col_ptr[static_cast<std::size_t>(j)];
+  }
+  std::vector<int> incidence_rows(static_cast<std::size_t>(col_ptr.back()));
+  {
+    std::vector<int> next(col_ptr.begin(), col_ptr.end() - 1);
+    for (int item = 0; item < n_items; ++item) {
+      for (VarId v : item_vars(item)) incidence_rows[static_cast<std::size_t>(next[static_cast<std::size_t>(vars_[v].pos)]++)] = item;
+    }
+  }
+  const std::vector<int> order = constrainedColumnOrdering(n_items, col_ptr, incidence_rows, std::move(groups));
   std::vector<VarId> var_at(n);
-  for (int i = 0; i < n; ++i) {
-    var_at[i] = key_to_var_.at(order[i]);
-    vars_[var_at[i]].pos = i;
-  }
+  for (int i = 0; i < n; ++i) var_at[i] = column_var[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])];
+  for (int i = 0; i < n; ++i) vars_[var_at[i]].pos = i;
 
   // 2. Bucket factors and orphans by their first-eliminated variable.
-  const int n_items = static_cast<int>(item_keys.size());
-  const int n_factors = static_cast<int>(top_factors.size());
-  auto item_vars = [&](int item) -> const std::vector<VarId>& {
-    return item < n_factors ? factors_[top_factors[item]].vars : cliques_[orphans[item - n_factors]].separator;
-  };
   std::vector<std::vector<int>> items_at(n);
   for (int item = 0; item < n_items; ++item) {
     int first = n;

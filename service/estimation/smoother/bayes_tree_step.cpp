@@ -39,26 +39,9 @@ void BayesTreeSmoother::solveClique(CliqueId c, double threshold, std::uint64_t 
     delta_sep.segment(offset, vars_[v].dim) = vars_[v].delta.head(vars_[v].dim);
     offset += vars_[v].dim;
   }
-  // x = R^-1 (d - S delta_sep), column by column (contiguous axpys): at these
-  // sizes (fd ~15, sd ~40) Eigen's gemv and blocked triangular solve spent
-  // more in dispatch than in arithmetic; the tree is re-solved ~150 cliques
-  // per update.
-  const Eigen::Index ld = q.conditional.outerStride();
-  const double* C = q.conditional.data();
-  double* xp = x.data();
-  const double* d = C + static_cast<Eigen::Index>(fd + sd) * ld;
-  for (int i = 0; i < fd; ++i) xp[i] = d[i];
-  for (int j = 0; j < sd; ++j) {
-    const double a = delta_sep[j];
-    const double* col = C + static_cast<Eigen::Index>(fd + j) * ld;
-    for (int i = 0; i < fd; ++i) xp[i] -= a * col[i];
-  }
-  for (int k = fd - 1; k >= 0; --k) {
-    const double* col = C + static_cast<Eigen::Index>(k) * ld;
-    const double xk = xp[k] / col[k];
-    xp[k] = xk;
-    for (int i = 0; i < k; ++i) xp[i] -= xk * col[i];
-  }
+  x = q.conditional.col(fd + sd);
+  if (sd > 0) x.noalias() -= q.conditional.block(0, fd, fd, sd) * delta_sep;
+  q.conditional.topLeftCorner(fd, fd).triangularView<Eigen::Upper>().solveInPlace(x);
 
   offset = 0;
   const bool step_follows = params_.method != SmootherParams::Method::kDogleg;

@@ -297,7 +297,16 @@ void BayesTreeSmoother::scatterRows(const RowMajorMatrixXd& blocks, const std::v
     const double* in = blocks.data() + static_cast<Eigen::Index>(i) * blocks.outerStride();
     for (VarId v : vars) {
       const VarSlot& slot = vars_[v];
-      std::copy_n(in, slot.dim, out + slot.col);
+      double* to = out + slot.col;
+      // Fixed sizes for the two variable dimensions: a short std::copy_n
+      // became a memmove call per segment.
+      if (slot.dim == 6) {
+        Eigen::Map<Vec6>{to} = Eigen::Map<const Vec6>{in};
+      } else if (slot.dim == 3) {
+        Eigen::Map<Vec3>{to} = Eigen::Map<const Vec3>{in};
+      } else {
+        for (int t = 0; t < slot.dim; ++t) to[t] = in[t];
+      }
       in += slot.dim;
     }
     out[rhs_col] = *in;
@@ -430,8 +439,11 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     }
 
     // rows_with_leading_le[k] = rows with leading <= k = count[k + 1].
-    column_norms_.resize(fd);
-    for (int k = 0; k < fd; ++k) column_norms_[k] = W.col(k).norm();
+    // Frontal column norms, accumulated along the rows (W is row-major; each
+    // column's sum still runs over the rows in order).
+    column_norms_.setZero(fd);
+    for (int i = 0; i < rows; ++i) column_norms_ += W.row(i).head(fd).transpose().cwiseAbs2();
+    column_norms_ = column_norms_.cwiseSqrt();
     if (qr_workspace_.size() < rows + n + 1) qr_workspace_.resize(rows + n + 1);
     staircaseQrInPlace(W, n, count.data() + 1, qr_workspace_.data());
 

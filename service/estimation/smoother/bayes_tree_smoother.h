@@ -135,7 +135,7 @@ class BayesTreeSmoother final : public Smoother {
     CliqueId parent = kNone;
     std::vector<CliqueId> children;
     std::vector<FactorId> factors;     // factors assigned (first-eliminated key here)
-    Eigen::MatrixXd conditional;       // frontal_dim x (frontal_dim + separator_dim + 1): [R S | d]
+    RowMajorMatrixXd conditional;      // frontal_dim x (frontal_dim + separator_dim + 1): [R S | d]
     RowMajorMatrixXd message;          // k x (separator_dim + 1): [R_sep | d_sep], upper triangular
     bool replaced = false;             // re-eliminated during the current update
     Eigen::VectorXd gradient;          // dog-leg: this clique's -[R S]^T d (frontals, then separator)

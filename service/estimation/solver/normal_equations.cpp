@@ -7,6 +7,46 @@
 
 namespace rilo {
 
+namespace {
+
+// Block (i, j) of H_f^T H_f for an M-row factor with DI- and DJ-column
+// Jacobian blocks (JacobianBlock stores columns contiguously, stride = rows):
+// fixed sizes let the compiler keep the dot products in registers. Added to
+// the CSC values column by column (the upper triangle of a diagonal block).
+template <int M, int DI, int DJ>
+void addBlockProduct(const JacobianBlock& Hi, const JacobianBlock& Hj, bool diagonal, double* values,
+                     const int* col_ptr, int row_start) {
+  const Eigen::Map<const Eigen::Matrix<double, M, DI>> A(Hi.data());
+  const Eigen::Map<const Eigen::Matrix<double, M, DJ>> B(Hj.data());
+  const Eigen::Matrix<double, DI, DJ> P = A.transpose().lazyProduct(B);
+  for (int jj = 0; jj < DJ; ++jj) {
+    double* dst = values + col_ptr[jj] + row_start;
+    const int rows = diagonal ? jj + 1 : DI;
+    for (int ii = 0; ii < rows; ++ii) dst[ii] += P(ii, jj);
+  }
+}
+
+/// The fixed-size kernel for the 15-row combined IMU factor, or false.
+bool addImuBlockProduct(const JacobianBlock& Hi, const JacobianBlock& Hj, bool diagonal, double* values,
+                        const int* col_ptr, int row_start) {
+  if (Hi.rows() != 15) return false;
+  const int di = static_cast<int>(Hi.cols()), dj = static_cast<int>(Hj.cols());
+  if (di == 6 && dj == 6) {
+    addBlockProduct<15, 6, 6>(Hi, Hj, diagonal, values, col_ptr, row_start);
+  } else if (di == 6 && dj == 3) {
+    addBlockProduct<15, 6, 3>(Hi, Hj, diagonal, values, col_ptr, row_start);
+  } else if (di == 3 && dj == 6) {
+    addBlockProduct<15, 3, 6>(Hi, Hj, diagonal, values, col_ptr, row_start);
+  } else if (di == 3 && dj == 3) {
+    addBlockProduct<15, 3, 3>(Hi, Hj, diagonal, values, col_ptr, row_start);
+  } else {
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 std::size_t NormalEquations::position(Key k) const {
   auto it = position_.find(k);
   if (it == position_.end()) throw std::out_of_range("NormalEquations: key " + keyString(k) + " not in the ordering");
@@ -181,6 +221,7 @@ void NormalEquations::linearize(const FactorGraph& graph, const Values& x) {
       const JacobianBlock& Hj = H_[slot.j];
       const bool diagonal = slot.i == slot.j;
       const int col0 = offsets_[pb];
+      if (addImuBlockProduct(Hi, Hj, diagonal, values_.data(), col_ptr_.data() + col0, slot.row_start)) continue;
       for (int jj = 0; jj < varDim(pb); ++jj) {
         double* dst = values_.data() + col_ptr_[static_cast<std::size_t>(col0 + jj)] + slot.row_start;
         const auto hj = Hj.col(jj);

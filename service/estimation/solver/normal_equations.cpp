@@ -234,13 +234,23 @@ void NormalEquations::linearize(const FactorGraph& graph, const Values& x) {
 
 void NormalEquations::multiplyHessian(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
   y.setZero(n_);
+  const int* row_idx = row_idx_.data();
+  const double* values = values_.data();
+  double* yp = y.data();
+  const double* xp = x.data();
   for (int c = 0; c < n_; ++c) {
-    for (int p = col_ptr_[static_cast<std::size_t>(c)]; p < col_ptr_[static_cast<std::size_t>(c) + 1]; ++p) {
-      const int r = row_idx_[static_cast<std::size_t>(p)];
-      const double v = values_[static_cast<std::size_t>(p)];
-      y(r) += v * x(c);
-      if (r != c) y(c) += v * x(r);
+    // Column c holds rows above the diagonal, then the diagonal (last): the
+    // upper part contributes H_rc x_c to y_r and H_rc x_r to y_c.
+    const int begin = col_ptr_[static_cast<std::size_t>(c)];
+    const int diag = diag_idx_[static_cast<std::size_t>(c)];
+    const double xc = xp[c];
+    double yc = 0.0;
+    for (int p = begin; p < diag; ++p) {
+      const int r = row_idx[p];
+      yp[r] += values[p] * xc;
+      yc += values[p] * xp[r];
     }
+    yp[c] += values[diag] * xc + yc;
   }
 }
 

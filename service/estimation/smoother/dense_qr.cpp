@@ -2,6 +2,8 @@
 
 #include <Eigen/Householder>
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 namespace rilo {
 
@@ -69,11 +71,25 @@ void staircaseQrInPlace(Eigen::Ref<RowMajorMatrixXd> W, int n, const int* rows_w
     const int length = end - k;
     if (length <= 1) continue;
     double* pivot_row = data + static_cast<Eigen::Index>(k) * ld;
-    Eigen::Map<Eigen::VectorXd> column(column_buf, length);
-    for (int i = 0; i < length; ++i) column[i] = pivot_row[static_cast<Eigen::Index>(i) * ld + k];
+    // Householder vector of column k, rows k..end (Eigen's
+    // makeHouseholderInPlace, fused with gathering the column): H x = beta e_1
+    // for H = I - tau [1; v] [1; v]^T, essential part v in column_buf[1..].
+    const double c0 = pivot_row[k];
+    double tail_sq = 0.0;
+    for (int i = 1; i < length; ++i) {
+      const double x = pivot_row[static_cast<Eigen::Index>(i) * ld + k];
+      column_buf[i] = x;
+      tail_sq += x * x;
+    }
     double tau = 0.0;
-    double beta = 0.0;
-    column.makeHouseholderInPlace(tau, beta);  // essential part in column[1..]
+    double beta = c0;
+    if (tail_sq > std::numeric_limits<double>::min()) {
+      beta = std::sqrt(c0 * c0 + tail_sq);
+      if (c0 >= 0.0) beta = -beta;
+      const double scale = 1.0 / (c0 - beta);
+      for (int i = 1; i < length; ++i) column_buf[i] *= scale;
+      tau = (beta - c0) / beta;
+    }
     const int first = k + 1;
     const int nc = cols - first;
     if (nc > 0 && tau != 0.0) {

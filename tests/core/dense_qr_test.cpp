@@ -8,6 +8,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -55,17 +56,12 @@ std::vector<int> randomLeading(std::mt19937& rng, int m, int n) {
   return lead;
 }
 
-/// Runs staircaseQrInPlace on a copy and checks it against Eigen's QR of the same matrix.
-void checkAgainstEigen(const QrCase& c, double tol = 1e-10) {
+/// Checks one staircaseQrInPlace result against Eigen's QR of the same matrix.
+void checkResult(const QrCase& c, const Eigen::MatrixXd& ours, double tol) {
   const int m = static_cast<int>(c.W.rows());
   const int n = c.n;
   const int cols = static_cast<int>(c.W.cols());
   const int steps = std::min(m, n);
-
-  Eigen::MatrixXd ours = c.W;
-  Eigen::VectorXd workspace(cols);
-  staircaseQrInPlace(ours, n, c.rows_with_leading_le.empty() ? nullptr : c.rows_with_leading_le.data(),
-                     workspace.data());
 
   const Eigen::MatrixXd A = c.W.leftCols(n);
   const Eigen::MatrixXd B = c.W.rightCols(cols - n);
@@ -101,6 +97,34 @@ void checkAgainstEigen(const QrCase& c, double tol = 1e-10) {
                   tol * std::max(1.0, B.col(j).norm()));
     }
   }
+}
+
+/// Runs staircaseQrInPlace on copies in both layouts (the smoother uses the
+/// row-major one) and checks each against Eigen's QR of the same matrix.
+void checkAgainstEigen(const QrCase& c, double tol = 1e-10) {
+  const int m = static_cast<int>(c.W.rows());
+  const int cols = static_cast<int>(c.W.cols());
+  Eigen::MatrixXd col_major = c.W;
+  RowMajorMatrixXd row_major = c.W;
+  Eigen::VectorXd workspace(m + cols);
+  const int* staircase = c.rows_with_leading_le.empty() ? nullptr : c.rows_with_leading_le.data();
+  staircaseQrInPlace(col_major, c.n, staircase, workspace.data());
+  staircaseQrInPlace(row_major, c.n, staircase, workspace.data());
+  const Eigen::MatrixXd row_major_result = row_major;
+  double largest_difference = 0.0;
+  for (Eigen::Index j = 0; j < col_major.cols(); ++j) {
+    for (Eigen::Index i = 0; i < col_major.rows(); ++i) {
+      largest_difference = std::max(largest_difference, std::abs(col_major(i, j) - row_major_result(i, j)));
+    }
+  }
+  EXPECT_LT(largest_difference, tol * std::max(1.0, c.W.cwiseAbs().maxCoeff() * m))
+      << "both layouts apply the same reflections";
+  {
+    SCOPED_TRACE("column-major");
+    checkResult(c, col_major, tol);
+  }
+  SCOPED_TRACE("row-major");
+  checkResult(c, row_major_result, tol);
 }
 
 TEST(StaircaseQr, DenseRandomMatchesEigen) {

@@ -52,6 +52,8 @@ Vec9 imuPreintegrationError(const PreintegratedImu& pim, const Pose3& T_w_i, con
   e << r_R, s_p - d.p_m, s_v - d.v_m_s;
   if (!J) return e;
 
+  // CombinedImuFactor::evaluate whitens only the blocks set below; the ones
+  // zeroed here must stay structurally zero.
   const Mat3 I = Mat3::Identity();
   const Mat3 Jr_inv = so3::rightJacobianInverse(r_R);
   // R_i <- R_i Exp(phi): r_R -> Log(Exp(-dR^T phi) E) = r_R - Jr^-1 E^T dR^T phi; R_i^T y -> R_i^T y + [R_i^T y]x phi.
@@ -144,17 +146,42 @@ void CombinedImuFactor::evaluate(const Values& x, Residual& r, Jacobians* H) con
   const Vec15 e = computeError(x, H ? &J : nullptr);
   r = sqrt_info_ * e;
   if (!H) return;
-  // Only rows 0..8 of most unwhitened blocks are nonzero. lazyProduct: see ImuFactor::evaluate.
-  const auto L_xi = sqrt_info_.leftCols<9>();
-  (*H)[0] = L_xi.lazyProduct(J.J_pose_i);
-  (*H)[1] = L_xi.lazyProduct(J.J_vel_i);
-  Eigen::Matrix<double, 15, 6> J_b_i = Eigen::Matrix<double, 15, 6>::Zero();
-  J_b_i.topRows<9>() = J.J_bias_i;
-  J_b_i.bottomRows<6>().diagonal() = -phi_;
-  (*H)[2] = sqrt_info_.lazyProduct(J_b_i);
-  (*H)[3] = L_xi.lazyProduct(J.J_pose_j);
-  (*H)[4] = L_xi.lazyProduct(J.J_vel_j);
-  (*H)[5] = sqrt_info_.rightCols<6>();
+  // Whitened blocks L^-1 J over the nonzero 3x3 blocks of the unwhitened
+  // Jacobians only (imuPreintegrationError: r_R does not depend on the
+  // positions or velocities, r_p not on v_j, r_v not on the positions; the
+  // bias rows are -Phi on b_i and I on b_j): half the multiply-adds of the
+  // full 15x9 products, and the smoother relinearizes these factors often.
+  // lazyProduct: see ImuFactor::evaluate.
+  using Block15x3 = Eigen::Matrix<double, 15, 3>;
+  const auto L_R = sqrt_info_.middleCols<3>(0);  // columns of the rotation residual
+  const auto L_p = sqrt_info_.middleCols<3>(3);  // position
+  const auto L_v = sqrt_info_.middleCols<3>(6);  // velocity
+  const auto L_b = sqrt_info_.rightCols<6>();    // bias
+  // X_i: [phi_i, rho_i]; rho_i enters r_p only.
+  const Block15x3 H_phi_i = L_R.lazyProduct(J.J_pose_i.block<3, 3>(0, 0)) +
+                            L_p.lazyProduct(J.J_pose_i.block<3, 3>(3, 0)) +
+                            L_v.lazyProduct(J.J_pose_i.block<3, 3>(6, 0));
+  (*H)[0].resize(15, 6);
+  (*H)[0].leftCols<3>() = H_phi_i;
+  (*H)[0].rightCols<3>() = L_p.lazyProduct(J.J_pose_i.block<3, 3>(3, 3));
+  // V_i: r_p and r_v.
+  (*H)[1] = L_p.lazyProduct(J.J_vel_i.middleRows<3>(3)) + L_v.lazyProduct(J.J_vel_i.bottomRows<3>());
+  // B_i: b_a enters r_p, r_v; b_g all three; the bias process -Phi.
+  (*H)[2].resize(15, 6);
+  (*H)[2].leftCols<3>() = L_p.lazyProduct(J.J_bias_i.block<3, 3>(3, 0)) +
+                          L_v.lazyProduct(J.J_bias_i.block<3, 3>(6, 0)) -
+                          L_b.leftCols<3>() * phi_.head<3>().asDiagonal();
+  (*H)[2].rightCols<3>() = L_R.lazyProduct(J.J_bias_i.block<3, 3>(0, 3)) +
+                           L_p.lazyProduct(J.J_bias_i.block<3, 3>(3, 3)) +
+                           L_v.lazyProduct(J.J_bias_i.block<3, 3>(6, 3)) -
+                           L_b.rightCols<3>() * phi_.tail<3>().asDiagonal();
+  // X_j: phi_j enters r_R, rho_j r_p.
+  (*H)[3].resize(15, 6);
+  (*H)[3].leftCols<3>() = L_R.lazyProduct(J.J_pose_j.block<3, 3>(0, 0));
+  (*H)[3].rightCols<3>() = L_p.lazyProduct(J.J_pose_j.block<3, 3>(3, 3));
+  // V_j: r_v.
+  (*H)[4] = L_v.lazyProduct(J.J_vel_j.bottomRows<3>());
+  (*H)[5] = L_b;
 }
 
 }  // namespace rilo

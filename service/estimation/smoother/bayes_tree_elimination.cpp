@@ -78,19 +78,13 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
                                      const std::vector<CliqueId>& orphans, const std::vector<Key>& last_keys,
                                      UpdateStats& stats) {
   // 1. Constrained ordering of the top: marginalizable keys first, keys of
-  //    new factors last.
-  std::vector<std::vector<Key>> item_keys;
-  item_keys.reserve(top_factors.size() + orphans.size());
-  for (FactorId f : top_factors) {
-    std::vector<Key> keys;
-    for (VarId v : factors_[f].vars) keys.push_back(vars_[v].key);
-    item_keys.push_back(std::move(keys));
-  }
-  for (CliqueId o : orphans) {
-    std::vector<Key> keys;
-    for (VarId v : cliques_[o].separator) keys.push_back(vars_[v].key);
-    item_keys.push_back(std::move(keys));
-  }
+  //    new factors last. Items are the top's factors, then the orphans'
+  //    separators.
+  const int n_items = static_cast<int>(top_factors.size() + orphans.size());
+  const int n_factors = static_cast<int>(top_factors.size());
+  auto item_vars = [&](int item) -> const std::vector<VarId>& {
+    return item < n_factors ? factors_[top_factors[item]].vars : cliques_[orphans[item - n_factors]].separator;
+  };
   // Groups: marginalizable keys first (they must become leaves); then timed
   // states oldest first (a newer state eliminated below an older one would
   // block the older one's marginalization); then keys without a time
@@ -108,9 +102,17 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
   };
   const std::uint64_t last_stamp = newStamp();
   for (Key k : last_keys) vars_[key_to_var_.at(k)].mark = last_stamp;
-  OrderingConstraints constraints;
-  for (VarId v : top_vars) {
-    const VarSlot& slot = vars_[v];
+  // The variable-item incidence as constrainedOrdering() builds it from key
+  // lists (columns in ascending key order, rows in item order), built here
+  // from the slots directly: same CCOLAMD input, same order.
+  const int n = static_cast<int>(top_vars.size());
+  std::vector<VarId> column_var(top_vars);
+  std::sort(column_var.begin(), column_var.end(), [&](VarId a, VarId b) { return vars_[a].key < vars_[b].key; });
+  std::vector<int> groups(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) {
+    const VarId v = column_var[j];
+    VarSlot& slot = vars_[v];
+    slot.pos = j;  // column index until the order is known
     const bool last = slot.mark == last_stamp;
     int group;
     if (slot.marginalize) {
@@ -120,26 +122,35 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
     } else {
       group = slot.has_time ? 2 + n_times + time_rank(v) : 2 + 2 * n_times;
     }
-    constraints.group[slot.key] = group;
+    groups[static_cast<std::size_t>(j)] = group;
   }
-  const std::vector<Key> order = constrainedOrdering(item_keys, constraints);
-  if (order.size() != top_vars.size()) {
-    throw std::logic_error("BayesTreeSmoother: ordering of the top has " + std::to_string(order.size()) +
-                           " keys, the top has " + std::to_string(top_vars.size()));
+  std::vector<int> col_ptr(static_cast<std::size_t>(n) + 1, 0);
+  for (int item = 0; item < n_items; ++item) {
+    for (VarId v : item_vars(item)) {
+      if (vars_[v].pos < 0) throw std::logic_error("BayesTreeSmoother: a top item holds a variable outside the top");
+      ++col_ptr[static_cast<std::size_t>(vars_[v].pos) + 1];
+    }
   }
-  const int n = static_cast<int>(order.size());
+  for (int j = 0; j < n; ++j) {
+    if (col_ptr[static_cast<std::size_t>(j) + 1] == 0) {
+      throw std::logic_error("BayesTreeSmoother: top variable " + keyString(vars_[column_var[j]].key) +
+                             " is in no factor or separator of the top");
+    }
+    col_ptr[static_cast<std::size_t>(j) + 1] += col_ptr[static_cast<std::size_t>(j)];
+  }
+  std::vector<int> incidence_rows(static_cast<std::size_t>(col_ptr.back()));
+  {
+    std::vector<int> next(col_ptr.begin(), col_ptr.end() - 1);
+    for (int item = 0; item < n_items; ++item) {
+      for (VarId v : item_vars(item)) incidence_rows[static_cast<std::size_t>(next[static_cast<std::size_t>(vars_[v].pos)]++)] = item;
+    }
+  }
+  const std::vector<int> order = constrainedColumnOrdering(n_items, col_ptr, incidence_rows, std::move(groups));
   std::vector<VarId> var_at(n);
-  for (int i = 0; i < n; ++i) {
-    var_at[i] = key_to_var_.at(order[i]);
-    vars_[var_at[i]].pos = i;
-  }
+  for (int i = 0; i < n; ++i) var_at[i] = column_var[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])];
+  for (int i = 0; i < n; ++i) vars_[var_at[i]].pos = i;
 
   // 2. Bucket factors and orphans by their first-eliminated variable.
-  const int n_items = static_cast<int>(item_keys.size());
-  const int n_factors = static_cast<int>(top_factors.size());
-  auto item_vars = [&](int item) -> const std::vector<VarId>& {
-    return item < n_factors ? factors_[top_factors[item]].vars : cliques_[orphans[item - n_factors]].separator;
-  };
   std::vector<std::vector<int>> items_at(n);
   for (int item = 0; item < n_items; ++item) {
     int first = n;
@@ -266,19 +277,39 @@ void BayesTreeSmoother::linearizeFactor(FactorSlot& f) {
     f.linear.leftCols(cols - 1) = J;
     f.linear.col(cols - 1) = -r;
   }
+  // Rotate [A | b] to upper-triangular form (the same least-squares problem:
+  // Q^T is orthogonal): eliminateClique then knows each row's first nonzero
+  // column, and the staircase QR of a clique skips the zeros below the
+  // diagonal of every re-elimination instead of re-triangularizing the dense
+  // IMU block each time.
+  if (f.linear.rows() > 1) {
+    if (qr_workspace_.size() < f.linear.rows() + cols) qr_workspace_.resize(f.linear.rows() + cols);
+    staircaseQrInPlace(f.linear, cols - 1, nullptr, qr_workspace_.data());
+  }
   f.needs_linearization = false;
 }
 
-void BayesTreeSmoother::scatterRows(const Eigen::MatrixXd& blocks, const std::vector<VarId>& vars,
-                                    Eigen::Ref<Eigen::MatrixXd> W, int rhs_col, const int* dest, int first_row) const {
+void BayesTreeSmoother::scatterRows(const RowMajorMatrixXd& blocks, const std::vector<VarId>& vars,
+                                    Eigen::Ref<RowMajorMatrixXd> W, int rhs_col, const int* dest, int first_row) const {
+  // Both row-major: each variable's segment is a short contiguous copy.
   for (int i = 0; i < blocks.rows(); ++i) {
-    const int row = dest ? dest[i] : first_row + i;
-    int src = 0;
+    double* out = W.data() + static_cast<Eigen::Index>(dest ? dest[i] : first_row + i) * W.outerStride();
+    const double* in = blocks.data() + static_cast<Eigen::Index>(i) * blocks.outerStride();
     for (VarId v : vars) {
-      W.row(row).segment(vars_[v].col, vars_[v].dim) = blocks.row(i).segment(src, vars_[v].dim);
-      src += vars_[v].dim;
+      const VarSlot& slot = vars_[v];
+      double* to = out + slot.col;
+      // Fixed sizes for the two variable dimensions: a short std::copy_n
+      // became a memmove call per segment.
+      if (slot.dim == 6) {
+        Eigen::Map<Vec6>{to} = Eigen::Map<const Vec6>{in};
+      } else if (slot.dim == 3) {
+        Eigen::Map<Vec3>{to} = Eigen::Map<const Vec3>{in};
+      } else {
+        for (int t = 0; t < slot.dim; ++t) to[t] = in[t];
+      }
+      in += slot.dim;
     }
-    W(row, rhs_col) = blocks(i, src);
+    out[rhs_col] = *in;
   }
 }
 
@@ -312,7 +343,25 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
   const int n = col;
 
   bool regularize = false;
-  std::vector<int> suffix_min;
+  // Factor blocks (triangularized by linearizeFactor) and children's messages
+  // are upper triangular in their own scalar column order: row i is zero
+  // before its i-th scalar column, so its first nonzero in W is at or after
+  // the smallest clique column among the scalars >= i. Rows past the last
+  // scalar are zero on the left (residual rows): leading n.
+  auto appendTriangularLeading = [&](const std::vector<VarId>& block_vars, int block_rows, int& r) {
+    int scalars = 0;
+    for (VarId v : block_vars) scalars += vars_[v].dim;
+    suffix_col_.resize(static_cast<std::size_t>(scalars) + 1);
+    suffix_col_[static_cast<std::size_t>(scalars)] = n;
+    int s = scalars;
+    for (auto it = block_vars.rbegin(); it != block_vars.rend(); ++it) {
+      const VarSlot& slot = vars_[*it];
+      for (int o = slot.dim - 1; o >= 0; --o, --s) {
+        suffix_col_[static_cast<std::size_t>(s) - 1] = std::min(suffix_col_[static_cast<std::size_t>(s)], slot.col + o);
+      }
+    }
+    for (int i = 0; i < block_rows; ++i) row_leading_[r++] = suffix_col_[static_cast<std::size_t>(std::min(i, scalars))];
+  };
   for (int attempt = 0; attempt < 2; ++attempt) {
     // Row sources: assigned factors, children's messages, damping rows, and
     // (second attempt) regularization rows; each row with a lower bound of
@@ -328,27 +377,10 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     row_leading_.resize(rows);
     int r = 0;
     for (FactorId f : q.factors) {
-      int lead = n;
-      for (VarId v : factors_[f].vars) lead = std::min(lead, vars_[v].col);
-      for (int i = 0; i < factors_[f].linear.rows(); ++i) row_leading_[r++] = lead;
+      appendTriangularLeading(factors_[f].vars, static_cast<int>(factors_[f].linear.rows()), r);
     }
     for (CliqueId ch : q.children) {
-      const Clique& child = cliques_[ch];
-      // Row i of an upper-triangular message starts within the separator
-      // variable holding scalar i or a later one.
-      int scalar = 0;
-      suffix_min.assign(child.separator.size() + 1, n);
-      for (int k = static_cast<int>(child.separator.size()) - 1; k >= 0; --k) {
-        suffix_min[k] = std::min(suffix_min[k + 1], vars_[child.separator[k]].col);
-      }
-      int k = 0;
-      for (int i = 0; i < child.message.rows(); ++i) {
-        while (scalar + vars_[child.separator[k]].dim <= i) {
-          scalar += vars_[child.separator[k]].dim;
-          ++k;
-        }
-        row_leading_[r++] = suffix_min[k];
-      }
+      appendTriangularLeading(cliques_[ch].separator, static_cast<int>(cliques_[ch].message.rows()), r);
     }
     for (VarId v : q.frontals) {
       if (lambda > 0.0 && vars_[v].damped == damp_stamp_) {
@@ -359,14 +391,16 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
       for (int i = 0; i < fd; ++i) row_leading_[r++] = i;
     }
 
-    // Counting sort of rows by leading column.
+    // Counting sort of rows by leading column (n: no nonzero on the left).
     std::vector<int>& count = rows_with_leading_le_;
-    count.assign(n + 1, 0);
+    count.assign(n + 2, 0);
     for (int i = 0; i < rows; ++i) ++count[row_leading_[i] + 1];
-    for (int k = 0; k < n; ++k) count[k + 1] += count[k];  // count[k] = rows with leading < k
-    std::vector<int> dest(rows);
+    for (int k = 0; k <= n; ++k) count[k + 1] += count[k];  // count[k] = rows with leading < k
+    std::vector<int>& dest = row_dest_;
+    dest.resize(rows);
     {
-      std::vector<int> next(count.begin(), count.end() - 1);
+      std::vector<int>& next = row_next_;
+      next.assign(count.begin(), count.end() - 1);
       for (int i = 0; i < rows; ++i) dest[i] = next[row_leading_[i]]++;
     }
 
@@ -405,13 +439,17 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     }
 
     // rows_with_leading_le[k] = rows with leading <= k = count[k + 1].
-    Eigen::VectorXd column_norms = W.leftCols(fd).colwise().norm().transpose();
-    if (qr_workspace_.size() < n + 1) qr_workspace_.resize(n + 1);
+    // Frontal column norms, accumulated along the rows (W is row-major; each
+    // column's sum still runs over the rows in order).
+    column_norms_.setZero(fd);
+    for (int i = 0; i < rows; ++i) column_norms_ += W.row(i).head(fd).transpose().cwiseAbs2();
+    column_norms_ = column_norms_.cwiseSqrt();
+    if (qr_workspace_.size() < rows + n + 1) qr_workspace_.resize(rows + n + 1);
     staircaseQrInPlace(W, n, count.data() + 1, qr_workspace_.data());
 
     bool deficient = rows < fd;
     for (int k = 0; k < fd && !deficient; ++k) {
-      deficient = !(std::abs(W(k, k)) > params_.rank_tolerance * column_norms[k]) || !std::isfinite(W(k, k));
+      deficient = !(std::abs(W(k, k)) > params_.rank_tolerance * column_norms_[k]) || !std::isfinite(W(k, k));
     }
     if (deficient && !regularize) {
       regularize = true;

@@ -141,7 +141,7 @@ void BayesTreeSmoother::marginalize(const std::vector<VarId>& marginalizable, Up
     // same long-lived variables (anchors) and the root's elimination grows.
     sources.insert(sources.end(), merged.begin(), merged.end());
     for (FactorId f : merged) rows += static_cast<int>(factors_[f].linear.rows());
-    Eigen::MatrixXd W = Eigen::MatrixXd::Zero(rows, n + 1);
+    RowMajorMatrixXd W = RowMajorMatrixXd::Zero(rows, n + 1);
     int r = 0;
     for (FactorId f : sources) {
       scatterRows(factors_[f].linear, factors_[f].vars, W, n, nullptr, r);
@@ -151,7 +151,7 @@ void BayesTreeSmoother::marginalize(const std::vector<VarId>& marginalizable, Up
       scatterRows(cliques_[ch].message, cliques_[ch].separator, W, n, nullptr, r);
       r += static_cast<int>(cliques_[ch].message.rows());
     }
-    Eigen::VectorXd workspace(n + 1);
+    Eigen::VectorXd workspace(rows + n + 1);
     staircaseQrInPlace(W, n, nullptr, workspace.data());
     const int kept_rows = std::max(0, std::min(rows, n) - marginal_dim);
     if (kept_rows == 0) continue;

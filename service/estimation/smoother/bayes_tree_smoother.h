@@ -27,6 +27,7 @@
 #include <deque>
 #include <vector>
 
+#include "estimation/smoother/dense_qr.h"
 #include "estimation/smoother/linear_marginal.h"
 #include "estimation/smoother/smoother.h"
 #include "estimation/smoother/smoother_params.h"
@@ -118,7 +119,7 @@ class BayesTreeSmoother final : public Smoother {
     LinearMarginalPtr marginal;
     std::vector<VarId> vars;           // in the factor's key order
     CliqueId clique = kNone;
-    Eigen::MatrixXd linear;            // [A | b] at theta: rows x (sum dims + 1)
+    RowMajorMatrixXd linear;           // [A | b] at theta: rows x (sum dims + 1), upper triangular
     bool needs_linearization = true;
     double error = 0.0;                // at the estimate
     double error_at_theta = 0.0;       // dog-leg reference
@@ -134,8 +135,8 @@ class BayesTreeSmoother final : public Smoother {
     CliqueId parent = kNone;
     std::vector<CliqueId> children;
     std::vector<FactorId> factors;     // factors assigned (first-eliminated key here)
-    Eigen::MatrixXd conditional;       // frontal_dim x (frontal_dim + separator_dim + 1): [R S | d]
-    Eigen::MatrixXd message;           // k x (separator_dim + 1): [R_sep | d_sep], upper triangular
+    RowMajorMatrixXd conditional;      // frontal_dim x (frontal_dim + separator_dim + 1): [R S | d]
+    RowMajorMatrixXd message;          // k x (separator_dim + 1): [R_sep | d_sep], upper triangular
     bool replaced = false;             // re-eliminated during the current update
     Eigen::VectorXd gradient;          // dog-leg: this clique's -[R S]^T d (frontals, then separator)
     std::uint64_t mark = 0;
@@ -168,7 +169,7 @@ class BayesTreeSmoother final : public Smoother {
   /// Copies the rows of a block row [A_1 .. A_k | b] over `vars` into W:
   /// block k at its variable's column (VarSlot::col), b at `rhs_col`; row i
   /// goes to dest[i], or to first_row + i when dest is null.
-  void scatterRows(const Eigen::MatrixXd& blocks, const std::vector<VarId>& vars, Eigen::Ref<Eigen::MatrixXd> W,
+  void scatterRows(const RowMajorMatrixXd& blocks, const std::vector<VarId>& vars, Eigen::Ref<RowMajorMatrixXd> W,
                    int rhs_col, const int* dest, int first_row) const;
   /// Back-substitution from the roots; re-solves replaced cliques and those
   /// whose separator moved by more than `threshold`. Appends every variable
@@ -248,11 +249,14 @@ class BayesTreeSmoother final : public Smoother {
   bool step_is_delta_ = true;        // dog-leg: the applied step equals delta everywhere
 
   // Elimination scratch
-  Eigen::MatrixXd work_;
+  RowMajorMatrixXd work_;
   Eigen::VectorXd qr_workspace_;
   Eigen::VectorXd solve_scratch_;
   std::vector<int> row_leading_;
   std::vector<int> rows_with_leading_le_;
+  std::vector<int> suffix_col_;
+  std::vector<int> row_dest_, row_next_;
+  Eigen::VectorXd column_norms_;
 };
 
 }  // namespace rilo

@@ -11,13 +11,23 @@
 
 namespace rilo {
 
+/// Row-major dynamic matrix: the layout of the smoother's stacked systems.
+using RowMajorMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
 /// Eliminates the first `n` columns of W (m x (n + extra)); the remaining
 /// columns (right-hand sides) are transformed by the same reflections.
 /// `rows_with_leading_le[k]` is the number of leading rows of W whose first
 /// nonzero column is <= k (nondecreasing in k, rows sorted accordingly);
 /// pass nullptr for a dense W. On return the first min(m, n) rows hold
 /// [R | Q^T b] (zeros below the diagonal); rows below n hold the part of Q^T b
-/// no column can explain (the residual). `workspace` needs W.cols() doubles.
+/// no column can explain (the residual). `workspace` needs W.rows() + W.cols()
+/// doubles.
+///
+/// Row-major is the fast layout: applying a reflection is two contiguous
+/// axpy sweeps along the rows it spans (s = tau (w_k + sum_i v_i w_i), then
+/// w_k -= s, w_i -= v_i s), which vectorize without reordering any sum.
+void staircaseQrInPlace(Eigen::Ref<RowMajorMatrixXd> W, int n, const int* rows_with_leading_le, double* workspace);
+/// Same for a column-major W.
 void staircaseQrInPlace(Eigen::Ref<Eigen::MatrixXd> W, int n, const int* rows_with_leading_le, double* workspace);
 
 }  // namespace rilo

@@ -63,7 +63,9 @@ void BatchLevenbergMarquardt::buildStructure(const FactorGraph& graph, const Val
   // The matrix is already in elimination order: no postorder, so CHOLMOD's
   // simplicial factorization reads the upper triangle as is (a postorder makes
   // it transpose-permute A on every factorization, ~30% of the solve time).
-  const CholmodResult analyzed = cholmod_.analyze(normal_.hessian(), {}, AnalyzeOptions{.postorder = false}, &factor_);
+  const CholmodResult analyzed = cholmod_.analyze(
+      normal_.hessian(), {},
+      AnalyzeOptions{.postorder = false, .kernel = AnalyzeOptions::Kernel::kSupernodalEigen}, &factor_);
   if (!analyzed.ok()) {
     result.status = LmStatus::kLinearSolverFailure;
     result.message = "symbolic analysis failed: " + analyzed.message;

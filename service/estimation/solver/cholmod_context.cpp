@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "estimation/solver/supernodal_cholesky.h"
+
 namespace rilo {
 
 namespace {
@@ -94,12 +96,17 @@ const char* toString(CholmodStatus s) {
 
 // ---------------------------------------------------------------- factor ---
 
+CholmodFactor::CholmodFactor() = default;
+
+CholmodFactor::CholmodFactor(CholmodContext* ctx, cholmod_factor_struct* L) : ctx_(ctx), L_(L) {}
+
 CholmodFactor::~CholmodFactor() { reset(); }
 
 CholmodFactor::CholmodFactor(CholmodFactor&& other) noexcept
     : ctx_(std::exchange(other.ctx_, nullptr)),
       L_(std::exchange(other.L_, nullptr)),
-      numeric_ok_(std::exchange(other.numeric_ok_, false)) {}
+      numeric_ok_(std::exchange(other.numeric_ok_, false)),
+      eigen_(std::move(other.eigen_)) {}
 
 CholmodFactor& CholmodFactor::operator=(CholmodFactor&& other) noexcept {
   if (this != &other) {
@@ -107,6 +114,7 @@ CholmodFactor& CholmodFactor::operator=(CholmodFactor&& other) noexcept {
     ctx_ = std::exchange(other.ctx_, nullptr);
     L_ = std::exchange(other.L_, nullptr);
     numeric_ok_ = std::exchange(other.numeric_ok_, false);
+    eigen_ = std::move(other.eigen_);
   }
   return *this;
 }
@@ -115,6 +123,7 @@ void CholmodFactor::reset() {
   if (L_ != nullptr && ctx_ != nullptr) ctx_->freeFactor(L_);
   L_ = nullptr;
   numeric_ok_ = false;
+  eigen_.reset();
 }
 
 int CholmodFactor::size() const { return L_ ? static_cast<int>(L_->n) : 0; }
@@ -218,10 +227,35 @@ CholmodResult CholmodContext::analyze(const SymmetricCscView& A, std::span<const
   common_->nmethods = 1;
   common_->method[0].ordering = perm.empty() ? CHOLMOD_NATURAL : CHOLMOD_GIVEN;
   common_->postorder = options.postorder ? 1 : 0;
+  const bool eigen = options.kernel == AnalyzeOptions::Kernel::kSupernodalEigen;
+  common_->supernodal = eigen ? CHOLMOD_SUPERNODAL : CHOLMOD_AUTO;
   cholmod_factor* L =
       cholmod_analyze_p(&a, perm.empty() ? nullptr : const_cast<int*>(perm.data()), nullptr, 0, common_);
+  common_->supernodal = CHOLMOD_AUTO;
   if (L == nullptr) return resultFromStatus("cholmod_analyze_p");
   *factor = CholmodFactor(this, L);
+  if (eigen) {
+    // Numeric storage once (the symbolic factor has none); factorize() fills it.
+    if (!L->is_super || !cholmod_change_factor(CHOLMOD_REAL, 1, 1, 1, 1, L, common_)) {
+      CholmodResult r = resultFromStatus("cholmod_change_factor");
+      factor->reset();
+      return r;
+    }
+    SupernodalStructure st;
+    st.n = static_cast<int>(L->n);
+    st.nsuper = static_cast<int>(L->nsuper);
+    st.super = static_cast<const int*>(L->super);
+    st.pi = static_cast<const int*>(L->pi);
+    st.px = static_cast<const int*>(L->px);
+    st.rows = static_cast<const int*>(L->s);
+    st.x_size = L->xsize;
+    auto kernel = std::make_unique<SupernodalCholesky>();
+    if (!kernel->prepare(st, std::span<const int>(static_cast<const int*>(L->Perm), L->n), A.col_ptr, A.row_idx)) {
+      factor->reset();
+      return {CholmodStatus::kInvalidInput, "CholmodContext::analyze: A does not fit its supernodal structure", -1};
+    }
+    factor->eigen_ = std::move(kernel);
+  }
   return {};
 }
 
@@ -237,10 +271,21 @@ CholmodResult CholmodContext::factorize(const SymmetricCscView& A, const Factori
   }
   factor.numeric_ok_ = false;
   CholmodCallScope scope(this);
-  cholmod_sparse a = sparseView(A);
-  double beta[2] = {options.shift, 0.0};
   cholmod_factor* L = factor.L_;
-  const int ok = cholmod_factorize_p(&a, beta, nullptr, 0, L, common_);
+  int ok = 0;
+  if (factor.eigen_) {
+    if (A.col_ptr[A.n] != static_cast<int>(factor.eigen_->entries())) {
+      throw std::invalid_argument("CholmodContext::factorize: A's pattern differs from the analyzed one");
+    }
+    const int failed = factor.eigen_->factorize(A.values, options.shift, static_cast<double*>(L->x));
+    L->minor = failed < 0 ? L->n : static_cast<std::size_t>(failed);
+    common_->status = CHOLMOD_OK;  // not left over from an earlier CHOLMOD call
+    ok = 1;
+  } else {
+    cholmod_sparse a = sparseView(A);
+    double beta[2] = {options.shift, 0.0};
+    ok = cholmod_factorize_p(&a, beta, nullptr, 0, L, common_);
+  }
   if (common_->status == CHOLMOD_NOT_POSDEF || (ok && L->minor < L->n)) {
     CholmodResult r;
     r.status = CholmodStatus::kNotPositiveDefinite;
@@ -304,6 +349,10 @@ CholmodResult CholmodContext::solve(const CholmodFactor& factor, const double* B
   }
   const int n = factor.size();
   if (n == 0) return {};
+  if (factor.eigen_) {
+    factor.eigen_->solve(static_cast<const double*>(factor.L_->x), B, n_rhs, X);
+    return {};
+  }
   CholmodCallScope scope(this);
   cholmod_dense b{};
   b.nrow = static_cast<std::size_t>(n);

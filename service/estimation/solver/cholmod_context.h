@@ -18,6 +18,7 @@
 //
 // cholmod.h is not included here: users of the wrapper do not see SuiteSparse.
 #include <cstddef>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -27,6 +28,8 @@ struct cholmod_factor_struct;
 struct cholmod_dense_struct;
 
 namespace rilo {
+
+class SupernodalCholesky;
 
 /// Upper triangle of a symmetric n x n matrix in compressed sparse column form:
 /// column j holds rows row_idx[col_ptr[j] .. col_ptr[j+1]-1], all <= j and
@@ -61,6 +64,18 @@ struct AnalyzeOptions {
   /// never changes fill but reorders columns (more and larger supernodes);
   /// keep it off when the given order itself matters (constrained orderings).
   bool postorder = false;
+  /// Which code factorizes numerically (see factorize()).
+  enum class Kernel {
+    /// CHOLMOD: simplicial or supernodal as its flop heuristic picks, the
+    /// supernodal one on the system BLAS.
+    kCholmod,
+    /// Always supernodal (CHOLMOD's symbolic analysis and solve), the numeric
+    /// factorization by SupernodalCholesky on Eigen kernels: does not depend
+    /// on the system BLAS (Debian's reference BLAS made CHOLMOD's supernodal
+    /// path, and its simplicial one on the batch Hessians, 2-3x slower).
+    kSupernodalEigen,
+  };
+  Kernel kernel = Kernel::kCholmod;
 };
 
 struct FactorizeOptions {
@@ -80,7 +95,7 @@ class CholmodContext;
 /// A symbolic + numeric Cholesky factor. Unique owner of its cholmod_factor.
 class CholmodFactor {
  public:
-  CholmodFactor() = default;
+  CholmodFactor();
   ~CholmodFactor();
   CholmodFactor(CholmodFactor&& other) noexcept;
   CholmodFactor& operator=(CholmodFactor&& other) noexcept;
@@ -103,11 +118,12 @@ class CholmodFactor {
 
  private:
   friend class CholmodContext;
-  CholmodFactor(CholmodContext* ctx, cholmod_factor_struct* L) : ctx_(ctx), L_(L) {}
+  CholmodFactor(CholmodContext* ctx, cholmod_factor_struct* L);
 
   CholmodContext* ctx_ = nullptr;
   cholmod_factor_struct* L_ = nullptr;
   bool numeric_ok_ = false;
+  std::unique_ptr<SupernodalCholesky> eigen_;  // AnalyzeOptions::Kernel::kSupernodalEigen
 };
 
 class CholmodContext {
@@ -136,7 +152,9 @@ class CholmodContext {
   /// pivot <= 0, or the pivot-ratio test of options) returns
   /// kNotPositiveDefinite with failed_column set; the factor then stays
   /// unusable for solve() until a later factorize() succeeds. Allocation only
-  /// the first time (numeric storage is kept in the factor).
+  /// the first time (numeric storage is kept in the factor). With
+  /// Kernel::kSupernodalEigen, A must have the analyzed pattern (a different
+  /// number of entries throws std::invalid_argument).
   CholmodResult factorize(const SymmetricCscView& A, const FactorizeOptions& options, CholmodFactor& factor);
 
   /// Solves A X = B for n_rhs right-hand sides. B and X are caller-owned

@@ -8,8 +8,43 @@
 namespace rilo {
 
 namespace {
-using BlockProduct = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxVarDim, kMaxVarDim>;
-using BlockVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxVarDim, 1>;
+
+// Block (i, j) of H_f^T H_f for an M-row factor with DI- and DJ-column
+// Jacobian blocks (JacobianBlock stores columns contiguously, stride = rows):
+// fixed sizes let the compiler keep the dot products in registers. Added to
+// the CSC values column by column (the upper triangle of a diagonal block).
+template <int M, int DI, int DJ>
+void addBlockProduct(const JacobianBlock& Hi, const JacobianBlock& Hj, bool diagonal, double* values,
+                     const int* col_ptr, int row_start) {
+  const Eigen::Map<const Eigen::Matrix<double, M, DI>> A(Hi.data());
+  const Eigen::Map<const Eigen::Matrix<double, M, DJ>> B(Hj.data());
+  const Eigen::Matrix<double, DI, DJ> P = A.transpose().lazyProduct(B);
+  for (int jj = 0; jj < DJ; ++jj) {
+    double* dst = values + col_ptr[jj] + row_start;
+    const int rows = diagonal ? jj + 1 : DI;
+    for (int ii = 0; ii < rows; ++ii) dst[ii] += P(ii, jj);
+  }
+}
+
+/// The fixed-size kernel for the 15-row combined IMU factor, or false.
+bool addImuBlockProduct(const JacobianBlock& Hi, const JacobianBlock& Hj, bool diagonal, double* values,
+                        const int* col_ptr, int row_start) {
+  if (Hi.rows() != 15) return false;
+  const int di = static_cast<int>(Hi.cols()), dj = static_cast<int>(Hj.cols());
+  if (di == 6 && dj == 6) {
+    addBlockProduct<15, 6, 6>(Hi, Hj, diagonal, values, col_ptr, row_start);
+  } else if (di == 6 && dj == 3) {
+    addBlockProduct<15, 6, 3>(Hi, Hj, diagonal, values, col_ptr, row_start);
+  } else if (di == 3 && dj == 6) {
+    addBlockProduct<15, 3, 6>(Hi, Hj, diagonal, values, col_ptr, row_start);
+  } else if (di == 3 && dj == 3) {
+    addBlockProduct<15, 3, 3>(Hi, Hj, diagonal, values, col_ptr, row_start);
+  } else {
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 std::size_t NormalEquations::position(Key k) const {
@@ -162,29 +197,36 @@ void NormalEquations::linearize(const FactorGraph& graph, const Values& x) {
   for (std::size_t f = 0; f < n_factors; ++f) {
     const Factor& factor = *graph[f];
     factor.linearize(x, r_, H_);
+    const Eigen::Index m = r_.size();
     const std::size_t kb = factor_key_begin_[f];
     const std::size_t nk = factor_key_begin_[f + 1] - kb;
     for (std::size_t k = 0; k < nk; ++k) {
       const std::size_t pos = factor_pos_[kb + k];
-      if (H_[k].rows() != r_.size() || H_[k].cols() != varDim(pos)) {
+      if (H_[k].rows() != m || H_[k].cols() != varDim(pos)) {
         throw std::logic_error("NormalEquations: factor " + std::to_string(f) + " returned a " +
                                std::to_string(H_[k].rows()) + "x" + std::to_string(H_[k].cols()) + " block for key " +
                                keyString(ordering_[pos]));
       }
-      const BlockVector g_k = H_[k].transpose() * r_;
-      gradient_.segment(offsets_[pos], varDim(pos)) += g_k;
+      gradient_.segment(offsets_[pos], varDim(pos)).noalias() += H_[k].transpose() * r_;
     }
+    // Block (i, j) of H_f^T H_f, one column dot product per stored entry,
+    // added in place: at these sizes (m <= 15 rows, 3 or 6 columns) a
+    // matrix product goes through Eigen's GEMM packing, which cost more than
+    // the arithmetic.
     for (std::size_t s = factor_slot_begin_[f]; s < factor_slot_begin_[f + 1]; ++s) {
       const BlockSlot& slot = slots_[s];
       const std::size_t pa = factor_pos_[kb + slot.i];
       const std::size_t pb = factor_pos_[kb + slot.j];
-      const BlockProduct block = H_[slot.i].transpose() * H_[slot.j];
+      const JacobianBlock& Hi = H_[slot.i];
+      const JacobianBlock& Hj = H_[slot.j];
       const bool diagonal = slot.i == slot.j;
       const int col0 = offsets_[pb];
+      if (addImuBlockProduct(Hi, Hj, diagonal, values_.data(), col_ptr_.data() + col0, slot.row_start)) continue;
       for (int jj = 0; jj < varDim(pb); ++jj) {
         double* dst = values_.data() + col_ptr_[static_cast<std::size_t>(col0 + jj)] + slot.row_start;
+        const auto hj = Hj.col(jj);
         const int rows = diagonal ? jj + 1 : varDim(pa);
-        for (int ii = 0; ii < rows; ++ii) dst[ii] += block(ii, jj);
+        for (int ii = 0; ii < rows; ++ii) dst[ii] += Hi.col(ii).dot(hj);
       }
     }
   }
@@ -192,13 +234,23 @@ void NormalEquations::linearize(const FactorGraph& graph, const Values& x) {
 
 void NormalEquations::multiplyHessian(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
   y.setZero(n_);
+  const int* row_idx = row_idx_.data();
+  const double* values = values_.data();
+  double* yp = y.data();
+  const double* xp = x.data();
   for (int c = 0; c < n_; ++c) {
-    for (int p = col_ptr_[static_cast<std::size_t>(c)]; p < col_ptr_[static_cast<std::size_t>(c) + 1]; ++p) {
-      const int r = row_idx_[static_cast<std::size_t>(p)];
-      const double v = values_[static_cast<std::size_t>(p)];
-      y(r) += v * x(c);
-      if (r != c) y(c) += v * x(r);
+    // Column c holds rows above the diagonal, then the diagonal (last): the
+    // upper part contributes H_rc x_c to y_r and H_rc x_r to y_c.
+    const int begin = col_ptr_[static_cast<std::size_t>(c)];
+    const int diag = diag_idx_[static_cast<std::size_t>(c)];
+    const double xc = xp[c];
+    double yc = 0.0;
+    for (int p = begin; p < diag; ++p) {
+      const int r = row_idx[p];
+      yp[r] += values[p] * xc;
+      yc += values[p] * xp[r];
     }
+    yp[c] += values[diag] * xc + yc;
   }
 }
 

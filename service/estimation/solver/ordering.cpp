@@ -67,20 +67,22 @@ Incidence incidenceOf(std::span<const std::vector<Key>> factor_keys) {
                         [factor_keys](std::size_t f) -> const std::vector<Key>& { return factor_keys[f]; });
 }
 
-// (C)COLAMD on the incidence; cmember null = unconstrained COLAMD.
-std::vector<Key> orderIncidence(const Incidence& inc, const int* cmember) {
-  const int n_col = static_cast<int>(inc.keys.size());
-  if (n_col == 0) return {};
-  const int nnz = inc.col_ptr.back();
+// (C)COLAMD on a column incidence (n_rows rows, columns as given); cmember
+// null = unconstrained COLAMD. Returns column indices in elimination order.
+std::vector<int> orderColumns(int n_rows, std::span<const int> col_ptr_in, std::span<const int> rows,
+                              const int* cmember) {
+  const int n_col = static_cast<int>(col_ptr_in.size()) - 1;
+  if (n_col <= 0) return {};
+  const int nnz = col_ptr_in.back();
   const std::size_t a_len =
-      cmember ? ccolamd_recommended(nnz, inc.n_rows, n_col) : colamd_recommended(nnz, inc.n_rows, n_col);
+      cmember ? ccolamd_recommended(nnz, n_rows, n_col) : colamd_recommended(nnz, n_rows, n_col);
   if (a_len == 0 || a_len > static_cast<std::size_t>(std::numeric_limits<int>::max())) {
     throw std::runtime_error("ordering: problem too large for 32-bit COLAMD");
   }
   // (C)COLAMD overwrite A and p: work on copies.
   std::vector<int> A(a_len, 0);
-  std::copy(inc.rows.begin(), inc.rows.end(), A.begin());
-  std::vector<int> p(inc.col_ptr);
+  std::copy(rows.begin(), rows.begin() + nnz, A.begin());
+  std::vector<int> p(col_ptr_in.begin(), col_ptr_in.end());
   std::array<int, CCOLAMD_STATS> stats{};
   std::array<double, CCOLAMD_KNOBS> knobs{};
   bool ok;
@@ -91,22 +93,36 @@ std::vector<Key> orderIncidence(const Incidence& inc, const int* cmember) {
     knobs[CCOLAMD_DENSE_ROW] = -1;
     knobs[CCOLAMD_DENSE_COL] = -1;
     std::vector<int> cm(cmember, cmember + n_col);  // ccolamd takes a non-const array
-    ok = ccolamd(inc.n_rows, n_col, static_cast<int>(a_len), A.data(), p.data(), knobs.data(), stats.data(),
-                 cm.data()) != 0;
+    ok = ccolamd(n_rows, n_col, static_cast<int>(a_len), A.data(), p.data(), knobs.data(), stats.data(), cm.data()) !=
+         0;
   } else {
     colamd_set_defaults(knobs.data());
     knobs[COLAMD_DENSE_ROW] = -1;
     knobs[COLAMD_DENSE_COL] = -1;
-    ok = colamd(inc.n_rows, n_col, static_cast<int>(a_len), A.data(), p.data(), knobs.data(), stats.data()) != 0;
+    ok = colamd(n_rows, n_col, static_cast<int>(a_len), A.data(), p.data(), knobs.data(), stats.data()) != 0;
   }
   if (!ok) {
     throw std::runtime_error(std::string(cmember ? "ccolamd" : "colamd") + " failed with status " +
                              std::to_string(stats[COLAMD_STATUS]));
   }
-  std::vector<Key> order(static_cast<std::size_t>(n_col));
-  for (int i = 0; i < n_col; ++i)
-    order[static_cast<std::size_t>(i)] = inc.keys[static_cast<std::size_t>(p[static_cast<std::size_t>(i)])];
+  p.resize(static_cast<std::size_t>(n_col));
+  return p;
+}
+
+std::vector<Key> orderIncidence(const Incidence& inc, const int* cmember) {
+  const std::vector<int> columns = orderColumns(inc.n_rows, inc.col_ptr, inc.rows, cmember);
+  std::vector<Key> order(columns.size());
+  for (std::size_t i = 0; i < columns.size(); ++i) order[i] = inc.keys[static_cast<std::size_t>(columns[i])];
   return order;
+}
+
+// Replaces each group by its rank among the distinct groups (CCOLAMD wants
+// sets in 0..n_col-1).
+void rankGroups(std::vector<int>& groups) {
+  std::vector<int> distinct(groups);
+  std::sort(distinct.begin(), distinct.end());
+  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+  for (int& g : groups) g = static_cast<int>(std::lower_bound(distinct.begin(), distinct.end(), g) - distinct.begin());
 }
 
 std::vector<Key> constrained(const Incidence& inc, const OrderingConstraints& constraints) {
@@ -118,11 +134,7 @@ std::vector<Key> constrained(const Incidence& inc, const OrderingConstraints& co
     if (g < 0) throw std::invalid_argument("OrderingConstraints: negative group for key " + keyString(inc.keys[j]));
     groups[j] = g;
   }
-  // CCOLAMD wants sets in 0..n_col-1: replace each group by its rank.
-  std::vector<int> distinct(groups);
-  std::sort(distinct.begin(), distinct.end());
-  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
-  for (int& g : groups) g = static_cast<int>(std::lower_bound(distinct.begin(), distinct.end(), g) - distinct.begin());
+  rankGroups(groups);
   return orderIncidence(inc, groups.data());
 }
 
@@ -151,6 +163,18 @@ std::vector<Key> constrainedOrdering(const FactorGraph& graph, const OrderingCon
 std::vector<Key> constrainedOrdering(std::span<const std::vector<Key>> factor_keys,
                                      const OrderingConstraints& constraints) {
   return constrained(incidenceOf(factor_keys), constraints);
+}
+
+std::vector<int> constrainedColumnOrdering(int n_rows, std::span<const int> col_ptr, std::span<const int> rows,
+                                           std::vector<int> groups) {
+  if (col_ptr.empty() || groups.size() + 1 != col_ptr.size()) {
+    throw std::invalid_argument("constrainedColumnOrdering: groups must have one entry per column");
+  }
+  for (int g : groups) {
+    if (g < 0) throw std::invalid_argument("constrainedColumnOrdering: negative group");
+  }
+  rankGroups(groups);
+  return orderColumns(n_rows, col_ptr, rows, groups.data());
 }
 
 }  // namespace rilo

@@ -48,4 +48,13 @@ std::vector<Key> constrainedOrdering(const FactorGraph& graph, const OrderingCon
 std::vector<Key> constrainedOrdering(std::span<const std::vector<Key>> factor_keys,
                                      const OrderingConstraints& constraints);
 
+/// The same CCOLAMD ordering on an incidence the caller built: column j
+/// (a variable) holds the ascending rows (factors) rows[col_ptr[j] ..
+/// col_ptr[j+1]) and belongs to constraint group groups[j] (>= 0). Returns
+/// column indices in elimination order. With the columns in ascending key
+/// order and the rows in factor order this is exactly constrainedOrdering()
+/// (no key lists, maps or searches: for callers that order often).
+std::vector<int> constrainedColumnOrdering(int n_rows, std::span<const int> col_ptr, std::span<const int> rows,
+                                           std::vector<int> groups);
+
 }  // namespace rilo

@@ -87,6 +87,12 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   rilo::ServiceOptions so;
   so.p_w_anchors = p_w_anchors;
   so.localizer.graph = cfg.estimator.graph;
+  for (const rilo::Anchor& a : cfg.anchors) {  // ultrasonic beacons by id, for ultrasonic ranges
+    if (a.kind != rilo::AnchorKind::kUltrasonic) continue;
+    auto& beacons = so.localizer.graph.p_w_ultrasonic;
+    if (beacons.size() <= a.id) beacons.resize(a.id + 1, rilo::Vec3::Constant(1e6));
+    beacons[a.id] = a.p_w_anchor;
+  }
   so.localizer.smoother = cfg.estimator.smoother;
   so.localizer.stream = cfg.estimator.stream;
   so.localizer.init.window_s = cfg.estimator.init_window_s;

@@ -44,6 +44,10 @@ class Service::LaneSink final : public SampleSink {
       if (!pushOrWait(lane_.imu, *imu)) service_.counters_.queue_overflows.add();
     } else if (std::holds_alternative<RangeSample>(sample)) {
       service_.counters_.range_samples.add();
+    } else if (std::holds_alternative<TdoaSample>(sample)) {
+      service_.counters_.tdoa_samples.add();
+    } else if (std::holds_alternative<UltrasonicSample>(sample)) {
+      service_.counters_.ultrasonic_samples.add();
     }
   }
   void fault(const SourceFault& fault) noexcept override {
@@ -184,8 +188,16 @@ void Service::estimatorLoop() {
       localizer_.addImu(*imu);
     } else if (const auto* range = std::get_if<RangeSample>(&lane.pending)) {
       localizer_.addRange(*range);
+    } else if (const auto* tdoa = std::get_if<TdoaSample>(&lane.pending)) {
+      // Anchors and beacons the configuration does not know are skipped here:
+      // the estimator would refuse them and end tracking.
+      if (tdoa->anchor_a >= options_.p_w_anchors.size() || tdoa->anchor_b >= options_.p_w_anchors.size()) continue;
+      localizer_.addTdoa(*tdoa);
+    } else if (const auto* us = std::get_if<UltrasonicSample>(&lane.pending)) {
+      if (us->anchor_id >= options_.localizer.graph.p_w_ultrasonic.size()) continue;
+      localizer_.addUltrasonic(*us);
     } else {
-      continue;  // TDoA / ultrasonic: not used by the range-IMU estimator
+      continue;
     }
     stats.clear();
     const auto t_start = std::chrono::steady_clock::now();

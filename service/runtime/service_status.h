@@ -14,6 +14,8 @@ struct ServiceStatus {
   // Counters since start.
   std::uint64_t imu_samples = 0;
   std::uint64_t range_samples = 0;
+  std::uint64_t tdoa_samples = 0;        ///< UWB TDoA rows (seed 002's system)
+  std::uint64_t ultrasonic_samples = 0;  ///< ultrasonic ranges
   std::uint64_t queue_overflows = 0;     ///< samples dropped because a queue was full
   std::uint64_t late_updates = 0;        ///< smoother updates slower than the ranging period
   std::uint64_t sensor_faults = 0;       ///< faults reported by sources

@@ -102,6 +102,10 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   } else if (tdoa_used) {
     lp.graph.same_state_window_ns = 25'000'000;
   }
+  if (s.tdoa_sigma_m) lp.graph.tdoa_sigma_m = *s.tdoa_sigma_m;
+  if (s.ultrasonic_sigma_m) lp.graph.ultrasonic_sigma_m = *s.ultrasonic_sigma_m;
+  if (s.tdoa_noise) lp.graph.tdoa_loss = *s.tdoa_noise;
+  if (s.ultrasonic_noise) lp.graph.ultrasonic_loss = *s.ultrasonic_noise;
   if (s.dynamic_covariance) {
     lp.stream.dynamic_covariance.enabled = *s.dynamic_covariance;
     lp.ekf.dynamic_covariance.enabled = *s.dynamic_covariance;

@@ -63,6 +63,9 @@ struct ReplaySettings {
   std::optional<double> same_state_window_ms;
   /// Per-link sigmas from DynamicCovariance (graph stream and EKF); unset: off.
   std::optional<bool> dynamic_covariance;
+  // TDoA and ultrasonic noise models (unset: RangeImuGraphParams defaults).
+  std::optional<double> tdoa_sigma_m, ultrasonic_sigma_m;  ///< LOS std-dev (m)
+  std::optional<std::string> tdoa_noise, ultrasonic_noise;  ///< loss names (makeRangeLoss)
   /// Called now and then with the fraction of samples consumed (progress bars).
   std::function<void(double)> progress;
 };

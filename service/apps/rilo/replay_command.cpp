@@ -179,6 +179,14 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--state-window-ms", options->settings.same_state_window_ms,
                   "Measurements closer than this share one state (ms; default 5, or 25 when TDoA rows are used)")
       ->check(CLI::Range(0.0, 1000.0));
+  cmd->add_option("--tdoa-sigma", options->settings.tdoa_sigma_m, "LOS std-dev of a TDoA range difference (m)")
+      ->check(CLI::Range(0.001, 10.0));
+  cmd->add_option("--ultrasonic-sigma", options->settings.ultrasonic_sigma_m, "LOS std-dev of an ultrasonic range (m)")
+      ->check(CLI::Range(0.0001, 10.0));
+  cmd->add_option("--tdoa-noise", options->settings.tdoa_noise, "TDoA noise model (default huber)")
+      ->check(CLI::IsMember(rangeLossNames()));
+  cmd->add_option("--ultrasonic-noise", options->settings.ultrasonic_noise, "Ultrasonic noise model (default huber)")
+      ->check(CLI::IsMember(rangeLossNames()));
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
                   "Per-link measurement sigmas from their residuals (true/false; default false)");
   cmd->callback([options] {

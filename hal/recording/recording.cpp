@@ -47,14 +47,26 @@ const Vec3* Recording::findTagLeverArm(std::uint32_t tag_id) const {
   return nullptr;
 }
 
-std::vector<Vec3> uwbAnchorsById(const std::vector<Anchor>& anchors) {
+namespace {
+
+std::vector<Vec3> anchorsOfKindById(const std::vector<Anchor>& anchors, AnchorKind kind) {
   std::vector<Vec3> p_w_anchors;
   for (const Anchor& a : anchors) {
-    if (a.kind != AnchorKind::kUwb) continue;
+    if (a.kind != kind) continue;
     if (p_w_anchors.size() <= a.id) p_w_anchors.resize(a.id + 1, Vec3::Constant(1e6));
     p_w_anchors[a.id] = a.p_w_anchor;
   }
   return p_w_anchors;
+}
+
+}  // namespace
+
+std::vector<Vec3> uwbAnchorsById(const std::vector<Anchor>& anchors) {
+  return anchorsOfKindById(anchors, AnchorKind::kUwb);
+}
+
+std::vector<Vec3> ultrasonicBeaconsById(const std::vector<Anchor>& anchors) {
+  return anchorsOfKindById(anchors, AnchorKind::kUltrasonic);
 }
 
 }  // namespace rilo

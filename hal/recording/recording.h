@@ -55,6 +55,8 @@ std::string_view toString(AnchorKind kind);
 /// range can reference: the recording reader and rilod's config reject ranges
 /// to unknown anchors.
 std::vector<Vec3> uwbAnchorsById(const std::vector<Anchor>& anchors);
+/// The same for the ultrasonic beacons (RangeImuGraphParams::p_w_ultrasonic).
+std::vector<Vec3> ultrasonicBeaconsById(const std::vector<Anchor>& anchors);
 std::optional<AnchorKind> anchorKindFromString(std::string_view text);
 
 /// meta.yaml. Optional members are absent when the file does not give them.

@@ -1,6 +1,7 @@
 #include "dds/conversions.h"
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 
 namespace rilo::dds {
@@ -38,6 +39,14 @@ void putVector(const Eigen::Vector3d& v, geometry_msgs_msg_dds__Vector3_& out) n
 Eigen::Vector3d getVector(const geometry_msgs_msg_dds__Vector3_& v) noexcept { return {v.x, v.y, v.z}; }
 
 std::string stringOf(const char* s) { return s != nullptr ? std::string(s) : std::string(); }
+
+/// A received C string into a fixed NUL-terminated array (truncated; null reads as empty).
+template <std::size_t N>
+void copyString(const char* src, std::array<char, N>& dst) noexcept {
+  const std::size_t n = src != nullptr ? std::min(std::strlen(src), N - 1) : 0;
+  if (n > 0) std::memcpy(dst.data(), src, n);
+  dst[n] = '\0';
+}
 
 }  // namespace
 
@@ -148,6 +157,11 @@ void fillStatus(const ServiceStatus& status, rilo_msg_dds__Status_& msg) noexcep
   msg.reinitializations = status.reinitializations;
   msg.rejected_ranges = status.rejected_ranges;
   msg.published_odometry = status.published_odometry;
+  msg.non_finite_samples = status.non_finite_samples;
+  msg.duplicate_samples = status.duplicate_samples;
+  msg.out_of_order_samples = status.out_of_order_samples;
+  msg.imu_gaps = status.imu_gaps;
+  msg.ranging_gaps = status.ranging_gaps;
   msg.last_update_ms = status.last_update_ms;
   msg.mean_update_ms = status.mean_update_ms;
   msg.max_update_ms = status.max_update_ms;
@@ -194,6 +208,11 @@ StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg) {
   s.reinitializations = msg.reinitializations;
   s.rejected_ranges = msg.rejected_ranges;
   s.published_odometry = msg.published_odometry;
+  s.non_finite_samples = msg.non_finite_samples;
+  s.duplicate_samples = msg.duplicate_samples;
+  s.out_of_order_samples = msg.out_of_order_samples;
+  s.imu_gaps = msg.imu_gaps;
+  s.ranging_gaps = msg.ranging_gaps;
   s.last_update_ms = msg.last_update_ms;
   s.mean_update_ms = msg.mean_update_ms;
   s.max_update_ms = msg.max_update_ms;
@@ -202,11 +221,8 @@ StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg) {
   s.last_lambda = msg.last_lambda;
   s.odometry_latency_ms = msg.odometry_latency_ms;
   s.pose_latency_ms = msg.pose_latency_ms;
-  if (msg.last_fault != nullptr) {
-    const std::size_t n = std::min(std::strlen(msg.last_fault), s.last_fault.size() - 1);
-    std::memcpy(s.last_fault.data(), msg.last_fault, n);
-    s.last_fault[n] = '\0';
-  }
+  copyString(msg.last_fault, s.last_fault);
+  copyString(msg.reason, s.reason);
   out.state_name = stringOf(msg.state_name);
   return out;
 }

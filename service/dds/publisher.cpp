@@ -64,6 +64,7 @@ Publisher::Publisher(const Participant& participant, PublisherOptions options)
   status_.header.frame_id = status_frame_id_.data();
   status_.state_name = state_name_.data();
   status_.last_fault = last_fault_.data();
+  status_.reason = reason_.data();
 
   // Keyless topics have one instance. Registering it keeps Cyclone's instance
   // entry alive; otherwise a write with no reader holding the instance
@@ -98,6 +99,7 @@ WriteStatus Publisher::publishStatus(const ServiceStatus& status) noexcept {
   const char* name = trackingStateName(status.state);
   copyTruncated(name, std::strlen(name), state_name_);
   copyTruncated(status.last_fault.data(), status.last_fault.size(), last_fault_);
+  copyTruncated(status.reason.data(), status.reason.size(), reason_);
   return {dds_write_ts(status_writer_.get(), &status_, status.t_ns)};
 }
 

@@ -88,6 +88,7 @@ class Publisher {
   rilo_msg_dds__Status_ status_{};
   std::array<char, 16> state_name_{};
   std::array<char, 128> last_fault_{};
+  std::array<char, 160> reason_{};
 };
 
 }  // namespace rilo::dds

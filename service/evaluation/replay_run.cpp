@@ -24,18 +24,6 @@ ImuParams imuParamsFrom(const RecordingMeta& meta) {
   return imu;
 }
 
-/// Ultrasonic beacon positions by anchor id (RangeImuGraphParams::p_w_ultrasonic);
-/// ids without a beacon hold a far-away filler no range references.
-std::vector<Vec3> beaconsById(const std::vector<Anchor>& anchors) {
-  std::vector<Vec3> p_w;
-  for (const Anchor& a : anchors) {
-    if (a.kind != AnchorKind::kUltrasonic) continue;
-    if (p_w.size() <= a.id) p_w.resize(a.id + 1, Vec3::Constant(1e6));
-    p_w[a.id] = a.p_w_anchor;
-  }
-  return p_w;
-}
-
 /// Uniform [0, 1) from 53 bits: the same numbers on every platform (unlike
 /// std::uniform_real_distribution, whose algorithm the standard leaves open).
 double unitDraw(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
@@ -95,7 +83,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.max_height_m) lp.height_band.max_height_m = *s.max_height_m;
   if (s.vertical_speed_sigma_m_s) lp.vertical_speed_sigma_m_s = *s.vertical_speed_sigma_m_s;
   lp.graph.p_b_ultrasonic = rec.meta.ultrasonic_lever_arm_m;
-  lp.graph.p_w_ultrasonic = beaconsById(rec.anchors);
+  lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(rec.anchors);
   const bool tdoa_used = s.measurements.tdoa && !rec.tdoa.empty();
   if (s.same_state_window_ms) {
     lp.graph.same_state_window_ns = static_cast<std::int64_t>(std::llround(*s.same_state_window_ms * 1e6));

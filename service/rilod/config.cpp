@@ -29,8 +29,32 @@ constexpr double kHuge = std::numeric_limits<double>::max();
 
 // --- sources -----------------------------------------------------------------
 
+FaultSpec readFault(const ConfigField& field) {
+  const ConfigMap m = field.map({"kind", "at_s", "duration_s", "count", "stream"});
+  FaultSpec f;
+  f.kind = m.require("kind").choice<FaultKind>({{"range_blackout", FaultKind::kRangeBlackout},
+                                                {"imu_gap", FaultKind::kImuGap},
+                                                {"duplicate", FaultKind::kDuplicate},
+                                                {"out_of_order", FaultKind::kOutOfOrder},
+                                                {"non_finite", FaultKind::kNonFinite}});
+  f.at_s = m.require("at_s").number(0.0, 1e7);
+  const std::string kind(toString(f.kind));
+  if (f.isWindow()) {
+    f.duration_s = m.require("duration_s").positive(1e7);
+    if (auto c = m.get("count")) c->fail("count does not apply to " + kind + " (it drops a window: duration_s)");
+    if (auto st = m.get("stream")) st->fail("stream does not apply to " + kind);
+  } else {
+    f.count = m.require("count").integerAs<std::uint32_t>(1, 100'000'000);
+    if (auto d = m.get("duration_s")) d->fail("duration_s does not apply to " + kind + " (it counts samples: count)");
+    m.read("stream", f.stream, [](const ConfigField& s) {
+      return s.choice<FaultStream>({{"all", FaultStream::kAll}, {"imu", FaultStream::kImu}, {"ranging", FaultStream::kRanging}});
+    });
+  }
+  return f;
+}
+
 ReplaySourceConfig readReplay(const ConfigField& field) {
-  const ConfigMap m = field.map({"path", "pace", "speed", "loop", "shift_to_now"});
+  const ConfigMap m = field.map({"path", "pace", "speed", "loop", "shift_to_now", "faults"});
   ReplaySourceConfig c;
   c.path = m.require("path").path();
   m.read("pace", c.pace, [](const ConfigField& f) {
@@ -40,6 +64,9 @@ ReplaySourceConfig readReplay(const ConfigField& field) {
   m.read("speed", c.speed, [](const ConfigField& f) { return f.positive(1000.0); });
   m.read("loop", c.loop, [](const ConfigField& f) { return f.boolean(); });
   m.read("shift_to_now", c.shift_to_now, [](const ConfigField& f) { return f.boolean(); });
+  if (auto f = m.get("faults")) {
+    for (const ConfigField& item : f->sequence()) c.faults.push_back(readFault(item));
+  }
   if (c.pace == ReplayPace::kAsFastAsPossible && m.has("speed") && c.speed != 1.0) {
     m.require("speed").fail("speed applies to pace real_time only (pace is as_fast_as_possible)");
   }

@@ -31,6 +31,7 @@
 #include "hal/bmi263/bmi263_config.h"
 #include "hal/dw3000/dw3000_config.h"
 #include "hal/recording/recording.h"
+#include "rilod/fault_injection.h"
 #include "runtime/realtime.h"
 
 namespace rilo {
@@ -69,6 +70,9 @@ struct ReplaySourceConfig {
   /// (real_time only): replayed samples then look live (latency figures,
   /// one clock with the service). See ReplayOptions::shift_to_now.
   bool shift_to_now = true;
+  /// Faults injected into the replayed stream (fault_injection.h), for tests
+  /// and demonstrations of the service's fault handling. Empty: none.
+  std::vector<FaultSpec> faults;
 };
 
 /// One GPIO line of a gpiochip character device.

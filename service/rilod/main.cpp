@@ -10,13 +10,13 @@
 #include <cstdio>
 #include <memory>
 
-#include "hal/replay/replay_source.h"
 #include "rilod/config.h"
 #include "rilod/hardware_sources.h"
 #include "rilod/notify.h"
 #include "rilod/recorder.h"
 #include "rilod/recorder_config.h"
 #include "rilod/service.h"
+#include "rilod/service_setup.h"
 #include "runtime/realtime.h"
 
 namespace {
@@ -57,12 +57,10 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   std::vector<std::unique_ptr<rilo::SampleSource>> sources;
   rilo::LinuxHardware hw;  // buses live as long as the sources using them
   if (cfg.sources.mode == rilo::SourceMode::kReplay) {
-    rilo::ReplayOptions ro;
-    ro.pacing = cfg.sources.replay.pace == rilo::ReplayPace::kRealTime ? rilo::ReplayOptions::Pacing::kRealTime
-                                                                       : rilo::ReplayOptions::Pacing::kAsFastAsPossible;
-    ro.speed = cfg.sources.replay.speed;
-    ro.shift_to_now = cfg.sources.replay.shift_to_now && ro.pacing == rilo::ReplayOptions::Pacing::kRealTime;
-    sources.push_back(std::make_unique<rilo::ReplaySource>(cfg.sources.replay.path, ro));
+    if (!cfg.sources.replay.faults.empty()) {
+      spdlog::warn("fault injection is on (sources.replay.faults): the replayed data is damaged on purpose");
+    }
+    sources.push_back(rilo::makeReplaySource(cfg.sources.replay));
   } else {
     hw.openAll(cfg.sources.hardware, "rilod");
     sources = rilo::makeHardwareSources(cfg.sources.hardware, hw.uwb(), hw.imu());
@@ -84,44 +82,34 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
     spdlog::info("recording to {} (flushed every {} ms)", dir.string(), cfg.recording.flush_interval_ns / 1'000'000);
   }
 
-  rilo::ServiceOptions so;
-  so.p_w_anchors = p_w_anchors;
-  so.localizer.graph = cfg.estimator.graph;
-  for (const rilo::Anchor& a : cfg.anchors) {  // ultrasonic beacons by id, for ultrasonic ranges
-    if (a.kind != rilo::AnchorKind::kUltrasonic) continue;
-    auto& beacons = so.localizer.graph.p_w_ultrasonic;
-    if (beacons.size() <= a.id) beacons.resize(a.id + 1, rilo::Vec3::Constant(1e6));
-    beacons[a.id] = a.p_w_anchor;
-  }
-  so.localizer.smoother = cfg.estimator.smoother;
-  so.localizer.stream = cfg.estimator.stream;
-  so.localizer.init.window_s = cfg.estimator.init_window_s;
-  so.localizer.height_band = cfg.estimator.height_band;
-  so.localizer.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
+  rilo::ServiceOptions so = rilo::serviceOptions(cfg);
   if (so.localizer.height_band.enabled && !so.localizer.height_band.plausibleFor(p_w_anchors)) {
     spdlog::warn("estimator.height_band: the anchors do not look mounted 1-6 m above a floor at z = {:.2f} m; the band is off "
                  "(set estimator.height_band.floor_z_m to the floor height in the anchors' frame)",
                  so.localizer.height_band.floor_z_m);
   }
-  so.participant.domain_id = cfg.dds.domain_id;
-  if (cfg.dds.loopback_only) so.participant.config_xml = rilo::dds::loopbackConfigXml();
-  if (!cfg.dds.cyclone_config_file.empty()) so.participant.config_xml = "file://" + cfg.dds.cyclone_config_file.string();
-  so.publisher.topics = cfg.dds.topics;
-  so.publisher.frames = cfg.dds.frames;
-  so.queue_capacity = cfg.realtime.queue_capacity;
-  so.backpressure = cfg.sources.mode == rilo::SourceMode::kReplay && cfg.sources.replay.pace == rilo::ReplayPace::kAsFastAsPossible;
-  so.status_period_s = static_cast<double>(cfg.status.period_ns) * 1e-9;
-  so.sensor_silence_s = static_cast<double>(cfg.status.imu_timeout_ns) * 1e-9;
   so.on_status = [](const rilo::ServiceStatus& s) {
-    char line[256];
+    auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
+    char line[512];
     std::snprintf(line, sizeof line,
-                  "%s: imu %llu, ranges %llu, odometry %llu; update mean %.2f ms, max %.2f ms; faults %llu, overflows %llu, re-inits %llu",
-                  stateName(s.state), static_cast<unsigned long long>(s.imu_samples),
-                  static_cast<unsigned long long>(s.range_samples), static_cast<unsigned long long>(s.published_odometry),
-                  s.mean_update_ms, s.max_update_ms, static_cast<unsigned long long>(s.sensor_faults),
-                  static_cast<unsigned long long>(s.queue_overflows), static_cast<unsigned long long>(s.reinitializations));
-    spdlog::info("{}", line);
-    rilo::notify::status(line);
+                  "%s: imu %llu, ranges %llu (rejected %llu), odometry %llu (latency max %.2f ms); update mean %.2f ms, "
+                  "max %.2f ms; faults %llu, overflows %llu, re-inits %llu; dropped non-finite %llu, duplicate %llu, "
+                  "out-of-order %llu; gaps imu %llu, ranging %llu%s%s",
+                  stateName(s.state), u(s.imu_samples), u(s.range_samples), u(s.rejected_ranges),
+                  u(s.published_odometry), s.odometry_latency_ms, s.mean_update_ms, s.max_update_ms,
+                  u(s.sensor_faults), u(s.queue_overflows), u(s.reinitializations), u(s.non_finite_samples),
+                  u(s.duplicate_samples), u(s.out_of_order_samples), u(s.imu_gaps), u(s.ranging_gaps),
+                  s.reason[0] != '\0' ? " -- " : "", s.reason.data());
+    // The status line is the log's rate limit: once per status period.
+    if (s.state == rilo::TrackingState::kTracking || s.state == rilo::TrackingState::kInitializing) {
+      spdlog::info("{}", line);
+    } else {
+      spdlog::warn("{}", line);
+    }
+    char short_line[256];
+    std::snprintf(short_line, sizeof short_line, "%s: odometry %llu, re-inits %llu%s%s", stateName(s.state),
+                  u(s.published_odometry), u(s.reinitializations), s.reason[0] != '\0' ? "; " : "", s.reason.data());
+    rilo::notify::status(short_line);
   };
   so.on_fault = [](const rilo::SourceFault& f) {
     if (f.fatal) {

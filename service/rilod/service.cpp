@@ -1,13 +1,18 @@
 #include "rilod/service.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <thread>
 
 #include "hal/bus/clock.h"
 #include "estimation/math/so3.h"
+#include "rilod/sample_screen.h"
 #include "runtime/spsc_queue.h"
 
 namespace rilo {
@@ -18,6 +23,12 @@ std::int64_t sampleTime(const Sample& s) {
   return std::visit([](const auto& v) { return v.t_ns; }, s);
 }
 
+/// An IMU sample and when the source handed it to the service (CLOCK_MONOTONIC).
+struct TimedImu {
+  ImuSample sample;
+  std::int64_t arrival_ns = 0;
+};
+
 }  // namespace
 
 // One source's queues: every sample to the estimator, IMU samples also to the
@@ -25,8 +36,11 @@ std::int64_t sampleTime(const Sample& s) {
 struct Service::SourceLane {
   explicit SourceLane(std::size_t capacity) : samples(capacity), imu(capacity) {}
   SpscQueue<Sample> samples;
-  SpscQueue<ImuSample> imu;
+  SpscQueue<TimedImu> imu;
+  SampleScreen screen;  // the source's thread only
   std::atomic<bool> ended{false};
+  std::atomic<bool> carries_imu{false};  // has delivered an IMU sample: the IMU timeout applies
+  std::atomic<bool> silent{false};       // quiet beyond its timeout now (estimator writes)
   std::atomic<std::int64_t> last_sample_wall_ns{0};
   // Estimator side: one sample taken out of `samples`, waiting for the merge.
   Sample pending;
@@ -37,17 +51,27 @@ class Service::LaneSink final : public SampleSink {
  public:
   LaneSink(Service& service, SourceLane& lane) : service_(service), lane_(lane) {}
   void push(const Sample& sample) noexcept override {
-    lane_.last_sample_wall_ns.store(hal::monotonicNowNs(), std::memory_order_relaxed);
-    if (!pushOrWait(lane_.samples, sample)) service_.counters_.queue_overflows.add();
+    const std::int64_t now = hal::monotonicNowNs();
+    lane_.last_sample_wall_ns.store(now, std::memory_order_relaxed);
+    RuntimeCounters& counters = service_.counters_;
+    switch (lane_.screen.check(sample)) {
+      case SampleVerdict::kAccept: break;
+      case SampleVerdict::kNonFinite: counters.non_finite_samples.add(); return;
+      case SampleVerdict::kDuplicate: counters.duplicate_samples.add(); return;
+      case SampleVerdict::kOutOfOrder: counters.out_of_order_samples.add(); return;
+    }
+    if (!pushOrWait(lane_.samples, sample)) counters.queue_overflows.add();
     if (const auto* imu = std::get_if<ImuSample>(&sample)) {
-      service_.counters_.imu_samples.add();
-      if (!pushOrWait(lane_.imu, *imu)) service_.counters_.queue_overflows.add();
+      if (!lane_.carries_imu.load(std::memory_order_relaxed)) lane_.carries_imu.store(true, std::memory_order_relaxed);
+      counters.imu_samples.add();
+      if (!pushOrWait(lane_.imu, TimedImu{*imu, now})) counters.queue_overflows.add();
+      service_.publisher_wake_.notify();
     } else if (std::holds_alternative<RangeSample>(sample)) {
-      service_.counters_.range_samples.add();
+      counters.range_samples.add();
     } else if (std::holds_alternative<TdoaSample>(sample)) {
-      service_.counters_.tdoa_samples.add();
+      counters.tdoa_samples.add();
     } else if (std::holds_alternative<UltrasonicSample>(sample)) {
-      service_.counters_.ultrasonic_samples.add();
+      counters.ultrasonic_samples.add();
     }
   }
   void fault(const SourceFault& fault) noexcept override {
@@ -80,15 +104,58 @@ class Service::LaneSink final : public SampleSink {
   SourceLane& lane_;
 };
 
+namespace {
+
+std::int64_t secondsToNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
+std::int64_t checkedTimeoutNs(double s, const char* name) {
+  if (!(std::isfinite(s) && s > 0.0)) throw std::invalid_argument(std::string("Service: ") + name + " must be > 0");
+  return secondsToNs(s);
+}
+
+/// Appends "; <formatted>" (or just the text when empty) to a NUL-terminated
+/// fixed buffer, truncating at its end.
+template <std::size_t N>
+__attribute__((format(printf, 3, 4))) void appendReason(std::array<char, N>& out, std::size_t& used,
+                                                        const char* format, ...) {
+  if (used + 1 >= N) return;
+  if (used > 0) {
+    const int n = std::snprintf(out.data() + used, N - used, "; ");
+    used = std::min(N - 1, used + static_cast<std::size_t>(std::max(n, 0)));
+  }
+  va_list args;
+  va_start(args, format);
+  const int n = std::vsnprintf(out.data() + used, N - used, format, args);
+  va_end(args);
+  used = std::min(N - 1, used + static_cast<std::size_t>(std::max(n, 0)));
+}
+
+/// The count of `field` that increased since `before`, as unsigned long long for printf.
+unsigned long long increase(std::uint64_t now, std::uint64_t before) {
+  return static_cast<unsigned long long>(now >= before ? now - before : 0);
+}
+
+void atomicMax(std::atomic<std::int64_t>& target, std::int64_t value) noexcept {
+  std::int64_t current = target.load(std::memory_order_relaxed);
+  while (value > current && !target.compare_exchange_weak(current, value, std::memory_order_relaxed)) {
+  }
+}
+
+}  // namespace
+
 Service::Service(ServiceOptions options, std::vector<std::unique_ptr<SampleSource>> sources)
     : options_(std::move(options)),
       sources_(std::move(sources)),
       participant_(options_.participant),
       publisher_(participant_, options_.publisher),
       localizer_(options_.p_w_anchors, options_.localizer),
-      predictor_(options_.predictor) {
+      predictor_(options_.predictor),
+      gaps_(checkedTimeoutNs(options_.sensor_silence_s, "sensor_silence_s"),
+            checkedTimeoutNs(options_.ranging_silence_s, "ranging_silence_s")),
+      trust_(options_.p_w_anchors, localizer_.params().graph) {
   if (sources_.empty()) throw std::invalid_argument("Service: no sample source configured");
   if (!(options_.status_period_s > 0.0)) throw std::invalid_argument("Service: status_period_s must be > 0");
+  if (!(options_.init_log_interval_s >= 0.0)) throw std::invalid_argument("Service: init_log_interval_s must be >= 0");
   for (std::size_t i = 0; i < sources_.size(); ++i) {
     lanes_.push_back(std::make_unique<SourceLane>(options_.queue_capacity));
   }
@@ -105,7 +172,9 @@ int Service::run(const std::atomic<bool>& stop) {
   std::vector<std::unique_ptr<LaneSink>> sinks;
   for (std::size_t i = 0; i < sources_.size(); ++i) {
     sinks.push_back(std::make_unique<LaneSink>(*this, *lanes_[i]));
-    source_threads.emplace_back([this, i, sink = sinks.back().get()] {
+    const std::string role = "source " + std::to_string(i);
+    source_threads.emplace_back([this, i, role, sink = sinks.back().get()] {
+      if (options_.on_thread_enter) options_.on_thread_enter(role.c_str());
       try {
         const SourceEnd end = sources_[i]->run(*sink, stop_sources_);
         if (end == SourceEnd::kFailed) source_failed_.store(true);
@@ -114,10 +183,16 @@ int Service::run(const std::atomic<bool>& stop) {
       }
       lanes_[i]->ended.store(true, std::memory_order_release);
     });
-    if (options_.on_thread_start) options_.on_thread_start("source " + std::to_string(i), source_threads.back());
+    if (options_.on_thread_start) options_.on_thread_start(role, source_threads.back());
   }
-  std::thread estimator([this] { estimatorLoop(); });
-  std::thread publisher([this] { publisherLoop(); });
+  std::thread estimator([this] {
+    if (options_.on_thread_enter) options_.on_thread_enter("estimator");
+    estimatorLoop();
+  });
+  std::thread publisher([this] {
+    if (options_.on_thread_enter) options_.on_thread_enter("publisher");
+    publisherLoop();
+  });
   if (options_.on_thread_start) {
     options_.on_thread_start("estimator", estimator);
     options_.on_thread_start("publisher", publisher);
@@ -145,9 +220,9 @@ int Service::run(const std::atomic<bool>& stop) {
 void Service::estimatorLoop() {
   std::vector<UpdateStats> stats;
   std::vector<TimedPose> smoothed;  // drained and dropped, see below
-  const auto silence_ns = static_cast<std::int64_t>(options_.sensor_silence_s * 1e9);
-  std::vector<bool> silent(lanes_.size(), false);
-  int init_attempts_seen = 0;
+  const std::int64_t imu_silence_ns = secondsToNs(options_.sensor_silence_s);
+  const std::int64_t ranging_silence_ns = secondsToNs(options_.ranging_silence_s);
+  std::uint64_t rejected_reported = 0;
   for (;;) {
     const std::int64_t now = hal::monotonicNowNs();
     estimator_beat_.beat(now);
@@ -163,14 +238,15 @@ void Service::estimatorLoop() {
         if (oldest < 0 || sampleTime(lane.pending) < sampleTime(lanes_[static_cast<std::size_t>(oldest)]->pending)) {
           oldest = static_cast<int>(i);
         }
-        silent[i] = false;
+        lane.silent.store(false, std::memory_order_relaxed);
         continue;
       }
       const std::int64_t last = lane.last_sample_wall_ns.load(std::memory_order_relaxed);
       const bool quiet = lane.ended.load(std::memory_order_acquire) || (last > 0 && now - last > 20'000'000);
       if (!quiet) all_ready = false;
-      if (!lane.ended.load() && last > 0 && now - last > silence_ns && !silent[i]) {
-        silent[i] = true;
+      const std::int64_t timeout = lane.carries_imu.load(std::memory_order_relaxed) ? imu_silence_ns : ranging_silence_ns;
+      if (!lane.ended.load() && last > 0 && now - last > timeout && !lane.silent.load(std::memory_order_relaxed)) {
+        lane.silent.store(true, std::memory_order_relaxed);
         counters_.sensor_silences.add();
       }
     }
@@ -183,18 +259,41 @@ void Service::estimatorLoop() {
     lane.has_pending = false;
     // Before the sample: adding one can already end tracking (IMU silence).
     const bool was_tracking = localizer_.tracking();
+    bool request_status = false;  // a change of state: publish the status now, once it is recorded
     const std::uint64_t reinit_before = localizer_.reinitializations();
     if (const auto* imu = std::get_if<ImuSample>(&lane.pending)) {
+      const unsigned events = gaps_.onImu(imu->t_ns);
+      if ((events & SensorGapMonitor::kImuGap) != 0) {
+        counters_.imu_gaps.add();
+        std::lock_guard<std::mutex> lock(stats_mutex_);
+        last_imu_gap_ns_ = gaps_.lastImuGapNs();
+      }
+      if ((events & SensorGapMonitor::kRangingGapStarted) != 0) {
+        counters_.ranging_gaps.add();
+        request_status = true;
+        if (options_.on_event) {
+          char text[128];
+          std::snprintf(text, sizeof text, "no ranging for %.1f s: %s", static_cast<double>(gaps_.sinceLastRangeNs()) * 1e-9,
+                        was_tracking ? "tracking on the IMU alone (degraded)" : "initialization waits for ranges");
+          options_.on_event(text);
+        }
+      }
+      ranging_silence_ns_.store(gaps_.rangingSilent() ? gaps_.sinceLastRangeNs() : 0, std::memory_order_relaxed);
       localizer_.addImu(*imu);
     } else if (const auto* range = std::get_if<RangeSample>(&lane.pending)) {
+      const std::int64_t pause_ns = gaps_.onRange(range->t_ns);
+      ranging_silence_ns_.store(0, std::memory_order_relaxed);
+      if (pause_ns > 0) request_status = true;
+      if (pause_ns > 0 && options_.on_event) {
+        char text[96];
+        std::snprintf(text, sizeof text, "ranging back after %.1f s", static_cast<double>(pause_ns) * 1e-9);
+        options_.on_event(text);
+      }
+      if (was_tracking) trust_.onRange(*range);
       localizer_.addRange(*range);
     } else if (const auto* tdoa = std::get_if<TdoaSample>(&lane.pending)) {
-      // Anchors and beacons the configuration does not know are skipped here:
-      // the estimator would refuse them and end tracking.
-      if (tdoa->anchor_a >= options_.p_w_anchors.size() || tdoa->anchor_b >= options_.p_w_anchors.size()) continue;
-      localizer_.addTdoa(*tdoa);
+      localizer_.addTdoa(*tdoa);  // the Localizer skips anchors and beacons it does not know
     } else if (const auto* us = std::get_if<UltrasonicSample>(&lane.pending)) {
-      if (us->anchor_id >= options_.localizer.graph.p_w_ultrasonic.size()) continue;
       localizer_.addUltrasonic(*us);
     } else {
       continue;
@@ -210,43 +309,87 @@ void Service::estimatorLoop() {
     const double elapsed_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_start).count();
     if (localizer_.reinitializations() != reinit_before) {
       counters_.reinitializations.add(localizer_.reinitializations() - reinit_before);
+      trust_.reset();
+      request_status = true;
+      // The publisher must not keep dead-reckoning from a state the
+      // estimator just declared wrong: an invalid state stops the odometry
+      // until the next initialization.
+      NavigationState invalid;
+      invalid.valid = false;
+      smoothed_.write(invalid);
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex_);
+        last_failure_ = localizer_.lastFailure();
+      }
       if (options_.on_event) options_.on_event("tracking lost: " + localizer_.lastFailure() + "; re-initializing");
     }
-    if (!was_tracking && localizer_.tracking() && options_.on_event) {
-      options_.on_event("initialized: " + localizer_.initStatus().message);
+    if (!was_tracking && localizer_.tracking()) {
+      trust_.reset();
+      request_status = true;
+      init_attempts_seen_ = 0;
+      if (options_.on_event) options_.on_event("initialized: " + localizer_.initStatus().message);
     }
-    if (!localizer_.tracking() && localizer_.initStatus().attempts != init_attempts_seen) {
-      init_attempts_seen = localizer_.initStatus().attempts;
-      if (options_.on_event) options_.on_event("initialization attempt " + std::to_string(init_attempts_seen) + ": " +
-                                               localizer_.initStatus().message);
-    }
+    if (!localizer_.tracking()) noteInitProgress(now);
     tracking_.store(localizer_.tracking() ? TrackingState::kTracking : TrackingState::kInitializing);
+    // A change of state is published at once, from here (the periodic status
+    // might come only after it is over: a 30 s blackout takes a few ms in a
+    // fast replay).
+    if (request_status) publishStatus(hal::monotonicNowNs());
+    if (updates > 0 && localizer_.tracking()) trust_.judge(localizer_.latest());
+    if (trust_.rejected() != rejected_reported) {
+      counters_.rejected_ranges.add(trust_.rejected() - rejected_reported);
+      rejected_reported = trust_.rejected();
+    }
     if (updates == 0 || !localizer_.tracking()) continue;
-    const NavigationState state = navigationState();
-    smoothed_.write(state);
-    (void)publisher_.publishPose(state);  // failures show in the status counters of the subscriber side
+    publishSmoothed(navigationState());
     std::lock_guard<std::mutex> lock(stats_mutex_);
     for (const UpdateStats& s : stats) {
       const double ms = s.time_s * 1e3;
       last_update_ms_ = ms;
       sum_update_ms_ += ms;
       max_update_ms_ = std::max(max_update_ms_, ms);
+      period_max_update_ms_ = std::max(period_max_update_ms_, ms);
       ++updates_;
       if (ms > options_.late_update_ms) counters_.late_updates.add();
       last_stats_ = s;
     }
     if (elapsed_ms > options_.late_update_ms && stats.empty()) counters_.late_updates.add();
-    pose_latency_ms_ = static_cast<double>(now - state.t_ns) * 1e-6;
   }
   // End of data: let the last ranging group through.
   localizer_.finish();
   stats.clear();
-  if (localizer_.process(&stats) > 0 && localizer_.tracking()) {
-    const NavigationState state = navigationState();
-    smoothed_.write(state);
-    (void)publisher_.publishPose(state);
-  }
+  if (localizer_.process(&stats) > 0 && localizer_.tracking()) publishSmoothed(navigationState());
   estimator_done_.store(true);
+}
+
+void Service::noteInitProgress(std::int64_t now_ns) {
+  const InitStatus& init = localizer_.initStatus();
+  if (init.attempts < init_attempts_seen_) init_attempts_seen_ = 0;  // the initializer was reset
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    if (init_message_ != init.message) init_message_ = init.message;
+  }
+  if (init.attempts == init_attempts_seen_) return;
+  init_attempts_seen_ = init.attempts;
+  // Every attempt would be twice a second of data (many per second in a
+  // fast replay): log a change of the initializer's state at once, the same
+  // state again only after init_log_interval_s.
+  const bool changed = init.state != init_state_logged_;
+  const bool due = static_cast<double>(now_ns - init_logged_ns_) * 1e-9 >= options_.init_log_interval_s;
+  if (!(changed || due || init_logged_ns_ == 0)) return;
+  init_state_logged_ = init.state;
+  init_logged_ns_ = now_ns;
+  if (options_.on_event) {
+    options_.on_event("initializing (attempt " + std::to_string(init.attempts) + "): " + init.message);
+  }
+}
+
+void Service::publishSmoothed(const NavigationState& state) {
+  smoothed_.write(state);
+  (void)publisher_.publishPose(state);  // failures show in the status counters of the subscriber side
+  const double latency_ms = static_cast<double>(hal::monotonicNowNs() - state.t_ns) * 1e-6;
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  pose_latency_ms_ = latency_ms;
 }
 
 NavigationState Service::navigationState() {
@@ -277,30 +420,108 @@ NavigationState Service::navigationState() {
 }
 
 void Service::publisherLoop() {
+  // Longest sleep without an IMU sample: bounds the reaction to stop and the
+  // heartbeat's period while a sensor is silent.
+  constexpr std::int64_t kMaxSleepNs = 10'000'000;
   std::uint64_t smoothed_version = 0;
   NavigationState smoothed;
-  ImuSample imu;
+  TimedImu item;
+  // Publishes every queued IMU sample; true if there was any.
+  auto drain = [&]() noexcept {
+    bool any = false;
+    for (auto& lane : lanes_) {
+      while (lane->imu.tryPop(item)) {
+        any = true;
+        // A newer smoothed state first: the odometry of this sample starts from it.
+        if (smoothed_.readIfNewer(smoothed, smoothed_version)) predictor_.onSmoothed(smoothed);
+        const NavigationState& out = predictor_.onImu(item.sample);
+        if (out.valid && publisher_.publishOdometry(out).ok()) {
+          counters_.published_odometry.add();
+          atomicMax(odometry_latency_max_ns_, hal::monotonicNowNs() - item.arrival_ns);
+        }
+      }
+    }
+    return any;
+  };
   while (!stop_threads_.load(std::memory_order_relaxed)) {
     publisher_beat_.beat(hal::monotonicNowNs());
     if (smoothed_.readIfNewer(smoothed, smoothed_version)) predictor_.onSmoothed(smoothed);
-    bool any = false;
-    for (auto& lane : lanes_) {
-      while (lane->imu.tryPop(imu)) {
-        any = true;
-        const NavigationState& out = predictor_.onImu(imu);
-        if (out.valid && publisher_.publishOdometry(out).ok()) counters_.published_odometry.add();
-      }
+    if (drain()) continue;
+    // Nothing queued: sleep until the next IMU sample (its source notifies).
+    // Look once more after announcing the wait: a sample pushed just before
+    // would not wake us (wake_signal.h).
+    const std::uint32_t token = publisher_wake_.prepareWait();
+    if (drain()) {
+      publisher_wake_.cancelWait();
+      continue;
     }
-    if (!any) std::this_thread::sleep_for(std::chrono::microseconds(200));
+    publisher_wake_.wait(token, kMaxSleepNs);
+  }
+}
+
+void Service::explain(ServiceStatus& s, const ServiceStatus& previous, std::int64_t now_ns) const {
+  std::size_t used = 0;
+  s.reason.fill('\0');
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  if (s.state == TrackingState::kInitializing) {
+    appendReason(s.reason, used, "initializing: %s", init_message_.c_str());
+    return;
+  }
+  if (s.state == TrackingState::kLost) {
+    appendReason(s.reason, used, "lost (%s); initializing: %s", last_failure_.c_str(), init_message_.c_str());
+    return;
+  }
+  // Tracking: what is wrong now, then what went wrong during the period.
+  if (const std::int64_t silence = ranging_silence_ns_.load(std::memory_order_relaxed); silence > 0) {
+    appendReason(s.reason, used, "no ranging for %.1f s (IMU only)", static_cast<double>(silence) * 1e-9);
+  }
+  for (std::size_t i = 0; i < lanes_.size(); ++i) {
+    if (!lanes_[i]->silent.load(std::memory_order_relaxed) || lanes_[i]->ended.load()) continue;
+    const std::int64_t last = lanes_[i]->last_sample_wall_ns.load(std::memory_order_relaxed);
+    appendReason(s.reason, used, "source %zu silent for %.1f s", i, static_cast<double>(now_ns - last) * 1e-9);
+  }
+  if (const auto n = increase(s.imu_gaps, previous.imu_gaps)) {
+    appendReason(s.reason, used, "%llu IMU gap%s (last %.2f s)", n, n == 1 ? "" : "s",
+                 static_cast<double>(last_imu_gap_ns_) * 1e-9);
+  }
+  if (const auto n = increase(s.ranging_gaps, previous.ranging_gaps); n > 0 && used == 0) {
+    appendReason(s.reason, used, "%llu ranging gap%s", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.non_finite_samples, previous.non_finite_samples)) {
+    appendReason(s.reason, used, "dropped %llu non-finite sample%s", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.duplicate_samples, previous.duplicate_samples)) {
+    appendReason(s.reason, used, "dropped %llu duplicated sample%s", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.out_of_order_samples, previous.out_of_order_samples)) {
+    appendReason(s.reason, used, "dropped %llu out-of-order sample%s", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.queue_overflows, previous.queue_overflows)) {
+    appendReason(s.reason, used, "%llu sample%s lost to full queues", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.late_updates, previous.late_updates)) {
+    appendReason(s.reason, used, "%llu late smoother update%s (max %.0f ms)", n, n == 1 ? "" : "s",
+                 period_max_update_ms_);
+  }
+  if (const auto n = increase(s.sensor_silences, previous.sensor_silences); n > 0 && used == 0) {
+    appendReason(s.reason, used, "%llu source silence%s", n, n == 1 ? "" : "s");
+  }
+  if (increase(s.sensor_faults, previous.sensor_faults) > 0) appendReason(s.reason, used, "fault: %s", last_fault_.c_str());
+  if (increase(s.reinitializations, previous.reinitializations) > 0) {
+    appendReason(s.reason, used, "re-initialized after: %s", last_failure_.c_str());
   }
 }
 
 void Service::publishStatus(std::int64_t now_ns) {
+  // The status thread and the estimator (on a change of state) both publish:
+  // one at a time, each against the status the other published last.
+  std::lock_guard<std::mutex> publishing(status_mutex_);
   const ServiceStatus previous = status_.read();
   ServiceStatus s = previous;
   s.t_ns = now_ns;
   counters_.fill(s);
   s.state = tracking_.load();
+  s.odometry_latency_ms = static_cast<double>(odometry_latency_max_ns_.exchange(0, std::memory_order_relaxed)) * 1e-6;
   {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     s.last_update_ms = last_update_ms_;
@@ -313,12 +534,15 @@ void Service::publishStatus(std::int64_t now_ns) {
     std::memset(s.last_fault.data(), 0, s.last_fault.size());
     std::strncpy(s.last_fault.data(), last_fault_.c_str(), s.last_fault.size() - 1);
   }
-  // Tracking through faults in the last period: degraded. Initializing after
-  // having tracked: lost (re-initializing).
-  const bool trouble = s.sensor_faults > previous.sensor_faults || s.queue_overflows > previous.queue_overflows ||
-                       s.sensor_silences > previous.sensor_silences || s.late_updates > previous.late_updates;
-  if (s.state == TrackingState::kTracking && trouble) s.state = TrackingState::kDegraded;
+  // Initializing after having tracked: lost (re-initializing). Tracking with
+  // trouble now or during the last period: degraded (explain() says why).
   if (s.state == TrackingState::kInitializing && s.reinitializations > 0) s.state = TrackingState::kLost;
+  explain(s, previous, now_ns);
+  if (s.state == TrackingState::kTracking && s.reason[0] != '\0') s.state = TrackingState::kDegraded;
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    period_max_update_ms_ = 0.0;
+  }
   status_.write(s);
   (void)publisher_.publishStatus(s);
   if (options_.on_status) options_.on_status(s);

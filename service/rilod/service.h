@@ -5,6 +5,14 @@
 //   predictor -> odometry topic); the calling thread publishes status.
 // The IMU-rate path (source push, publisher loop) neither allocates, locks
 // nor logs; overflows, late updates and silences are counted and published.
+// Every sample passes the entrance check (sample_screen.h) on its source's
+// thread: non-finite, duplicated and out-of-order samples are dropped and
+// counted there, so neither the estimator nor the output predictor sees them.
+// The state is decided at each status publication (service_status.h): every
+// status period, and at once on a change of state seen by the estimator;
+// tracking with a ranging gap now, a silent source now, or entrance drops,
+// IMU gaps, overflows, late updates or faults during the period is degraded,
+// and `reason` says which.
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -24,6 +32,9 @@
 #include "runtime/output_predictor.h"
 #include "runtime/runtime_counters.h"
 #include "runtime/service_status.h"
+#include "runtime/wake_signal.h"
+#include "rilod/range_trust_monitor.h"
+#include "rilod/sensor_gap_monitor.h"
 
 namespace rilo {
 
@@ -40,16 +51,34 @@ struct ServiceOptions {
   bool backpressure = false;
   double status_period_s = 1.0;
   double late_update_ms = 100.0;      ///< a smoother update slower than this counts as late
-  double sensor_silence_s = 1.0;      ///< no sample from a source for this long counts as a silence
-  /// Called on the status thread after each status publication (log, sd_notify).
+  /// IMU timeout (s): an IMU interval longer than this (sample time) is an IMU
+  /// gap; a source carrying IMU that delivers nothing for this long (wall
+  /// clock) is a sensor silence.
+  double sensor_silence_s = 1.0;
+  /// Ranging timeout (s): no range for this long while the IMU runs (sample
+  /// time) is a ranging gap and makes a tracking service degraded; a source
+  /// without IMU that delivers nothing for this long (wall clock) is a sensor
+  /// silence.
+  double ranging_silence_s = 2.0;
+  /// The initializer's attempts are logged (on_event) when its state changes,
+  /// else at most once per this many seconds (wall clock).
+  double init_log_interval_s = 5.0;
+  /// Called after each status publication (log, sd_notify): on the thread
+  /// that runs Service::run() every status period, and on the estimator
+  /// thread at a change of state (tracking started or lost, ranging lost or
+  /// back). Never concurrently.
   std::function<void(const ServiceStatus&)> on_status;
   /// Called once per fault from the source's thread (rare path; may log).
   std::function<void(const SourceFault&)> on_fault;
-  /// Called when tracking starts or ends (from the estimator thread).
+  /// Called on notable estimator events: tracking started or lost, ranging
+  /// lost and back, initialization progress (rate-limited). Estimator thread.
   std::function<void(const std::string& event)> on_event;
   /// Called for each thread the service starts, before it runs ("source 0",
   /// "estimator", "publisher"): real-time priority and CPU affinity.
   std::function<void(const std::string& role, std::thread& thread)> on_thread_start;
+  /// Called first thing ON each thread the service starts, with its role as
+  /// above (per-thread instrumentation in tests; must not block).
+  std::function<void(const char* role)> on_thread_enter;
 };
 
 class Service {
@@ -79,6 +108,11 @@ class Service {
   void publishStatus(std::int64_t now_ns);
   NavigationState navigationState();
   bool allSourcesDone() const;
+  void noteInitProgress(std::int64_t now_ns);
+  void judgeRanges();
+  void publishSmoothed(const NavigationState& state);
+  /// Why the state is `state` (see service_status.h), into status.reason.
+  void explain(ServiceStatus& status, const ServiceStatus& previous, std::int64_t now_ns) const;
 
   ServiceOptions options_;
   std::vector<std::unique_ptr<SampleSource>> sources_;
@@ -87,17 +121,26 @@ class Service {
   dds::Publisher publisher_;
   Localizer localizer_;
   OutputPredictor predictor_;
+  SensorGapMonitor gaps_;       // estimator thread
+  RangeTrustMonitor trust_;     // estimator thread
 
   LatestValue<NavigationState> smoothed_;
   LatestValue<ServiceStatus> status_;
   RuntimeCounters counters_;
   Heartbeat estimator_beat_, publisher_beat_;
+  WakeSignal publisher_wake_;  ///< sources notify per IMU sample; the publisher sleeps on it
   std::atomic<bool> stop_sources_{false};
   std::atomic<bool> estimator_done_{false};
   std::atomic<bool> stop_threads_{false};
   std::atomic<bool> source_failed_{false};
   std::atomic<TrackingState> tracking_{TrackingState::kInitializing};
+  /// Sample time since the last range while ranging is quiet beyond its
+  /// timeout (ns), 0 otherwise. Estimator thread writes, status thread reads.
+  std::atomic<std::int64_t> ranging_silence_ns_{0};
+  /// Worst odometry latency since the status thread last took it (ns).
+  std::atomic<std::int64_t> odometry_latency_max_ns_{0};
 
+  std::mutex status_mutex_;  ///< serializes publishStatus (status thread, estimator on changes)
   // Estimator statistics (estimator thread writes, status thread reads under the mutex).
   mutable std::mutex stats_mutex_;
   double last_update_ms_ = 0.0, sum_update_ms_ = 0.0, max_update_ms_ = 0.0;
@@ -105,6 +148,15 @@ class Service {
   UpdateStats last_stats_;
   double pose_latency_ms_ = 0.0;
   std::string last_fault_;
+  std::string init_message_ = "waiting: no samples";  ///< the initializer's status message
+  std::string last_failure_;                           ///< why tracking last ended
+  std::int64_t last_imu_gap_ns_ = 0;
+  double period_max_update_ms_ = 0.0;                  ///< slowest update since the last status
+
+  // Estimator thread only: rate limit of the initialization log.
+  int init_attempts_seen_ = 0;
+  InitState init_state_logged_ = InitState::kWaitingForData;
+  std::int64_t init_logged_ns_ = 0;
 };
 
 }  // namespace rilo

@@ -33,6 +33,11 @@ struct RuntimeCounters {
   EventCounter reinitializations;
   EventCounter rejected_ranges;
   EventCounter published_odometry;
+  EventCounter non_finite_samples;
+  EventCounter duplicate_samples;
+  EventCounter out_of_order_samples;
+  EventCounter imu_gaps;
+  EventCounter ranging_gaps;
 
   /// Copies every counter into the matching ServiceStatus field (other fields untouched).
   void fill(ServiceStatus& status) const noexcept {
@@ -47,6 +52,11 @@ struct RuntimeCounters {
     status.reinitializations = reinitializations.load();
     status.rejected_ranges = rejected_ranges.load();
     status.published_odometry = published_odometry.load();
+    status.non_finite_samples = non_finite_samples.load();
+    status.duplicate_samples = duplicate_samples.load();
+    status.out_of_order_samples = out_of_order_samples.load();
+    status.imu_gaps = imu_gaps.load();
+    status.ranging_gaps = ranging_gaps.load();
   }
 };
 

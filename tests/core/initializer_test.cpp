@@ -681,8 +681,8 @@ TEST(InitializerGarbage, BadSamplesAreDroppedAndCounted) {
   RangeSample inf = r;
   inf.range_m = std::numeric_limits<double>::infinity();
   g.init.addRange(inf);
-  EXPECT_EQ(g.init.droppedRanges(), 5u);
-  EXPECT_EQ(g.init.rangeBuffer().size(), 1u);
+  EXPECT_EQ(g.init.droppedMeasurements(), 5u);
+  EXPECT_EQ(g.init.measurementBuffer().size(), 1u);
   EXPECT_EQ(g.init.imuBuffer().size(), 1u);
 }
 

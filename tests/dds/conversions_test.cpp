@@ -217,8 +217,10 @@ TEST(DdsFill, StatusRoundTrip) {
   fillStatus(s, msg);
   char name[] = "degraded";
   char fault[] = "dwm3000 /dev/spidev0.0: RX timeout";
+  char reason[] = "no ranging for 12.4 s (IMU only)";
   msg.state_name = name;
   msg.last_fault = fault;
+  msg.reason = reason;
   EXPECT_EQ(msg.state, 2u);
   EXPECT_EQ(msg.header.stamp.sec, 5);
   EXPECT_EQ(msg.header.stamp.nanosec, 123u);
@@ -235,6 +237,11 @@ TEST(DdsFill, StatusRoundTrip) {
   EXPECT_EQ(back.status.reinitializations, s.reinitializations);
   EXPECT_EQ(back.status.rejected_ranges, s.rejected_ranges);
   EXPECT_EQ(back.status.published_odometry, s.published_odometry);
+  EXPECT_EQ(back.status.non_finite_samples, s.non_finite_samples);
+  EXPECT_EQ(back.status.duplicate_samples, s.duplicate_samples);
+  EXPECT_EQ(back.status.out_of_order_samples, s.out_of_order_samples);
+  EXPECT_EQ(back.status.imu_gaps, s.imu_gaps);
+  EXPECT_EQ(back.status.ranging_gaps, s.ranging_gaps);
   EXPECT_EQ(back.status.last_update_ms, s.last_update_ms);
   EXPECT_EQ(back.status.mean_update_ms, s.mean_update_ms);
   EXPECT_EQ(back.status.max_update_ms, s.max_update_ms);
@@ -244,6 +251,7 @@ TEST(DdsFill, StatusRoundTrip) {
   EXPECT_EQ(back.status.odometry_latency_ms, s.odometry_latency_ms);
   EXPECT_EQ(back.status.pose_latency_ms, s.pose_latency_ms);
   EXPECT_STREQ(back.status.last_fault.data(), s.last_fault.data());
+  EXPECT_STREQ(back.status.reason.data(), s.reason.data());
 }
 
 TEST(DdsFill, StatusFaultLongerThanServiceStatusIsTruncated) {
@@ -253,6 +261,7 @@ TEST(DdsFill, StatusFaultLongerThanServiceStatusIsTruncated) {
   const StatusMessage back = toStatusMessage(msg);
   EXPECT_EQ(std::strlen(back.status.last_fault.data()), back.status.last_fault.size() - 1);
   EXPECT_TRUE(back.state_name.empty());  // null string reads as empty
+  EXPECT_STREQ(back.status.reason.data(), "");
 }
 
 TEST(DdsFill, TrackingStateNames) {

@@ -88,6 +88,11 @@ inline ServiceStatus sampleStatus(std::int64_t t_ns) {
   s.reinitializations = 2;
   s.rejected_ranges = 99;
   s.published_odometry = 123450000;
+  s.non_finite_samples = 19;
+  s.duplicate_samples = 23;
+  s.out_of_order_samples = 29;
+  s.imu_gaps = 31;
+  s.ranging_gaps = 37;
   s.last_update_ms = 1.25;
   s.mean_update_ms = 0.875;
   s.max_update_ms = 14.5;
@@ -98,6 +103,8 @@ inline ServiceStatus sampleStatus(std::int64_t t_ns) {
   s.pose_latency_ms = 22.0;
   const std::string fault = "dwm3000 /dev/spidev0.0: RX timeout";
   fault.copy(s.last_fault.data(), s.last_fault.size() - 1);
+  const std::string reason = "no ranging for 12.4 s (IMU only)";
+  reason.copy(s.reason.data(), s.reason.size() - 1);
   return s;
 }
 

@@ -157,6 +157,11 @@ TEST_F(DdsPubSub, StatusArrivesWithExactFields) {
   EXPECT_EQ(r.reinitializations, s.reinitializations);
   EXPECT_EQ(r.rejected_ranges, s.rejected_ranges);
   EXPECT_EQ(r.published_odometry, s.published_odometry);
+  EXPECT_EQ(r.non_finite_samples, s.non_finite_samples);
+  EXPECT_EQ(r.duplicate_samples, s.duplicate_samples);
+  EXPECT_EQ(r.out_of_order_samples, s.out_of_order_samples);
+  EXPECT_EQ(r.imu_gaps, s.imu_gaps);
+  EXPECT_EQ(r.ranging_gaps, s.ranging_gaps);
   EXPECT_EQ(r.last_update_ms, s.last_update_ms);
   EXPECT_EQ(r.mean_update_ms, s.mean_update_ms);
   EXPECT_EQ(r.max_update_ms, s.max_update_ms);
@@ -166,6 +171,7 @@ TEST_F(DdsPubSub, StatusArrivesWithExactFields) {
   EXPECT_EQ(r.odometry_latency_ms, s.odometry_latency_ms);
   EXPECT_EQ(r.pose_latency_ms, s.pose_latency_ms);
   EXPECT_STREQ(r.last_fault.data(), "dwm3000 /dev/spidev0.0: RX timeout");
+  EXPECT_STREQ(r.reason.data(), "no ranging for 12.4 s (IMU only)");
 }
 
 TEST_F(DdsPubSub, StatusFaultFillingTheWholeArrayStaysTerminated) {
@@ -180,11 +186,13 @@ TEST_F(DdsPubSub, StatusFaultFillingTheWholeArrayStaysTerminated) {
   ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kStatus, 1, kMatchTimeout));
   ServiceStatus s = testing::sampleStatus(1);
   s.last_fault.fill('f');  // no terminating NUL in the source
+  s.reason.fill('r');
   s.state = TrackingState::kLost;
   ASSERT_TRUE(pub.publishStatus(s).ok());
   const auto got = receive<StatusMessage>(sub, 1, [&](auto& out) { sub.takeStatus(out); });
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(std::string(got[0].status.last_fault.data()), std::string(127, 'f'));
+  EXPECT_EQ(std::string(got[0].status.reason.data()), std::string(s.reason.size() - 1, 'r'));
   EXPECT_EQ(got[0].state_name, "lost");
 }
 

@@ -74,6 +74,7 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_EQ(c.sources.replay.pace, ReplayPace::kRealTime);
   EXPECT_DOUBLE_EQ(c.sources.replay.speed, 1.0);
   EXPECT_FALSE(c.sources.replay.loop);
+  EXPECT_TRUE(c.sources.replay.faults.empty());
   EXPECT_TRUE(c.sources.replay.shift_to_now);
   ASSERT_EQ(c.anchors.size(), 4u);
   EXPECT_EQ(c.anchors[2].id, 2u);
@@ -231,6 +232,34 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_FALSE(c.watchdog.enabled);
   EXPECT_EQ(c.watchdog.heartbeat_timeout_ns, 250'000'000);
   EXPECT_EQ(c.watchdog.startup_grace_ns, 0);
+}
+
+TEST_F(ConfigTest, ReplayFaultsMapOntoFaultSpecs) {
+  const ServiceConfig c = parse(
+      "sources:\n  mode: replay\n  replay:\n    path: rec\n    faults:\n"
+      "      - {kind: range_blackout, at_s: 20, duration_s: 30}\n"
+      "      - {kind: imu_gap, at_s: 5.5, duration_s: 0.25}\n"
+      "      - {kind: duplicate, at_s: 1, count: 3}\n"
+      "      - {kind: out_of_order, at_s: 2, count: 4, stream: ranging}\n"
+      "      - {kind: non_finite, at_s: 0, count: 1, stream: imu}\n" +
+      kAnchors);
+  const std::vector<FaultSpec>& f = c.sources.replay.faults;
+  ASSERT_EQ(f.size(), 5u);
+  EXPECT_EQ(f[0].kind, FaultKind::kRangeBlackout);
+  EXPECT_DOUBLE_EQ(f[0].at_s, 20.0);
+  EXPECT_DOUBLE_EQ(f[0].duration_s, 30.0);
+  EXPECT_EQ(f[1].kind, FaultKind::kImuGap);
+  EXPECT_DOUBLE_EQ(f[1].at_s, 5.5);
+  EXPECT_DOUBLE_EQ(f[1].duration_s, 0.25);
+  EXPECT_EQ(f[2].kind, FaultKind::kDuplicate);
+  EXPECT_EQ(f[2].count, 3u);
+  EXPECT_EQ(f[2].stream, FaultStream::kAll);
+  EXPECT_EQ(f[3].kind, FaultKind::kOutOfOrder);
+  EXPECT_EQ(f[3].count, 4u);
+  EXPECT_EQ(f[3].stream, FaultStream::kRanging);
+  EXPECT_EQ(f[4].kind, FaultKind::kNonFinite);
+  EXPECT_EQ(f[4].stream, FaultStream::kImu);
+  for (const FaultSpec& spec : f) EXPECT_NO_THROW(spec.validate());
 }
 
 TEST_F(ConfigTest, SmootherNamesMapToMethods) {
@@ -466,6 +495,45 @@ std::vector<BadCase> badCases() {
        "sources.replay.speed", "applies to pace real_time only", 0},
       {"replay_loop_not_bool", "sources:\n  mode: replay\n  replay: {path: r, loop: yes}\n" + kAnchors,
        "sources.replay.loop", "expected true or false, got 'yes'", 3},
+      // sources.replay.faults
+      {"faults_not_a_list", "sources:\n  mode: replay\n  replay: {path: r, faults: {kind: imu_gap}}\n" + kAnchors,
+       "sources.replay.faults", "expected a sequence", 3},
+      {"fault_unknown_kind", "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: blackout, at_s: 1}]}\n" + kAnchors,
+       "sources.replay.faults[0].kind", "expected one of range_blackout, imu_gap, duplicate, out_of_order, non_finite",
+       3},
+      {"fault_unknown_key",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: imu_gap, at_s: 1, duraton_s: 2}]}\n" + kAnchors,
+       "sources.replay.faults[0]", "unknown key 'duraton_s': did you mean 'duration_s'?", 3},
+      {"fault_without_at", "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: duplicate, count: 2}]}\n" + kAnchors,
+       "sources.replay.faults[0].at_s", "required key 'at_s' is missing", 0},
+      {"fault_negative_at",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: duplicate, at_s: -1, count: 2}]}\n" + kAnchors,
+       "sources.replay.faults[0].at_s", "expected a number in [0,", 3},
+      {"window_fault_without_duration",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: range_blackout, at_s: 1}]}\n" + kAnchors,
+       "sources.replay.faults[0].duration_s", "required key 'duration_s' is missing", 0},
+      {"window_fault_with_count",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: imu_gap, at_s: 1, duration_s: 1, count: 2}]}\n" +
+           kAnchors,
+       "sources.replay.faults[0].count", "count does not apply to imu_gap", 3},
+      {"window_fault_with_stream",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: imu_gap, at_s: 1, duration_s: 1, stream: imu}]}\n" +
+           kAnchors,
+       "sources.replay.faults[0].stream", "stream does not apply to imu_gap", 3},
+      {"counted_fault_with_duration",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: non_finite, at_s: 1, count: 1, duration_s: 1}]}\n" +
+           kAnchors,
+       "sources.replay.faults[0].duration_s", "duration_s does not apply to non_finite", 3},
+      {"counted_fault_zero_count",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: duplicate, at_s: 1, count: 0}]}\n" + kAnchors,
+       "sources.replay.faults[0].count", "expected an integer in [1, 100000000], got 0", 3},
+      {"counted_fault_count_not_integer",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: duplicate, at_s: 1, count: 2.5}]}\n" + kAnchors,
+       "sources.replay.faults[0].count", "expected an integer", 3},
+      {"fault_bad_stream",
+       "sources:\n  mode: replay\n  replay: {path: r, faults: [{kind: duplicate, at_s: 1, count: 1, stream: uwb}]}\n" +
+           kAnchors,
+       "sources.replay.faults[0].stream", "expected one of all, imu, ranging, got 'uwb'", 3},
       // anchors
       {"no_anchors", kSources + "anchors: []\n", "anchors", "at least 3 UWB anchors are needed", 5},
       {"two_anchors", kSources + "anchors:\n  - {id: 0, x: 0, y: 0, z: 1}\n  - {id: 1, x: 1, y: 0, z: 1}\n", "anchors",

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -16,14 +17,16 @@
 #include "dds/participant.h"
 #include "dds/subscriber.h"
 #include "hal/recording/recording_reader.h"
+#include "rilod_runner.h"
 #include "service_test_support.h"
 
 namespace rilo {
 namespace {
 
 using namespace std::chrono_literals;
-
-std::uint32_t testDomain() { return 100 + static_cast<std::uint32_t>(::getpid() % 130); }
+using testing::startRilod;
+using testing::testDomain;
+using testing::waitExit;
 
 /// The default configuration, pointed at the demo recording by absolute
 /// path, on a private loopback domain, with recording times kept (so poses
@@ -35,30 +38,6 @@ std::string configText(const std::string& pace, double speed) {
          "anchors:\n  file: " + rec + "/anchors.csv\n" +
          "estimator:\n  smoother: d-isam2\n  range:\n    lever_arm_m: [0.06, 0.0, 0.10]\n" +
          "dds:\n  domain: " + std::to_string(testDomain()) + "\n  loopback_only: true\n";
-}
-
-pid_t startRilod(const std::filesystem::path& config, double duration_s) {
-  const std::string exe = (testing::binaryDir() / "rilod").string();
-  const std::string cfg = config.string();
-  const std::string dur = std::to_string(duration_s);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    ::execl(exe.c_str(), exe.c_str(), "--config", cfg.c_str(), "--duration", dur.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  return pid;
-}
-
-int waitExit(pid_t pid, std::chrono::milliseconds timeout) {
-  const auto end = std::chrono::steady_clock::now() + timeout;
-  int status = 0;
-  while (std::chrono::steady_clock::now() < end) {
-    if (::waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    std::this_thread::sleep_for(10ms);
-  }
-  ::kill(pid, SIGKILL);
-  ::waitpid(pid, &status, 0);
-  return -1;
 }
 
 TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {
@@ -96,9 +75,26 @@ TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {
   EXPECT_GT(odometry.size(), 5000u);
   EXPECT_GT(poses.size(), 300u);
   ASSERT_FALSE(status.empty());
-  bool saw_tracking = false;
-  for (const auto& s : status) saw_tracking |= s.state_name == "tracking" || s.state_name == "degraded";
+  bool saw_tracking = false, saw_init_reason = false, saw_latency = false;
+  for (const auto& s : status) {
+    saw_tracking |= s.state_name == "tracking" || s.state_name == "degraded";
+    // While initializing, the reason is the initializer's own message.
+    if (s.state_name == "initializing") {
+      const std::string reason(s.status.reason.data());
+      EXPECT_EQ(reason.rfind("initializing: ", 0), 0u) << reason;
+      saw_init_reason |= reason.size() > 14;
+    }
+    saw_latency |= s.status.odometry_latency_ms > 0.0 && s.status.odometry_latency_ms < 1000.0;
+  }
   EXPECT_TRUE(saw_tracking);
+  EXPECT_TRUE(saw_init_reason);
+  EXPECT_TRUE(saw_latency) << "odometry latency (sample in to DDS write) filled while tracking";
+  // The demo office is 74 % NLOS: the robust range model down-weights a good
+  // share of the ranges, never all of them (rilo replay: ~30 %).
+  const auto& last = *std::max_element(status.begin(), status.end(),
+                                       [](const auto& a, const auto& b) { return a.status.t_ns < b.status.t_ns; });
+  EXPECT_GT(last.status.rejected_ranges, last.status.range_samples / 20);
+  EXPECT_LT(last.status.rejected_ranges, last.status.range_samples / 2);
   ASSERT_FALSE(poses.empty());
   EXPECT_EQ(poses.front().frame_id, "map");
 

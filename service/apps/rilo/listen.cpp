@@ -215,8 +215,13 @@ void printPose(const dds::PoseMessage& m, double rate_hz, double latency_ms, boo
 void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms, bool json) {
   const ServiceStatus& s = m.status;
   std::string fault(s.last_fault.data());
+  std::string reason(s.reason.data());
   if (!json) {  // one line per sample
-    std::replace_if(fault.begin(), fault.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20; }, ' ');
+    auto printable = [](std::string& text) {
+      std::replace_if(text.begin(), text.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20; }, ' ');
+    };
+    printable(fault);
+    printable(reason);
   }
   if (json) {
     JsonLine("status")
@@ -232,6 +237,11 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
         .unsignedInteger("reinitializations", s.reinitializations)
         .unsignedInteger("rejected_ranges", s.rejected_ranges)
         .unsignedInteger("published_odometry", s.published_odometry)
+        .unsignedInteger("non_finite_samples", s.non_finite_samples)
+        .unsignedInteger("duplicate_samples", s.duplicate_samples)
+        .unsignedInteger("out_of_order_samples", s.out_of_order_samples)
+        .unsignedInteger("imu_gaps", s.imu_gaps)
+        .unsignedInteger("ranging_gaps", s.ranging_gaps)
         .number("last_update_ms", s.last_update_ms)
         .number("mean_update_ms", s.mean_update_ms)
         .number("max_update_ms", s.max_update_ms)
@@ -241,6 +251,7 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
         .number("odometry_latency_ms", s.odometry_latency_ms)
         .number("pose_latency_ms", s.pose_latency_ms)
         .string("last_fault", fault)
+        .string("reason", reason)
         .number("rate_hz", rate_hz)
         .number("latency_ms", latency_ms)
         .print();
@@ -248,15 +259,19 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
   }
   std::printf(
       "status   %14.6f  %-12s imu %llu  ranges %llu (rejected %llu)  overflows %llu  late %llu  faults %llu  "
-      "silences %llu  reinit %llu  update %.2f ms (mean %.2f, max %.2f)  odometry latency %.2f ms  pose latency "
-      "%.2f ms  %5.1f Hz  latency %7.2f ms%s%s%s\n",
+      "silences %llu  reinit %llu  dropped %llu/%llu/%llu (non-finite/duplicate/out-of-order)  gaps %llu/%llu "
+      "(imu/ranging)  update %.2f ms (mean %.2f, max %.2f)  odometry latency %.2f ms  pose latency "
+      "%.2f ms  %5.1f Hz  latency %7.2f ms%s%s%s%s%s%s\n",
       stampSeconds(s.t_ns), m.state_name.c_str(), static_cast<unsigned long long>(s.imu_samples),
       static_cast<unsigned long long>(s.range_samples), static_cast<unsigned long long>(s.rejected_ranges),
       static_cast<unsigned long long>(s.queue_overflows), static_cast<unsigned long long>(s.late_updates),
       static_cast<unsigned long long>(s.sensor_faults), static_cast<unsigned long long>(s.sensor_silences),
-      static_cast<unsigned long long>(s.reinitializations), s.last_update_ms, s.mean_update_ms, s.max_update_ms,
-      s.odometry_latency_ms, s.pose_latency_ms, rate_hz, latency_ms, fault.empty() ? "" : "  fault \"",
-      fault.c_str(), fault.empty() ? "" : "\"");
+      static_cast<unsigned long long>(s.reinitializations), static_cast<unsigned long long>(s.non_finite_samples),
+      static_cast<unsigned long long>(s.duplicate_samples), static_cast<unsigned long long>(s.out_of_order_samples),
+      static_cast<unsigned long long>(s.imu_gaps), static_cast<unsigned long long>(s.ranging_gaps), s.last_update_ms,
+      s.mean_update_ms, s.max_update_ms, s.odometry_latency_ms, s.pose_latency_ms, rate_hz, latency_ms,
+      reason.empty() ? "" : "  reason \"", reason.c_str(), reason.empty() ? "" : "\"",
+      fault.empty() ? "" : "  fault \"", fault.c_str(), fault.empty() ? "" : "\"");
   std::fflush(stdout);
 }
 

@@ -16,6 +16,12 @@ void AlignmentParams::validate() const {
     throw std::invalid_argument(std::string("AlignmentParams.") + field + " " + rule);
   };
   if (!(range_sigma_m > 0.0) || !std::isfinite(range_sigma_m)) fail("range_sigma_m", "must be finite and > 0");
+  if (!(tdoa_sigma_m > 0.0) || !std::isfinite(tdoa_sigma_m)) fail("tdoa_sigma_m", "must be finite and > 0");
+  if (!(ultrasonic_sigma_m > 0.0) || !std::isfinite(ultrasonic_sigma_m)) fail("ultrasonic_sigma_m", "must be finite and > 0");
+  if (!p_b_ultrasonic.allFinite()) fail("p_b_ultrasonic", "must be finite");
+  for (const Vec3& b : p_w_ultrasonic) {
+    if (!b.allFinite()) fail("p_w_ultrasonic", "must be finite");
+  }
   if (!(short_side_huber_k > 0.0)) fail("short_side_huber_k", "must be > 0");
   if (!p_b_tag.allFinite()) fail("p_b_tag", "must be finite");
   if (!(gravity_m_s2 > 0.0) || !std::isfinite(gravity_m_s2)) fail("gravity_m_s2", "must be finite and > 0");
@@ -38,9 +44,26 @@ using Mat3x15 = Eigen::Matrix<double, 3, 15>;
 constexpr int kRot = 0, kPos = 3, kVel = 6, kBa = 9, kBg = 12;
 
 struct Obs {
-  Vec3 a;
-  double range_m;
+  Measurement::Kind kind;
+  Vec3 a, b;                  ///< anchor (beacon); TDoA: anchors a and b
+  double value_m;
+  double inv_sigma;
+  const Vec3* p_b_sensor;     ///< lever arm of the antenna or receiver
   const StrapdownDelta* delta;
+
+  /// Predicted value at the sensor position and its gradient there.
+  double predict(const Vec3& p_sensor, Eigen::RowVector3d* grad) const {
+    const Vec3 da = p_sensor - a;
+    const double na = std::max(da.norm(), 1e-9);
+    if (kind != Measurement::Kind::kTdoa) {
+      if (grad) *grad = (da / na).transpose();
+      return na;
+    }
+    const Vec3 db = p_sensor - b;
+    const double nb = std::max(db.norm(), 1e-9);
+    if (grad) *grad = (db / nb - da / na).transpose();
+    return nb - na;
+  }
 };
 
 struct State {
@@ -57,11 +80,20 @@ struct Problem {
   Vec3 g_w;
 };
 
-/// Antenna position at one range time and, when J is given, its Jacobian.
+/// Robust loss of one whitened residual (see the header).
+double rhoOf(const Problem& pr, const Obs& o, double r) {
+  return o.kind == Measurement::Kind::kTdoa ? pr.loss.long_side->loss(std::abs(r)) : pr.loss.rho(r);
+}
+double weightOf(const Problem& pr, const Obs& o, double r) {
+  return o.kind == Measurement::Kind::kTdoa ? pr.loss.long_side->weight(std::abs(r)) : pr.loss.weight(r);
+}
+
+/// Sensor (antenna or receiver) position at one measurement time and, when J
+/// is given, its Jacobian.
 Vec3 tagAt(const Problem& pr, const State& s, const Obs& o, Mat3x15* J) {
   const StrapdownDelta& d = *o.delta;
   const StrapdownDelta::Corrected c = d.corrected(s.b);
-  const Vec3& p_bt = pr.params->p_b_tag;
+  const Vec3& p_bt = *o.p_b_sensor;
   const Vec3 lever = c.dR * p_bt;
   const Vec3 tag = s.p + s.v * d.dt_s + 0.5 * pr.g_w * d.dt_s * d.dt_s + s.R * (c.dp + lever);
   if (J) {
@@ -77,19 +109,23 @@ Vec3 tagAt(const Problem& pr, const State& s, const Obs& o, Mat3x15* J) {
 
 struct Costs {
   double total = 0.0;
-  double ranges = 0.0;
+  double measurements = 0.0;
 };
+
+/// The height band's residual applies to the UWB antenna only.
+bool onBand(const Obs& o) { return o.kind != Measurement::Kind::kUltrasonic; }
 
 Costs costOf(const Problem& pr, const State& s) {
   const AlignmentParams& P = *pr.params;
   Costs c;
   for (const Obs& o : pr.obs) {
     const Vec3 tag = tagAt(pr, s, o, nullptr);
-    c.ranges += pr.loss.rho((o.range_m - (tag - o.a).norm()) / P.range_sigma_m);
+    c.measurements += rhoOf(pr, o, (o.value_m - o.predict(tag, nullptr)) * o.inv_sigma);
+    if (!onBand(o)) continue;
     const double rb = P.band.residual(tag.z());
     c.total += 0.5 * rb * rb;
   }
-  c.total += c.ranges;
+  c.total += c.measurements;
   c.total += 0.5 * (s.b.accel / P.accel_bias_sigma).squaredNorm();
   c.total += 0.5 * (s.b.gyro / P.gyro_bias_sigma).squaredNorm();
   c.total += 0.5 * ((s.R.transpose() * Vec3::UnitZ() - pr.gravity->up_b) / pr.gravity->tilt_sigma_rad).squaredNorm();
@@ -107,14 +143,13 @@ void linearize(const Problem& pr, const State& s, Mat15d& H, Vec15d& g) {
   Mat3x15 J;
   for (const Obs& o : pr.obs) {
     const Vec3 tag = tagAt(pr, s, o, &J);
-    const Vec3 d = tag - o.a;
-    const double rho = d.norm();
-    if (rho < 1e-9) continue;
-    const double r = (o.range_m - rho) / P.range_sigma_m;
-    const Eigen::Matrix<double, 1, 15> Jr = -(d / rho).transpose() * J / P.range_sigma_m;
-    const double w = pr.loss.weight(r);
+    Eigen::RowVector3d grad;
+    const double r = (o.value_m - o.predict(tag, &grad)) * o.inv_sigma;
+    const Eigen::Matrix<double, 1, 15> Jr = -o.inv_sigma * grad * J;
+    const double w = weightOf(pr, o, r);
     H.noalias() += w * Jr.transpose() * Jr;
     g.noalias() += w * Jr.transpose() * r;
+    if (!onBand(o)) continue;
     const double jb = P.band.derivative(tag.z());
     if (jb != 0.0) {
       const Eigen::Matrix<double, 1, 15> Jb = jb * J.row(2);
@@ -202,6 +237,16 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
                                    std::int64_t t_ref_ns, const std::vector<Vec3>& p_w_anchors,
                                    const GravityAlignment& gravity, const Vec3& p_w_tag_guess,
                                    const Vec3& v_w_guess, const AlignmentParams& params) {
+  std::vector<Measurement> measurements;
+  measurements.reserve(ranges.size());
+  for (const RangeSample& r : ranges) measurements.push_back(Measurement::of(r));
+  return alignRangeInertial(imu, measurements, t_ref_ns, p_w_anchors, gravity, p_w_tag_guess, v_w_guess, params);
+}
+
+AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<const Measurement> measurements,
+                                   std::int64_t t_ref_ns, const std::vector<Vec3>& p_w_anchors,
+                                   const GravityAlignment& gravity, const Vec3& p_w_tag_guess,
+                                   const Vec3& v_w_guess, const AlignmentParams& params) {
   AlignmentResult out;
   out.t_ref_ns = t_ref_ns;
   if (!gravity.valid) {
@@ -212,20 +257,30 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
     out.message = "no finite position guess";
     return out;
   }
-  std::vector<const RangeSample*> used;
+  auto usable = [&](const Measurement& m) {
+    if (m.t_ns < t_ref_ns || !std::isfinite(m.value_m)) return false;
+    switch (m.kind) {
+      case Measurement::Kind::kRange: return m.anchor < p_w_anchors.size();
+      case Measurement::Kind::kTdoa:
+        return m.anchor < p_w_anchors.size() && m.anchor_b < p_w_anchors.size() && m.anchor != m.anchor_b;
+      case Measurement::Kind::kUltrasonic: return m.anchor < params.p_w_ultrasonic.size();
+    }
+    return false;
+  };
+  std::vector<const Measurement*> used;
   std::vector<std::int64_t> times;
-  for (const RangeSample& r : ranges) {
-    if (r.t_ns < t_ref_ns || r.anchor_id >= p_w_anchors.size() || !std::isfinite(r.range_m)) continue;
-    used.push_back(&r);
-    times.push_back(r.t_ns);
+  for (const Measurement& m : measurements) {
+    if (!usable(m)) continue;
+    used.push_back(&m);
+    times.push_back(m.t_ns);
   }
   if (used.empty() || imu.empty()) {
-    out.message = "no ranges or no IMU samples";
+    out.message = "no measurements or no IMU samples";
     return out;
   }
-  // Ranges are in time order (the caller's buffer); keep the queries ascending regardless.
+  // Measurements are in time order (the caller's buffer); keep the queries ascending regardless.
   if (!std::is_sorted(times.begin(), times.end())) {
-    out.message = "ranges not in time order";
+    out.message = "measurements not in time order";
     return out;
   }
   const std::vector<StrapdownDelta> deltas = integrateStrapdown(imu, t_ref_ns, times);
@@ -242,8 +297,23 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
   }
   pr.loss.short_side_k = params.short_side_huber_k;
   pr.obs.reserve(used.size());
-  for (std::size_t j = 0; j < used.size(); ++j) pr.obs.push_back({p_w_anchors[used[j]->anchor_id], used[j]->range_m, &deltas[j]});
-  out.ranges = static_cast<int>(pr.obs.size());
+  for (std::size_t j = 0; j < used.size(); ++j) {
+    const Measurement& m = *used[j];
+    Obs o{m.kind, Vec3::Zero(), Vec3::Zero(), m.value_m, 1.0 / params.range_sigma_m, &params.p_b_tag, &deltas[j]};
+    if (m.kind == Measurement::Kind::kUltrasonic) {
+      o.a = params.p_w_ultrasonic[m.anchor];
+      o.inv_sigma = 1.0 / params.ultrasonic_sigma_m;
+      o.p_b_sensor = &params.p_b_ultrasonic;
+    } else {
+      o.a = p_w_anchors[m.anchor];
+      if (m.kind == Measurement::Kind::kTdoa) {
+        o.b = p_w_anchors[m.anchor_b];
+        o.inv_sigma = 1.0 / params.tdoa_sigma_m;
+      }
+    }
+    pr.obs.push_back(o);
+  }
+  out.measurements = static_cast<int>(pr.obs.size());
 
   std::vector<Fit> fits;
   for (int k = 0; k < params.yaw_hypotheses; ++k) {
@@ -274,7 +344,7 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
   out.v_w = f.s.v;
   out.bias = f.s.b;
   out.cost = f.cost.total;
-  out.range_cost = f.cost.ranges;
+  out.measurement_cost = f.cost.measurements;
 
   const Eigen::SelfAdjointEigenSolver<Mat15d> eig(f.H);
   if (eig.eigenvalues().minCoeff() > 1e-12) {
@@ -293,7 +363,8 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
     const Vec3 tag = st.T_w_b.transformFrom(params.p_b_tag);
     out.moved_m = std::max(out.moved_m, (tag - tag0).head<2>().norm());
     out.horizontal_dv_m_s = std::max(out.horizontal_dv_m_s, (st.v_w - out.v_w).head<2>().norm());
-    const double r = (pr.obs[j].range_m - (tag - pr.obs[j].a).norm()) / params.range_sigma_m;
+    const Obs& o = pr.obs[j];
+    const double r = (o.value_m - o.predict(st.T_w_b.transformFrom(*o.p_b_sensor), nullptr)) * o.inv_sigma;
     if (std::abs(r) <= 3.0) ++out.inliers;
   }
   out.valid = true;

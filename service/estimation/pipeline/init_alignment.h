@@ -6,8 +6,8 @@
 // (init_strapdown.h) predicts the antenna at every range time from the
 // state at t_r (R_r, p_r, v_r) and a constant bias (b_a, b_g):
 //   tag(t_j) = p_r + v_r dt + g_w dt^2 / 2 + R_r dp_j(b) + R_r dR_j(b) p_b_tag
-// and a robust Levenberg-Marquardt fits those 15 unknowns to the ranges of
-// the window (loss of init_range_loss.h), with priors on the biases, on the
+// and a robust Levenberg-Marquardt fits those 15 unknowns to the
+// measurements of the window, with priors on the biases, on the
 // tilt (from gravity, with the gravity step's uncertainty), on the vertical
 // velocity (a walking person) and the height band. The yaw of R_r is not
 // observable until the device accelerates horizontally (starts walking,
@@ -19,6 +19,20 @@
 // one": the same information, used in one consistent least-squares fit that
 // also works with sparse (1 Hz) ranging, where no velocity can be
 // differentiated from the fixes.
+//
+// Measurements of any kind (measurement.h), each a whitened residual
+// r = (measured - predicted) / sigma of the antenna track:
+//  - UWB range: |tag - A|, loss of init_range_loss.h (heavy NLOS tail on the
+//    long side, Huber on the short side);
+//  - UWB TDoA: |tag - A_b| - |tag - A_a|, the same long-side loss mirrored
+//    (rho(|r|)): NLOS on either anchor of the pair biases the difference, with
+//    opposite signs;
+//  - ultrasonic range: |receiver - beacon| with the receiver's own lever arm,
+//    as a range, at ultrasonic_sigma_m: a coarse sigma on purpose, because
+//    the fit starts from a fix that can be decimetres off, where the
+//    cm-accurate ranges at their own sigma would sit in the heavy tail and be
+//    ignored (the batch solve after this uses their real sigma).
+// The height band applies to the UWB antenna at UWB measurement times.
 #include <cstdint>
 #include <limits>
 #include <span>
@@ -31,12 +45,18 @@
 #include "estimation/pipeline/init_gravity.h"
 #include "estimation/pipeline/init_height_band.h"
 #include "estimation/pipeline/init_strapdown.h"
+#include "estimation/pipeline/measurement.h"
 #include "hal/samples.h"
 
 namespace rilo {
 
 struct AlignmentParams {
   double range_sigma_m = 0.15;           ///< LOS range std-dev (m)
+  double tdoa_sigma_m = 0.15;            ///< LOS range-difference std-dev (m)
+  double ultrasonic_sigma_m = 0.15;      ///< ultrasonic range std-dev of this coarse fit (m), see above
+  Vec3 p_b_ultrasonic = Vec3::Zero();    ///< ultrasonic receiver lever arm, body frame (m)
+  /// Ultrasonic beacons by id (m, world); ultrasonic ranges to ids beyond it are skipped.
+  std::vector<Vec3> p_w_ultrasonic;
   RobustLossPtr long_side_loss;          ///< loss of too-long ranges; null: the asymmetric range loss at range_sigma_m
   double short_side_huber_k = 3.0;       ///< Huber threshold of too-short ranges (sigmas)
   Vec3 p_b_tag = Vec3::Zero();           ///< antenna lever arm, body frame (m)
@@ -62,10 +82,10 @@ struct AlignmentResult {
   Pose3 T_w_b;                 ///< body pose at t_ref
   Vec3 v_w = Vec3::Zero();     ///< velocity at t_ref (m/s)
   ImuBias bias;                ///< constant bias over the window
-  int ranges = 0;
+  int measurements = 0;        ///< measurements used (every kind)
   int inliers = 0;             ///< |whitened residual| <= 3
   double cost = std::numeric_limits<double>::infinity();  ///< robust cost incl. priors (whitened, ~chi^2/2)
-  double range_cost = std::numeric_limits<double>::infinity();  ///< robust cost of the ranges only
+  double measurement_cost = std::numeric_limits<double>::infinity();  ///< robust cost of the measurements only
   double yaw_sigma_rad = std::numeric_limits<double>::infinity();   ///< marginal sigma of the world yaw at t_r
   double position_sigma_m = std::numeric_limits<double>::infinity();  ///< sqrt(trace) of p_r's covariance
   double second_cost_gap = std::numeric_limits<double>::infinity();   ///< cost of the best solution with a distinct yaw minus cost
@@ -79,11 +99,16 @@ struct AlignmentResult {
   }
 };
 
-/// Fits the model above to `ranges` (those before t_ref_ns, with an unknown
-/// anchor or a non-finite value are skipped) given the IMU samples `imu`,
-/// the gravity alignment at t_ref (roll/pitch start and tilt prior), and a
-/// guess of the antenna position and velocity at t_ref (from multilateration).
-/// Never throws on data.
+/// Fits the model above to `measurements` (in time order; those before
+/// t_ref_ns, with an unknown anchor or beacon, or a non-finite value are
+/// skipped) given the IMU samples `imu`, the gravity alignment at t_ref
+/// (roll/pitch start and tilt prior), and a guess of the antenna position and
+/// velocity at t_ref (from multilateration or a TDoA fix). Never throws on data.
+AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<const Measurement> measurements,
+                                   std::int64_t t_ref_ns, const std::vector<Vec3>& p_w_anchors,
+                                   const GravityAlignment& gravity, const Vec3& p_w_tag_guess,
+                                   const Vec3& v_w_guess, const AlignmentParams& params);
+/// The same for two-way ranges only.
 AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<const RangeSample> ranges,
                                    std::int64_t t_ref_ns, const std::vector<Vec3>& p_w_anchors,
                                    const GravityAlignment& gravity, const Vec3& p_w_tag_guess,

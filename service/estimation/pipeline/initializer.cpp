@@ -8,6 +8,7 @@
 
 #include "estimation/pipeline/init_format.h"
 #include "estimation/factors/prior_factors.h"
+#include "estimation/factors/tdoa_factor.h"
 #include "estimation/noise/noise_model_factory.h"
 #include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/solver/batch_lm.h"
@@ -19,6 +20,7 @@ using init_detail::strprintf;
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr double kTdoaGateCostCap = 0.5 * 3.0 * 3.0;  ///< cost of a 3-sigma residual (see solveBatch)
 
 std::int64_t toNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
 double toS(std::int64_t ns) { return 1e-9 * static_cast<double>(ns); }
@@ -29,11 +31,31 @@ std::size_t imuIndexAt(const std::vector<ImuSample>& imu, std::int64_t t_ns) {
   return it == imu.begin() ? 0 : static_cast<std::size_t>(it - imu.begin()) - 1;
 }
 
-/// First range at or after t.
-std::size_t rangeIndexFrom(const std::vector<RangeSample>& ranges, std::int64_t t_ns) {
-  auto it = std::lower_bound(ranges.begin(), ranges.end(), t_ns,
-                             [](const RangeSample& r, std::int64_t t) { return r.t_ns < t; });
-  return static_cast<std::size_t>(it - ranges.begin());
+/// First measurement at or after t.
+std::size_t rangeIndexFrom(const std::vector<Measurement>& meas, std::int64_t t_ns) {
+  auto it = std::lower_bound(meas.begin(), meas.end(), t_ns,
+                             [](const Measurement& m, std::int64_t t) { return m.t_ns < t; });
+  return static_cast<std::size_t>(it - meas.begin());
+}
+
+/// TdoaFix as the alignment's starting point (no velocity: the TDoA fix is a position).
+TagFix tagFixOf(const TdoaFix& f) {
+  TagFix t;
+  t.valid = f.valid;
+  t.message = "TDoA fix: " + f.message;
+  t.t_ns = f.t_ns;
+  t.p_w_tag = f.p_w_tag;
+  t.anchors_heard = f.anchors_heard + f.beacons_heard;
+  t.anchors_used = f.anchors_used;
+  t.ranges = f.measurements + f.ultrasonic_ranges;
+  t.inliers = f.inliers + f.ultrasonic_inliers;
+  t.rms_m = f.rms_m;
+  t.pdop = f.pdop;
+  t.sigma_p_m = f.sigma_p_m;
+  t.cost = f.cost;
+  t.second_cost_gap = f.second_cost_gap;
+  t.mirror_ambiguous = f.mirror_ambiguous;
+  return t;
 }
 
 }  // namespace
@@ -101,7 +123,16 @@ Initializer::Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params
   params_.alignment.accel_bias_sigma = g.first_accel_bias_sigma;
   params_.alignment.gyro_bias_sigma = g.first_gyro_bias_sigma;
   params_.alignment.band = params_.height_band;
+  params_.alignment.tdoa_sigma_m = g.tdoa_sigma_m;
+  params_.alignment.p_b_ultrasonic = g.p_b_ultrasonic;
+  params_.alignment.p_w_ultrasonic = g.p_w_ultrasonic;
+  params_.tdoa_fix.sigma_m = g.tdoa_sigma_m;
+  params_.tdoa_fix.ultrasonic_sigma_m = g.ultrasonic_sigma_m;
+  params_.tdoa_fix.ultrasonic_offset_m = (g.p_b_ultrasonic - g.p_b_tag).norm();
+  params_.tdoa_fix.band = params_.height_band;
   params_.validate();
+  p_w_fix_sources_ = p_w_anchors_;
+  p_w_fix_sources_.insert(p_w_fix_sources_.end(), g.p_w_ultrasonic.begin(), g.p_w_ultrasonic.end());
   interval_s_ = params_.attempt_interval_s;
 }
 
@@ -112,14 +143,14 @@ void Initializer::setStatus(InitState s, std::string message) {
 
 void Initializer::reset() {
   imu_.clear();
-  ranges_.clear();
+  meas_.clear();
   have_data_ = false;
   data_start_ns_ = 0;
   last_attempt_ns_ = 0;
   attempted_ = false;
   interval_s_ = params_.attempt_interval_s;
   grow_window_ = false;
-  dropped_imu_ = dropped_ranges_ = 0;
+  dropped_imu_ = dropped_meas_ = 0;
   status_ = InitStatus();
   result_.reset();
 }
@@ -137,17 +168,21 @@ void Initializer::addImu(const ImuSample& s) {
   trim();
 }
 
-void Initializer::addRange(const RangeSample& r) {
-  if (r.anchor_id >= p_w_anchors_.size() || !std::isfinite(r.range_m) || r.range_m < 0.0 ||
-      r.range_m > params_.max_range_m || (!ranges_.empty() && r.t_ns < ranges_.back().t_ns)) {
-    ++dropped_ranges_;
+void Initializer::addMeasurement(const Measurement& m) {
+  const std::size_t sources =
+      m.kind == Measurement::Kind::kUltrasonic ? params_.graph.p_w_ultrasonic.size() : p_w_anchors_.size();
+  const bool tdoa = m.kind == Measurement::Kind::kTdoa;
+  const bool known = m.anchor < sources && (!tdoa || (m.anchor_b < sources && m.anchor_b != m.anchor));
+  const bool plausible = std::isfinite(m.value_m) && std::abs(m.value_m) <= params_.max_range_m && (tdoa || m.value_m >= 0.0);
+  if (!known || !plausible || (!meas_.empty() && m.t_ns < meas_.back().t_ns)) {
+    ++dropped_meas_;
     return;
   }
   if (!have_data_) {
     have_data_ = true;
-    data_start_ns_ = r.t_ns;
+    data_start_ns_ = m.t_ns;
   }
-  ranges_.push_back(r);
+  meas_.push_back(m);
 }
 
 void Initializer::trim() {
@@ -159,8 +194,8 @@ void Initializer::trim() {
   if (imu_.front().t_ns + toNs(2.0) > keep_from) return;
   const std::size_t i = imuIndexAt(imu_, keep_from);  // keep the sample in effect at keep_from
   imu_.erase(imu_.begin(), imu_.begin() + static_cast<std::ptrdiff_t>(i));
-  const std::size_t k = rangeIndexFrom(ranges_, keep_from);
-  ranges_.erase(ranges_.begin(), ranges_.begin() + static_cast<std::ptrdiff_t>(k));
+  const std::size_t k = rangeIndexFrom(meas_, keep_from);
+  meas_.erase(meas_.begin(), meas_.begin() + static_cast<std::ptrdiff_t>(k));
 }
 
 const InitResult& Initializer::result() const {
@@ -171,7 +206,7 @@ const InitResult& Initializer::result() const {
 bool Initializer::process() {
   if (initialized()) return true;
   if (imu_.empty()) {
-    setStatus(InitState::kWaitingForData, ranges_.empty() ? "waiting: no samples" : "waiting: no IMU samples (ranges only)");
+    setStatus(InitState::kWaitingForData, meas_.empty() ? "waiting: no samples" : "waiting: no IMU samples (ranges only)");
     return false;
   }
   const std::int64_t t_now = imu_.back().t_ns;
@@ -207,16 +242,16 @@ bool Initializer::attempt() {
 bool Initializer::runAttempt() {
   const InitializerParams& P = params_;
   if (imu_.empty()) {
-    setStatus(InitState::kWaitingForData, ranges_.empty() ? "waiting: no samples" : "waiting: no IMU samples (ranges only)");
+    setStatus(InitState::kWaitingForData, meas_.empty() ? "waiting: no samples" : "waiting: no IMU samples (ranges only)");
     return false;
   }
-  if (ranges_.empty()) {
+  if (meas_.empty()) {
     setStatus(InitState::kWaitingForData, "waiting: no ranges (IMU only)");
     return false;
   }
   const std::int64_t t_now = imu_.back().t_ns;
   const std::int64_t span = t_now - std::max(imu_.front().t_ns, data_start_ns_);
-  const std::size_t end = rangeIndexFrom(ranges_, t_now + 1);  // ranges the IMU covers
+  const std::size_t end = rangeIndexFrom(meas_, t_now + 1);  // measurements the IMU covers
 
   // The seed's window (shorter at first), grown for sparse ranging until it
   // holds min_window_ranges; up to max_window_s once it proved too short for yaw.
@@ -224,7 +259,7 @@ bool Initializer::runAttempt() {
   std::int64_t W = std::min(toNs(P.window_s), span);
   if (P.min_window_ranges > 0) {
     if (end >= static_cast<std::size_t>(P.min_window_ranges)) {
-      W = std::max(W, std::min(W_max, t_now - ranges_[end - static_cast<std::size_t>(P.min_window_ranges)].t_ns));
+      W = std::max(W, std::min(W_max, t_now - meas_[end - static_cast<std::size_t>(P.min_window_ranges)].t_ns));
     } else {
       W = W_max;
     }
@@ -247,24 +282,80 @@ bool Initializer::runAttempt() {
   return solveBatch(aligned, t_now);
 }
 
+int Initializer::sourcesHeard(std::size_t begin, std::size_t end) const {
+  std::set<std::uint32_t> anchors, beacons;
+  for (std::size_t k = begin; k < end; ++k) {
+    const Measurement& m = meas_[k];
+    if (m.kind == Measurement::Kind::kUltrasonic) {
+      beacons.insert(m.anchor);
+      continue;
+    }
+    anchors.insert(m.anchor);
+    if (m.kind == Measurement::Kind::kTdoa) anchors.insert(m.anchor_b);
+  }
+  return static_cast<int>(anchors.size() + beacons.size());
+}
+
+TagFix Initializer::fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns, bool* from_tdoa) const {
+  std::vector<RangeSample> ranges;
+  std::vector<TdoaSample> tdoa;
+  std::vector<UltrasonicSample> ultrasonic;
+  const auto beacon0 = static_cast<std::uint32_t>(p_w_anchors_.size());
+  for (std::size_t k = f0; k < f1; ++k) {
+    const Measurement& m = meas_[k];
+    switch (m.kind) {
+      case Measurement::Kind::kRange: {
+        RangeSample r;
+        r.t_ns = m.t_ns;
+        r.anchor_id = m.anchor;
+        r.range_m = m.value_m;
+        ranges.push_back(r);
+        break;
+      }
+      case Measurement::Kind::kTdoa: {
+        TdoaSample t;
+        t.t_ns = m.t_ns;
+        t.anchor_a = m.anchor;
+        t.anchor_b = m.anchor_b;
+        t.diff_m = m.value_m;
+        tdoa.push_back(t);
+        break;
+      }
+      case Measurement::Kind::kUltrasonic: {
+        UltrasonicSample u;
+        u.t_ns = m.t_ns;
+        u.anchor_id = beacon0 + m.anchor;  // beacons follow the anchors in p_w_fix_sources_
+        u.range_m = m.value_m;
+        ultrasonic.push_back(u);
+        break;
+      }
+    }
+  }
+  *from_tdoa = false;
+  TagFix fix;
+  if (!ranges.empty()) fix = multilaterate(ranges, t_fix_ns, p_w_anchors_, params_.fix);
+  if (fix.valid || (tdoa.empty() && ultrasonic.empty())) return fix;
+  *from_tdoa = true;
+  return tagFixOf(locateTdoa(tdoa, ultrasonic, t_fix_ns, p_w_fix_sources_, params_.tdoa_fix));
+}
+
 Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std::int64_t t_now, std::size_t end) const {
   const InitializerParams& P = params_;
   AlignedWindow w;
   w.end = end;
-  w.begin = rangeIndexFrom(ranges_, std::max({imu_.front().t_ns, data_start_ns_, t_now - window_ns}));
+  w.begin = rangeIndexFrom(meas_, std::max({imu_.front().t_ns, data_start_ns_, t_now - window_ns}));
   if (w.begin >= end) {
     w.message = strprintf("waiting: no ranges in the last %.1f s", toS(window_ns));
     return w;
   }
-  const std::span<const RangeSample> window(ranges_.data() + w.begin, end - w.begin);
+  const std::span<const Measurement> window(meas_.data() + w.begin, end - w.begin);
   const std::int64_t t_w0 = window.front().t_ns;
 
-  std::set<std::uint32_t> heard;
-  for (const RangeSample& r : window) heard.insert(r.anchor_id);
+  const int heard = sourcesHeard(w.begin, end);
   const int needed = P.height_band.enabled ? std::min(3, P.fix.min_anchors) : P.fix.min_anchors;
-  if (static_cast<int>(heard.size()) < needed) {
+  if (heard < needed) {
     w.state = InitState::kTooFewAnchors;
-    w.message = strprintf("waiting: %zu anchors heard, need %d", heard.size(), P.fix.min_anchors);
+    w.message = strprintf("waiting: %d anchors heard, need %d", heard, P.fix.min_anchors);
     if (P.height_band.enabled && P.fix.min_anchors > 3) w.message += " (3 with the height band)";
     return w;
   }
@@ -275,24 +366,29 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
   const std::size_t i0 = imuIndexAt(imu_, t_w0);
   const std::span<const ImuSample> imu(imu_.data() + i0, imu_.size() - i0);
 
-  // 1. Multilateration near the window start (its own window grown until it
-  // holds enough anchors and ranges); if that fails, a little later.
+  // 1. A fix near the window start (its own window grown until it holds
+  // enough anchors and measurements); if that fails, a little later.
+  // Enough for a fix: by multilateration's counts when there are two-way
+  // ranges, else by the TDoA fix's.
+  auto enough_for_fix = [&](std::size_t f0, std::size_t f1) {
+    const bool ranges = std::any_of(meas_.begin() + static_cast<std::ptrdiff_t>(f0), meas_.begin() + static_cast<std::ptrdiff_t>(f1),
+                                    [](const Measurement& m) { return m.kind == Measurement::Kind::kRange; });
+    const int anchors = ranges ? P.fix.min_anchors : P.tdoa_fix.min_anchors;
+    const int count = ranges ? P.fix.min_ranges : P.tdoa_fix.min_measurements;
+    return sourcesHeard(f0, f1) >= anchors && static_cast<int>(f1 - f0) >= count;
+  };
   TagFix first_fix;
   bool have_fix = false;
   for (int k = 0; k < 4 && !have_fix; ++k) {
-    const std::size_t f0 = rangeIndexFrom(ranges_, t_w0 + toNs(k * P.fix_window_s));
+    const std::size_t f0 = rangeIndexFrom(meas_, t_w0 + toNs(k * P.fix_window_s));
     if (f0 >= end) break;
-    const std::int64_t t_fix = ranges_[f0].t_ns;
+    const std::int64_t t_fix = meas_[f0].t_ns;
     std::size_t f1 = f0;
     for (double len = P.fix_window_s;; len = std::min(P.fix_max_window_s, 1.5 * len)) {
-      f1 = std::min(end, rangeIndexFrom(ranges_, t_fix + toNs(len)));
-      std::set<std::uint32_t> ids;
-      for (std::size_t j = f0; j < f1; ++j) ids.insert(ranges_[j].anchor_id);
-      const bool enough =
-          static_cast<int>(ids.size()) >= P.fix.min_anchors && static_cast<int>(f1 - f0) >= P.fix.min_ranges;
-      if (enough || len >= P.fix_max_window_s || f1 >= end) break;
+      f1 = std::min(end, rangeIndexFrom(meas_, t_fix + toNs(len)));
+      if (enough_for_fix(f0, f1) || len >= P.fix_max_window_s || f1 >= end) break;
     }
-    w.fix = multilaterate(std::span<const RangeSample>(ranges_.data() + f0, f1 - f0), t_fix, p_w_anchors_, P.fix);
+    w.fix = fixOf(f0, f1, t_fix, &w.fix_from_tdoa);
     if (k == 0) first_fix = w.fix;
     have_fix = w.fix.valid;
   }
@@ -328,11 +424,11 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
     }
     return w;
   }
-  const double cost_per_range = a.range_cost / std::max(1, a.ranges);
+  const double cost_per_range = a.measurement_cost / std::max(1, a.measurements);
   if (cost_per_range > P.max_alignment_cost_per_range) {
     w.state = InitState::kPoorFix;
     w.message = strprintf("waiting: ranges disagree with the IMU motion (cost per range %.2f, %d of %d ranges inliers)",
-                          cost_per_range, a.inliers, a.ranges);
+                          cost_per_range, a.inliers, a.measurements);
     return w;
   }
   w.ok = true;
@@ -348,10 +444,10 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
 
   // 4. The seed's batch over the window, every state started on the aligned track.
   const std::vector<ImuSample> imu_vec(imu.begin(), imu.end());
-  std::vector<RangeSample> range_vec;
+  std::vector<Measurement> range_vec;
   range_vec.reserve(w.end - w.begin);
   for (std::size_t k = w.begin; k < w.end; ++k) {
-    if (ranges_[k].t_ns >= imu_vec.front().t_ns && ranges_[k].t_ns <= imu_vec.back().t_ns) range_vec.push_back(ranges_[k]);
+    if (meas_[k].t_ns >= imu_vec.front().t_ns && meas_[k].t_ns <= imu_vec.back().t_ns) range_vec.push_back(meas_[k]);
   }
   if (range_vec.empty()) {
     setStatus(InitState::kWaitingForData, "waiting: no ranges inside the IMU's time span");
@@ -390,13 +486,21 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   ++status_.batch_solves;
   BatchLevenbergMarquardt lm(P.lm);
   BatchLevenbergMarquardt::Output out = lm.optimize(win.graph.graph, initial);
-  // Factor layout of buildRangeImuGraph: 3 first-state priors, the IMU factors, the range factors, anchor priors.
+  // Factor layout of buildRangeImuGraph: 3 first-state priors, the IMU factors, the measurement factors, anchor
+  // priors, motion priors.
   const std::size_t n_states = win.graph.state_t_ns.size();
   const std::size_t first_imu = 3, first_range = 3 + win.graph.imu_factors;
   double imu_cost = 0.0, range_cost = 0.0;
   for (std::size_t k = first_imu; k < first_range; ++k) imu_cost += win.graph.graph[k]->error(out.values);
   for (std::size_t k = first_range; k < first_range + win.graph.range_factors; ++k) {
-    range_cost += win.graph.graph[k]->error(out.values);
+    const Factor& f = *win.graph.graph[k];
+    // TDoA's default loss (Huber) grows without bound: in a hall where most
+    // rows have a blocked path, the mean would measure the NLOS share, not
+    // the fit. Capped at a 3-sigma residual's cost, the mean says how many
+    // rows the solution explains. (The range and ultrasonic losses have heavy
+    // NLOS tails already.)
+    const double e = f.error(out.values);
+    range_cost += dynamic_cast<const TdoaFactor*>(&f) ? std::min(e, kTdoaGateCostCap) : e;
   }
   const double range_cpr = range_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.range_factors));
   const double imu_cpf = imu_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.imu_factors));
@@ -444,6 +548,7 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   res.window_start_ns = t_graph0;
   res.time_to_init_s = toS(t_now - data_start_ns_);
   res.fix = w.fix;
+  res.fix_from_tdoa = w.fix_from_tdoa;
   res.gravity = w.gravity;
   res.alignment = align;
   res.lm = out.result;
@@ -468,11 +573,11 @@ int handOver(const Initializer& initializer, TrackingEstimator& estimator) {
   int updates = 0;
   estimator.start(s.t_ns, s.T_w_b, s.v_w, s.bias);  // the batch's bias too: the hand-over loses nothing
   const std::vector<ImuSample>& imu = initializer.imuBuffer();
-  const std::vector<RangeSample>& ranges = initializer.rangeBuffer();
-  std::size_t i = imuIndexAt(imu, s.t_ns), r = rangeIndexFrom(ranges, s.t_ns);
-  while (i < imu.size() || r < ranges.size()) {
-    if (r < ranges.size() && (i >= imu.size() || ranges[r].t_ns <= imu[i].t_ns)) {
-      estimator.addRange(ranges[r++]);
+  const std::vector<Measurement>& meas = initializer.measurementBuffer();
+  std::size_t i = imuIndexAt(imu, s.t_ns), r = rangeIndexFrom(meas, s.t_ns);
+  while (i < imu.size() || r < meas.size()) {
+    if (r < meas.size() && (i >= imu.size() || meas[r].t_ns <= imu[i].t_ns)) {
+      estimator.addMeasurement(meas[r++]);
     } else {
       estimator.addImu(imu[i++]);
     }

@@ -4,6 +4,9 @@
 // incremental smoother). Fed the same samples as the estimator, in time
 // order; once the state is observable it returns the newest state of a
 // batch-solved window (pose, velocity, bias) and the window itself.
+// Measurements of every kind count (measurement.h): UWB two-way ranges, UWB
+// TDoA rows and ultrasonic ranges, alone or mixed; "ranges" below means any
+// of them unless said otherwise.
 //
 // Each attempt (every attempt_interval_s of data once min_window_s is
 // buffered) works on the newest window of data: window_s (the seed's 10 s;
@@ -12,10 +15,13 @@
 // window_s proved too short for yaw (a smooth walk: 0.2-0.4 m/s^2 of
 // horizontal acceleration separate yaw from the accelerometer bias and tilt
 // only after 15-20 s; a start from rest or a gait with steps does it in 3-4 s):
-//  1. multilateration of the antenna at the window start (init_multilateration.h):
-//     robust, position + velocity over a short window (grown for sparse
-//     ranging), mirror solutions across the anchor plane resolved by the
-//     height band;
+//  1. a fix of the antenna at the window start: multilateration of two-way
+//     ranges (init_multilateration.h: robust, position + velocity over a
+//     short window grown for sparse ranging, mirror solutions across the
+//     anchor plane resolved by the height band), or, when the window has
+//     none, the TDoA fix (init_tdoa.h: spherical intersection, consensus,
+//     ultrasonic-enhanced; seed 002 Sec. III-B; position only, the velocity
+//     is left to step 3);
 //  2. roll and pitch from gravity (init_gravity.h): a still interval at the
 //     window start if there is one, else the gyro-compensated mean specific
 //     force over the whole window (motion averages out; the tilt prior of the
@@ -27,7 +33,8 @@
 //     has accelerated horizontally: started walking, turned). Chosen over the
 //     "velocity direction vs IMU velocity" heuristic because it needs no
 //     velocity from differentiated fixes and so also works at 1 Hz ranging;
-//  4. the seed's batch: buildRangeImuGraph over the window with the first
+//  4. the seed's batch: buildRangeImuGraph over the window (every kind of
+//     measurement, the tracking estimator's factors) with the first
 //     state's priors around the alignment, every state initialized from the
 //     aligned strapdown track, zero-velocity priors on the states inside
 //     still intervals of the IMU, batch Levenberg-Marquardt; accepted when it
@@ -53,6 +60,8 @@
 #include "estimation/pipeline/init_gravity.h"
 #include "estimation/pipeline/init_height_band.h"
 #include "estimation/pipeline/init_multilateration.h"
+#include "estimation/pipeline/init_tdoa.h"
+#include "estimation/pipeline/measurement.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/range_imu_graph_stream.h"
 #include "estimation/solver/lm_params.h"
@@ -65,8 +74,9 @@ class TrackingEstimator;
 
 struct InitializerParams {
   /// The estimator's graph parameters (IMU model, range loss and noise, lever
-  /// arm, first-state priors): the batch window is built with them, and the
-  /// small solvers take sigma, lever arm, gravity and bias priors from them.
+  /// arm, first-state priors, TDoA and ultrasonic settings and beacons): the
+  /// batch window is built with them, and the small solvers take sigmas,
+  /// lever arms, beacons, gravity and bias priors from them.
   /// The small solvers always use the asymmetric range loss (robust to NLOS
   /// whatever the graph's loss is).
   RangeImuGraphParams graph;
@@ -76,8 +86,8 @@ struct InitializerParams {
   /// The window grows up to this for sparse ranging (to hold
   /// min_window_ranges) and when window_s was too short for yaw (s).
   double max_window_s = 30.0;
-  int min_window_ranges = 40;      ///< ranges the window should hold (grown up to max_window_s for them)
-  int min_alignment_ranges = 12;   ///< fewer ranges in the window: wait
+  int min_window_ranges = 40;      ///< measurements the window should hold (grown up to max_window_s for them)
+  int min_alignment_ranges = 12;   ///< fewer measurements in the window: wait
   double attempt_interval_s = 0.5; ///< data time between attempts (s) ...
   /// ... grown by 1.5x after each attempt that failed at the (expensive) yaw
   /// alignment or batch solve, up to this (s): a device that keeps too still
@@ -91,6 +101,11 @@ struct InitializerParams {
   HeightBand height_band;          ///< tag height band (a wearable: 0.9-1.9 m above the floor z = 0)
   /// Multilateration settings; sigma_m, long_side_loss and band are set from graph / height_band.
   MultilaterationParams fix;
+  /// TDoA fix settings (windows without two-way ranges); sigma_m,
+  /// ultrasonic_sigma_m, ultrasonic_offset_m and band are set from graph /
+  /// height_band. Its loss stays the mirrored asymmetric one (the fix's
+  /// consensus was designed with it), whatever the graph's TDoA loss.
+  TdoaFixParams tdoa_fix;
   GravityParams gravity;
   /// Alignment settings; range_sigma_m, long_side_loss, p_b_tag, gravity_m_s2,
   /// the bias sigmas and band are set from graph / height_band.
@@ -99,7 +114,7 @@ struct InitializerParams {
   // Observability gates of the alignment (step 3).
   double max_alignment_yaw_sigma_rad = 0.14;  ///< yaw sigma at the window start (~8 deg)
   double min_yaw_cost_gap = 8.0;              ///< a distinct yaw within this cost is still plausible
-  double max_alignment_cost_per_range = 3.0;  ///< else ranges and IMU disagree (wrong fix, bad data)
+  double max_alignment_cost_per_range = 3.0;  ///< per measurement; else they disagree with the IMU (wrong fix, bad data)
 
   // Acceptance of the batch solve (step 4).
   /// Newest state, sqrt(trace) of the position covariance (m). Catches an
@@ -107,7 +122,7 @@ struct InitializerParams {
   /// 0.4-0.9 m by nature (one range per second), at 40 Hz ~0.15 m.
   double max_position_sigma_m = 1.0;
   double max_yaw_sigma_rad = 0.087;     ///< newest state, world yaw (~5 deg)
-  double max_range_cost_per_range = 2.5;  ///< mean robust cost of the range factors
+  double max_range_cost_per_range = 2.5;  ///< mean robust cost of the measurement factors (every kind)
   /// Mean cost of the IMU factors. At a sound optimum it is ~1e-3 (the
   /// per-state velocities and biases absorb the IMU noise); large values mean
   /// the states could not follow the IMU (time gaps, a broken model).
@@ -121,7 +136,7 @@ struct InitializerParams {
   /// drift. +inf disables.
   double zero_velocity_sigma_m_s = 0.05;
 
-  double max_range_m = 500.0;  ///< ranges beyond this (or negative) are dropped as garbage (m)
+  double max_range_m = 500.0;  ///< ranges (two-way, ultrasonic) or |TDoA| beyond this (or negative ranges) are dropped as garbage (m)
   bool keep_window = true;     ///< keep the solved window in the result
 
   static LmParams defaultLmParams() {
@@ -167,11 +182,12 @@ struct InitResult {
   std::int64_t data_start_ns = 0;   ///< first accepted sample
   std::int64_t window_start_ns = 0; ///< first state of the window
   double time_to_init_s = 0.0;      ///< data time from data_start_ns to the successful attempt (s)
-  TagFix fix;
+  TagFix fix;                       ///< the window-start fix (a TDoA fix converted: no velocity)
+  bool fix_from_tdoa = false;       ///< the fix came from TDoA (and ultrasonic) rows
   GravityAlignment gravity;
   AlignmentResult alignment;
   LmResult lm;
-  double range_cost_per_range = 0.0;
+  double range_cost_per_range = 0.0;  ///< per measurement factor of any kind
   double imu_cost_per_factor = 0.0;
   double still_s = 0.0;          ///< still time in the window (zero-velocity priors)
   std::optional<InitWindow> window;  ///< with InitializerParams::keep_window
@@ -184,10 +200,15 @@ class Initializer {
   Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params = {});
 
   /// Buffers a sample; never throws on data: a sample that is not finite, not
-  /// after the previous one (IMU), before the previous one (range), for an
-  /// unknown anchor or with an absurd range is dropped and counted.
+  /// after the previous one (IMU), before the previous measurement (of any
+  /// kind: measurements share one time order), for an unknown anchor or
+  /// beacon, a TDoA row of one anchor with itself, or with an absurd value is
+  /// dropped and counted.
   void addImu(const ImuSample& sample);
-  void addRange(const RangeSample& sample);
+  void addRange(const RangeSample& sample) { addMeasurement(Measurement::of(sample)); }
+  void addTdoa(const TdoaSample& sample) { addMeasurement(Measurement::of(sample)); }
+  void addUltrasonic(const UltrasonicSample& sample) { addMeasurement(Measurement::of(sample)); }
+  void addMeasurement(const Measurement& m);
 
   /// Runs an attempt when one is due (every attempt_interval_s of IMU time
   /// once min_window_s is buffered). Returns initialized().
@@ -204,9 +225,9 @@ class Initializer {
 
   /// Buffered samples, in time order (the hand-over replays them).
   const std::vector<ImuSample>& imuBuffer() const { return imu_; }
-  const std::vector<RangeSample>& rangeBuffer() const { return ranges_; }
+  const std::vector<Measurement>& measurementBuffer() const { return meas_; }
   std::size_t droppedImu() const { return dropped_imu_; }
-  std::size_t droppedRanges() const { return dropped_ranges_; }
+  std::size_t droppedMeasurements() const { return dropped_meas_; }
   const InitializerParams& params() const { return params_; }
   const std::vector<Vec3>& anchors() const { return p_w_anchors_; }
 
@@ -216,8 +237,9 @@ class Initializer {
     bool ok = false;
     InitState state = InitState::kWaitingForData;
     std::string message;
-    std::size_t begin = 0, end = 0;  ///< ranges_[begin, end)
+    std::size_t begin = 0, end = 0;  ///< meas_[begin, end)
     TagFix fix;
+    bool fix_from_tdoa = false;
     GravityAlignment gravity;
     AlignmentResult alignment;
   };
@@ -226,20 +248,26 @@ class Initializer {
   void trim();
   bool runAttempt();
   AlignedWindow alignWindow(std::int64_t window_ns, std::int64_t t_now_ns, std::size_t end) const;
+  /// Fix from meas_[f0, f1): multilateration of its two-way ranges, else the TDoA fix.
+  TagFix fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns, bool* from_tdoa) const;
+  /// Distinct UWB anchors and ultrasonic beacons in meas_[begin, end).
+  int sourcesHeard(std::size_t begin, std::size_t end) const;
   bool solveBatch(const AlignedWindow& w, std::int64_t t_now_ns);
 
   std::vector<Vec3> p_w_anchors_;
   InitializerParams params_;
 
   std::vector<ImuSample> imu_;
-  std::vector<RangeSample> ranges_;
+  std::vector<Measurement> meas_;
+  /// UWB anchors followed by the ultrasonic beacons (beacon id + p_w_anchors_.size()): the TDoA fix's one id space.
+  std::vector<Vec3> p_w_fix_sources_;
   bool have_data_ = false;
   std::int64_t data_start_ns_ = 0;
   std::int64_t last_attempt_ns_ = 0;
   bool attempted_ = false;
   double interval_s_ = 0.5;   ///< current attempt interval (see max_attempt_interval_s)
   bool grow_window_ = false;  ///< window_s was not enough for yaw: use up to max_window_s
-  std::size_t dropped_imu_ = 0, dropped_ranges_ = 0;
+  std::size_t dropped_imu_ = 0, dropped_meas_ = 0;
 
   InitStatus status_;
   std::optional<InitResult> result_;
@@ -248,7 +276,7 @@ class Initializer {
 /// Hands an initialized Initializer over to an estimator that was not
 /// started: starts it at the result's state (time, pose, velocity) and
 /// replays every buffered sample from that time on (IMU from the sample in
-/// effect at it; ranges at or after it), in time order, then lets it
+/// effect at it; measurements at or after it), in time order, then lets it
 /// process. Afterwards feed new samples to the estimator. Returns the number
 /// of smoother updates. Throws std::logic_error if the initializer is not
 /// initialized or the estimator was already started.

@@ -80,6 +80,9 @@ LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors
   p.init.height_band = p.height_band;
   p.graph.height_band = p.track_height_band ? p.height_band : HeightBand::off();
   p.graph.vertical_speed_sigma_m_s = p.vertical_speed_sigma_m_s;
+  // The initializer's batch window and small solvers use the estimator's
+  // graph (IMU model, noise, lever arms, TDoA and ultrasonic settings).
+  p.init.graph = p.graph;
   return p;
 }
 
@@ -118,11 +121,21 @@ void Localizer::addRange(const RangeSample& sample) {
 }
 
 void Localizer::addTdoa(const TdoaSample& sample) {
-  if (phase_ == Phase::kTracking) guarded([&] { estimator_->addTdoa(sample); });
+  if (sample.anchor_a >= p_w_anchors_.size() || sample.anchor_b >= p_w_anchors_.size()) return;  // as addRange
+  if (phase_ == Phase::kTracking) {
+    guarded([&] { estimator_->addTdoa(sample); });
+  } else {
+    initializer_.addTdoa(sample);
+  }
 }
 
 void Localizer::addUltrasonic(const UltrasonicSample& sample) {
-  if (phase_ == Phase::kTracking) guarded([&] { estimator_->addUltrasonic(sample); });
+  if (sample.anchor_id >= params_.graph.p_w_ultrasonic.size()) return;  // unknown beacon
+  if (phase_ == Phase::kTracking) {
+    guarded([&] { estimator_->addUltrasonic(sample); });
+  } else {
+    initializer_.addUltrasonic(sample);
+  }
 }
 
 int Localizer::process(std::vector<UpdateStats>* stats) {

@@ -31,7 +31,7 @@ struct LocalizerParams {
   SmootherParams smoother;           ///< method: D-iSAM2 (default), iSAM2, dog-leg
   SlidingWindowParams sliding_window;  ///< window_s follows smoother.lag_s when set by name
   EkfParams ekf;                     ///< gates and robust iterations (its IMU model is graph.imu)
-  InitializerParams init;
+  InitializerParams init;            ///< init.graph is replaced by `graph`
   RangeImuStreamOptions stream;
   /// What the deployment knows about the tag's height: used by the initializer
   /// and, when track_height_band is set, on every tracked state (overrides
@@ -68,8 +68,9 @@ class Localizer {
 
   void addImu(const ImuSample& sample);
   void addRange(const RangeSample& sample);
-  /// TDoA and ultrasonic ranges: used while tracking (the initializer works
-  /// from two-way ranges so far, and drops these).
+  /// TDoA rows and ultrasonic ranges (beacons in params.graph.p_w_ultrasonic),
+  /// alone or with two-way ranges: the initializer and the tracking
+  /// estimator use every kind. Unknown anchors and beacons are skipped.
   void addTdoa(const TdoaSample& sample);
   void addUltrasonic(const UltrasonicSample& sample);
   /// Runs what is ready: an initialization attempt, or smoother updates.

@@ -10,9 +10,19 @@ namespace rilo {
 // in time order (a range before an IMU sample of the same time) and never
 // committing IMU-only states early, so that gap states split each ranging gap
 // evenly. The increments are reassembled in the batch's factor order: the
-// first-state priors, the IMU factors, the range factors in range order, the
-// anchor priors in anchor order.
+// first-state priors, the IMU factors, the measurement factors in time order,
+// the anchor priors in anchor order, the motion priors (height band, vertical
+// speed) in state order.
 RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::vector<RangeSample>& ranges,
+                                 const std::vector<Vec3>& p_w_anchors, const Pose3& T_w_b0_guess,
+                                 const Vec3& v_w0_guess, const RangeImuGraphParams& params) {
+  std::vector<Measurement> measurements;
+  measurements.reserve(ranges.size());
+  for (const RangeSample& r : ranges) measurements.push_back(Measurement::of(r));
+  return buildRangeImuGraph(imu, measurements, p_w_anchors, T_w_b0_guess, v_w0_guess, params);
+}
+
+RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::vector<Measurement>& ranges,
                                  const std::vector<Vec3>& p_w_anchors, const Pose3& T_w_b0_guess,
                                  const Vec3& v_w0_guess, const RangeImuGraphParams& params) {
   RangeImuStreamOptions options;
@@ -25,7 +35,7 @@ RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::v
   }
 
   RangeImuGraph out;
-  FactorGraph imu_factors, range_factors;
+  FactorGraph imu_factors, range_factors, motion_priors;
   std::vector<FactorPtr> anchor_priors(p_w_anchors.size());
   StateEstimate previous;  // bias_hat stays zero: every IMU factor is preintegrated without bias
   auto collect = [&](const GraphIncrement& inc) {
@@ -44,6 +54,9 @@ RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::v
     }
     for (std::size_t k = 0; k < inc.range_factors; ++k) range_factors.add(inc.factors[f++]);
     for (Key l : inc.new_anchor_keys) anchor_priors[keyIndex(l)] = inc.factors[f++];
+    if (inc.new_state) {
+      while (f < inc.factors.size()) motion_priors.add(inc.factors[f++]);  // height band, vertical speed
+    }
     if (f != inc.factors.size()) throw std::logic_error("buildRangeImuGraph: unexpected increment layout");
   };
   auto drain = [&] {
@@ -54,7 +67,7 @@ RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::v
   std::size_t i = 0, k = 0;
   while (i < imu.size() || k < ranges.size()) {
     if (k < ranges.size() && (i == imu.size() || ranges[k].t_ns <= imu[i].t_ns)) {
-      stream.addRange(ranges[k++]);
+      stream.addMeasurement(ranges[k++]);
     } else {
       stream.addImu(imu[i++]);
     }
@@ -73,8 +86,10 @@ RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::v
     out.graph.add(anchor_priors[a]);
     out.anchor_keys.push_back(sym::L(a));
   }
+  for (const FactorPtr& f : motion_priors) out.graph.add(f);
   out.imu_factors = imu_factors.size();
   out.range_factors = range_factors.size();
+  out.motion_priors = motion_priors.size();
   return out;
 }
 

@@ -14,6 +14,7 @@
 #include "estimation/imu/imu_params.h"
 #include "estimation/noise/noise_model_factory.h"
 #include "estimation/pipeline/init_height_band.h"
+#include "estimation/pipeline/measurement.h"
 #include "hal/samples.h"
 
 namespace rilo {
@@ -48,7 +49,11 @@ struct RangeImuGraphParams {
   /// either anchor of the pair biases the difference, with opposite signs.
   std::string tdoa_loss = "huber";
   double tdoa_sigma_m = 0.15;         ///< std-dev of a LOS range difference (m)
-  std::string ultrasonic_loss = "huber";
+  /// Loss of ultrasonic ranges: the asymmetric model, because reflections
+  /// off furniture and people only ever lengthen the path (seed 002 uses
+  /// Huber; on the hall sim the asymmetric loss took TDoA + ultrasonic
+  /// tracking from 0.45 to 0.27 m).
+  std::string ultrasonic_loss = "asymmetric";
   double ultrasonic_sigma_m = 0.03;   ///< std-dev of a LOS ultrasonic range (m)
   Vec3 p_b_ultrasonic = Vec3::Zero(); ///< ultrasonic receiver lever arm, body frame (m)
   /// Ultrasonic beacons by anchor id (m, world); ids not in use hold any
@@ -60,8 +65,9 @@ struct RangeImuGraph {
   FactorGraph graph;
   std::vector<std::int64_t> state_t_ns;  ///< time of state i (keys X(i), V(i), B(i)); includes IMU-only states
   std::vector<Key> anchor_keys;          ///< L(anchor_id) for anchors used as variables
-  std::size_t range_factors = 0;
+  std::size_t range_factors = 0;  ///< measurement factors of every kind (ranges, TDoA, ultrasonic)
   std::size_t imu_factors = 0;
+  std::size_t motion_priors = 0;  ///< height band / vertical speed priors (last in the graph)
 };
 
 /// Builds the graph. `p_w_anchors[id]` is the surveyed position of anchor id;
@@ -69,6 +75,13 @@ struct RangeImuGraph {
 /// Throws std::invalid_argument when samples are unsorted, an anchor id is
 /// unknown, or no IMU sample covers the ranging interval.
 RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::vector<RangeSample>& ranges,
+                                 const std::vector<Vec3>& p_w_anchors, const Pose3& T_w_b0_guess,
+                                 const Vec3& v_w0_guess, const RangeImuGraphParams& params);
+/// The same from measurements of any kind (in time order; TDoA and ultrasonic
+/// factors as RangeImuGraphStream makes them, ultrasonic beacons from
+/// params.p_w_ultrasonic). Throws as above, and for a measurement the stream
+/// refuses (unknown beacon, equal TDoA anchors, non-finite value).
+RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::vector<Measurement>& measurements,
                                  const std::vector<Vec3>& p_w_anchors, const Pose3& T_w_b0_guess,
                                  const Vec3& v_w0_guess, const RangeImuGraphParams& params);
 

@@ -1,0 +1,46 @@
+#pragma once
+// The service's entrance check on every sample of one source, before it is
+// queued for the estimator and the output predictor: a sample with a NaN/inf
+// value, one repeating its predecessor, or one older than its predecessor is
+// dropped (and counted by the caller), so the estimator never sees what its
+// input contract rejects (RangeImuGraphStream throws on non-increasing IMU
+// time, non-finite values and measurements older than the previous one; the
+// Localizer turns that into a tracking failure and re-initializes).
+//
+// Per stream (IMU, range, TDoA, ultrasonic), against the last ACCEPTED sample:
+//  - non-finite: IMU gyro/accel, range_m, diff_m not finite (rssi and
+//    first-path power may be NaN: "unknown");
+//  - duplicate: IMU at the same t_ns; range/ultrasonic at the same t_ns to the
+//    same anchor (and tag); TDoA at the same t_ns for the same anchor pair;
+//  - out of order: t_ns before the previous sample's.
+// Ranges to different anchors may share a time. A stream whose clock steps
+// back stays dropped until it passes its previous time again (counted all the
+// while): sources use CLOCK_MONOTONIC, which never does.
+//
+// IMU-rate path: no allocation, no lock, a handful of compares. One per
+// source, used by that source's thread only.
+#include <cstdint>
+
+#include "hal/source.h"
+
+namespace rilo {
+
+enum class SampleVerdict : std::uint8_t { kAccept, kNonFinite, kDuplicate, kOutOfOrder };
+
+class SampleScreen {
+ public:
+  /// Judges `sample` and, if accepted, remembers it as its stream's last one.
+  SampleVerdict check(const Sample& sample) noexcept;
+
+ private:
+  struct Last {
+    bool seen = false;
+    std::int64_t t_ns = 0;
+    std::uint32_t a = 0, b = 0;  // anchor (and tag, or the TDoA pair's second anchor)
+  };
+  static SampleVerdict order(Last& last, std::int64_t t_ns, std::uint32_t a, std::uint32_t b, bool key_matters) noexcept;
+
+  Last imu_, range_, tdoa_, ultrasonic_;
+};
+
+}  // namespace rilo

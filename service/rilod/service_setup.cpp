@@ -1,0 +1,45 @@
+#include "rilod/service_setup.h"
+
+#include "dds/participant.h"
+#include "hal/replay/replay_source.h"
+#include "rilod/fault_injection.h"
+
+namespace rilo {
+
+ServiceOptions serviceOptions(const ServiceConfig& cfg) {
+  ServiceOptions so;
+  so.p_w_anchors = uwbAnchorsById(cfg.anchors);
+  so.localizer.graph = cfg.estimator.graph;
+  so.localizer.graph.p_w_ultrasonic = ultrasonicBeaconsById(cfg.anchors);  // for ultrasonic ranges
+  so.localizer.smoother = cfg.estimator.smoother;
+  so.localizer.stream = cfg.estimator.stream;
+  so.localizer.init.window_s = cfg.estimator.init_window_s;
+  so.localizer.height_band = cfg.estimator.height_band;
+  so.localizer.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
+  so.participant.domain_id = cfg.dds.domain_id;
+  if (cfg.dds.loopback_only) so.participant.config_xml = dds::loopbackConfigXml();
+  if (!cfg.dds.cyclone_config_file.empty()) so.participant.config_xml = "file://" + cfg.dds.cyclone_config_file.string();
+  so.publisher.topics = cfg.dds.topics;
+  so.publisher.frames = cfg.dds.frames;
+  so.queue_capacity = cfg.realtime.queue_capacity;
+  // Nothing real-time upstream of a fast replay: the source waits for the
+  // estimator instead of losing samples.
+  so.backpressure = cfg.sources.mode == SourceMode::kReplay && cfg.sources.replay.pace == ReplayPace::kAsFastAsPossible;
+  so.status_period_s = static_cast<double>(cfg.status.period_ns) * 1e-9;
+  so.sensor_silence_s = static_cast<double>(cfg.status.imu_timeout_ns) * 1e-9;
+  so.ranging_silence_s = static_cast<double>(cfg.status.range_timeout_ns) * 1e-9;
+  return so;
+}
+
+std::unique_ptr<SampleSource> makeReplaySource(const ReplaySourceConfig& replay) {
+  ReplayOptions ro;
+  ro.pacing = replay.pace == ReplayPace::kRealTime ? ReplayOptions::Pacing::kRealTime
+                                                   : ReplayOptions::Pacing::kAsFastAsPossible;
+  ro.speed = replay.speed;
+  ro.shift_to_now = replay.shift_to_now && ro.pacing == ReplayOptions::Pacing::kRealTime;
+  std::unique_ptr<SampleSource> source = std::make_unique<ReplaySource>(replay.path, ro);
+  if (!replay.faults.empty()) source = std::make_unique<FaultInjectingSource>(std::move(source), replay.faults);
+  return source;
+}
+
+}  // namespace rilo

@@ -1,0 +1,100 @@
+// RangeTrustMonitor: rejected_ranges counts unknown anchors and the ranges the
+// range model's robust loss down-weights below 0.5 at the newest state.
+#include "rilod/range_trust_monitor.h"
+
+#include <gtest/gtest.h>
+
+#include "estimation/math/so3.h"
+#include "estimation/noise/noise_model_factory.h"
+
+namespace rilo {
+namespace {
+
+const std::vector<Vec3> kAnchors = {Vec3(0, 0, 2.5), Vec3(6, 0, 1.0), Vec3(6, 5, 2.5), Vec3(0, 5, 1.0)};
+constexpr std::int64_t kMs = 1'000'000;
+
+RangeImuGraphParams graphParams(const std::string& loss = "asymmetric") {
+  RangeImuGraphParams p;
+  p.range_loss = loss;
+  p.range_noise.sigma_m = 0.1;
+  p.p_b_tag = Vec3(0.06, 0.0, 0.10);
+  p.same_state_window_ns = 5 * kMs;
+  return p;
+}
+
+StateEstimate stateAt(std::int64_t t_ns) {
+  StateEstimate s;
+  s.t_ns = t_ns;
+  s.T_w_b = Pose3(so3::exp(Vec3(0.0, 0.0, 0.7)), Vec3(2.0, 1.5, 1.2));
+  return s;
+}
+
+/// The range the state predicts to `anchor`, plus `excess_m`.
+RangeSample rangeFrom(const StateEstimate& s, std::uint32_t anchor, double excess_m, std::int64_t t_ns) {
+  const Vec3 p_w_tag = s.T_w_b.p + s.T_w_b.R * graphParams().p_b_tag;
+  RangeSample r;
+  r.t_ns = t_ns;
+  r.anchor_id = anchor;
+  r.range_m = (p_w_tag - kAnchors[anchor]).norm() + excess_m;
+  return r;
+}
+
+TEST(RangeTrustMonitor, WeightIsTheRangeModelsLossAtTheWhitenedResidual) {
+  RangeTrustMonitor m(kAnchors, graphParams());
+  const StateEstimate s = stateAt(0);
+  const auto loss = makeRangeLoss("asymmetric", graphParams().range_noise);
+  for (double excess : {-0.3, -0.05, 0.0, 0.05, 0.4, 2.0}) {
+    EXPECT_NEAR(m.weight(rangeFrom(s, 1, excess, 0), s.T_w_b), loss->weight(excess / 0.1), 1e-9) << excess;
+  }
+}
+
+TEST(RangeTrustMonitor, CountsRangesDownWeightedAtTheNewestState) {
+  RangeTrustMonitor m(kAnchors, graphParams());
+  const StateEstimate s = stateAt(1000 * kMs);
+  m.onRange(rangeFrom(s, 0, 0.02, 1000 * kMs));  // LOS-like
+  m.onRange(rangeFrom(s, 1, 1.50, 1002 * kMs));  // 15 sigma long: NLOS side
+  m.onRange(rangeFrom(s, 2, 0.00, 1004 * kMs));
+  m.onRange(rangeFrom(s, 3, 2.00, 1030 * kMs));  // the next state's: waits
+  EXPECT_EQ(m.judge(s), 1u);
+  EXPECT_EQ(m.rejected(), 1u);
+  EXPECT_EQ(m.judged(), 3u);
+  const StateEstimate next = stateAt(1030 * kMs);
+  EXPECT_EQ(m.judge(next), 1u);
+  EXPECT_EQ(m.rejected(), 2u);
+  EXPECT_EQ(m.judged(), 4u);
+}
+
+TEST(RangeTrustMonitor, TheLossDecidesAboutShortRangesToo) {
+  RangeTrustMonitor asymmetric(kAnchors, graphParams("asymmetric"));
+  RangeTrustMonitor huber(kAnchors, graphParams("huber"));
+  const StateEstimate s = stateAt(0);
+  const RangeSample short_range = rangeFrom(s, 2, -1.0, 0);
+  asymmetric.onRange(short_range);
+  huber.onRange(short_range);
+  asymmetric.judge(s);
+  huber.judge(s);
+  EXPECT_EQ(huber.rejected(), 1u);  // |r| = 10 sigma: Huber weight 0.13
+  // The asymmetric model's short side is its Gaussian core: the smoother
+  // weighs such a range fully, so it is not counted as rejected.
+  EXPECT_EQ(asymmetric.rejected(), 0u);
+}
+
+TEST(RangeTrustMonitor, UnknownAnchorsCountAtOnceAndOlderRangesGoUnjudged) {
+  RangeTrustMonitor m(kAnchors, graphParams());
+  RangeSample unknown;
+  unknown.anchor_id = 9;
+  unknown.range_m = 3.0;
+  m.onRange(unknown);
+  EXPECT_EQ(m.rejected(), 1u);
+  const StateEstimate s = stateAt(2000 * kMs);
+  m.onRange(rangeFrom(s, 0, 5.0, 1900 * kMs));  // an older state's, absorbed in the same update
+  EXPECT_EQ(m.judge(s), 0u);
+  EXPECT_EQ(m.unjudged(), 1u);
+  m.onRange(rangeFrom(s, 0, 5.0, 2000 * kMs));
+  m.reset();  // tracking lost
+  EXPECT_EQ(m.judge(s), 0u);
+  EXPECT_EQ(m.judged(), 0u);
+}
+
+}  // namespace
+}  // namespace rilo

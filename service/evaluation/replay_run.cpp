@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <random>
+#include <sstream>
 #include <stdexcept>
 
 namespace rilo {
@@ -22,7 +24,50 @@ ImuParams imuParamsFrom(const RecordingMeta& meta) {
   return imu;
 }
 
+/// Uniform [0, 1) from 53 bits: the same numbers on every platform (unlike
+/// std::uniform_real_distribution, whose algorithm the standard leaves open).
+double unitDraw(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+
+/// One sample to feed, in the merged time order.
+struct FeedItem {
+  std::int64_t t_ns;
+  Measurement::Kind kind;
+  std::size_t index;  ///< into the kind's kept samples
+};
+
 }  // namespace
+
+MeasurementKinds measurementKindsFromString(const std::string& list) {
+  MeasurementKinds k{false, false, false};
+  std::stringstream in(list);
+  std::string item;
+  bool any = false;
+  while (std::getline(in, item, ',')) {
+    if (item == "range") {
+      k.range = true;
+    } else if (item == "tdoa") {
+      k.tdoa = true;
+    } else if (item == "ultrasonic") {
+      k.ultrasonic = true;
+    } else {
+      throw std::invalid_argument("measurements: unknown kind '" + item + "' (expected range, tdoa, ultrasonic)");
+    }
+    any = true;
+  }
+  if (!any) throw std::invalid_argument("measurements: the list is empty (expected range, tdoa, ultrasonic)");
+  return k;
+}
+
+std::string toString(const MeasurementKinds& kinds) {
+  std::string out;
+  for (const auto& [on, name] : {std::pair{kinds.range, "range"}, std::pair{kinds.tdoa, "tdoa"},
+                                 std::pair{kinds.ultrasonic, "ultrasonic"}}) {
+    if (!on) continue;
+    if (!out.empty()) out.push_back(',');
+    out.append(name);
+  }
+  return out;
+}
 
 LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s) {
   LocalizerParams lp;
@@ -37,6 +82,22 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;
   if (s.max_height_m) lp.height_band.max_height_m = *s.max_height_m;
   if (s.vertical_speed_sigma_m_s) lp.vertical_speed_sigma_m_s = *s.vertical_speed_sigma_m_s;
+  lp.graph.p_b_ultrasonic = rec.meta.ultrasonic_lever_arm_m;
+  lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(rec.anchors);
+  const bool tdoa_used = s.measurements.tdoa && !rec.tdoa.empty();
+  if (s.same_state_window_ms) {
+    lp.graph.same_state_window_ns = static_cast<std::int64_t>(std::llround(*s.same_state_window_ms * 1e6));
+  } else if (tdoa_used) {
+    lp.graph.same_state_window_ns = 25'000'000;
+  }
+  if (s.tdoa_sigma_m) lp.graph.tdoa_sigma_m = *s.tdoa_sigma_m;
+  if (s.ultrasonic_sigma_m) lp.graph.ultrasonic_sigma_m = *s.ultrasonic_sigma_m;
+  if (s.tdoa_noise) lp.graph.tdoa_loss = *s.tdoa_noise;
+  if (s.ultrasonic_noise) lp.graph.ultrasonic_loss = *s.ultrasonic_noise;
+  if (s.dynamic_covariance) {
+    lp.stream.dynamic_covariance.enabled = *s.dynamic_covariance;
+    lp.ekf.dynamic_covariance.enabled = *s.dynamic_covariance;
+  }
   setEstimatorByName(lp, s.smoother);
   lp.smoother.lag_s = s.lag_s;
   lp.sliding_window.window_s = s.lag_s;
@@ -44,30 +105,94 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
 }
 
 ReplayResult replayRecording(const Recording& rec, const ReplaySettings& settings) {
-  if (rec.imu.empty() || rec.ranges.empty()) {
-    throw std::runtime_error(rec.meta.name + ": needs imu.csv and range.csv samples");
+  const MeasurementKinds& kinds = settings.measurements;
+  const bool has_selected = (kinds.range && !rec.ranges.empty()) || (kinds.tdoa && !rec.tdoa.empty()) ||
+                            (kinds.ultrasonic && !rec.ultrasonic.empty());
+  if (rec.imu.empty() || !has_selected) {
+    throw std::runtime_error(rec.meta.name + ": needs imu.csv and samples of a selected measurement kind (" +
+                             toString(kinds) + ")");
   }
   if (!(settings.range_hz >= 0.0)) throw std::invalid_argument("replay: range_hz must be >= 0");
+  if (!(settings.reception >= 0.0 && settings.reception <= 1.0)) {
+    throw std::invalid_argument("replay: reception must be in [0, 1]");
+  }
+  if (settings.same_state_window_ms && !(*settings.same_state_window_ms >= 0.0)) {
+    throw std::invalid_argument("replay: same_state_window_ms must be >= 0");
+  }
   const LocalizerParams params = localizerParamsFor(rec, settings);
   Localizer localizer(uwbAnchorsById(rec.anchors), params);
 
   ReplayResult out;
   std::vector<UpdateStats> stats;
-  RangeThinningOptions thinning;
-  thinning.rate_hz = settings.range_hz;
-  thinning.mode = settings.thinning;
-  const std::vector<RangeSample> ranges = thinRanges(rec.ranges, thinning);
-  out.ranges_used = ranges.size();
-  const std::size_t total = rec.imu.size() + ranges.size();
+  MeasurementCounts& counts = out.measurements;
+  counts.range = {rec.ranges.size(), 0, 0, kinds.range};
+  counts.tdoa = {rec.tdoa.size(), 0, 0, kinds.tdoa};
+  counts.ultrasonic = {rec.ultrasonic.size(), 0, 0, kinds.ultrasonic};
+
+  // Ranges: thinned, then each packet received with probability `reception`.
+  std::vector<RangeSample> ranges;
+  if (kinds.range) {
+    RangeThinningOptions thinning;
+    thinning.rate_hz = settings.range_hz;
+    thinning.mode = settings.thinning;
+    ranges = thinRanges(rec.ranges, thinning);
+    if (settings.reception < 1.0) {
+      std::mt19937_64 rng(settings.reception_seed * 2 + 1);  // a stream per kind: dropping ranges ignores TDoA
+      const std::size_t before = ranges.size();
+      std::erase_if(ranges, [&](const RangeSample&) { return unitDraw(rng) >= settings.reception; });
+      counts.range.dropped = before - ranges.size();
+    }
+  }
+  // TDoA: the rows of one time are one received packet, kept or lost together.
+  std::vector<TdoaSample> tdoa;
+  if (kinds.tdoa) {
+    std::mt19937_64 rng(settings.reception_seed * 2 + 2);
+    bool keep = true;
+    for (std::size_t k = 0; k < rec.tdoa.size(); ++k) {
+      if (settings.reception < 1.0 && (k == 0 || rec.tdoa[k].t_ns != rec.tdoa[k - 1].t_ns)) {
+        keep = unitDraw(rng) < settings.reception;
+      }
+      if (keep) {
+        tdoa.push_back(rec.tdoa[k]);
+      } else {
+        ++counts.tdoa.dropped;
+      }
+    }
+  }
+  const std::vector<UltrasonicSample> no_ultrasonic;
+  const std::vector<UltrasonicSample>& ultrasonic = kinds.ultrasonic ? rec.ultrasonic : no_ultrasonic;
+  out.ranges_used = counts.range.used = ranges.size();
+  counts.tdoa.used = tdoa.size();
+  counts.ultrasonic.used = ultrasonic.size();
+
+  // One time order over the measurement kinds (the graph stream needs it);
+  // at equal times ranges first, then TDoA, then ultrasonic (stable).
+  std::vector<FeedItem> items;
+  items.reserve(ranges.size() + tdoa.size() + ultrasonic.size());
+  for (std::size_t k = 0; k < ranges.size(); ++k) items.push_back({ranges[k].t_ns, Measurement::Kind::kRange, k});
+  for (std::size_t k = 0; k < tdoa.size(); ++k) items.push_back({tdoa[k].t_ns, Measurement::Kind::kTdoa, k});
+  for (std::size_t k = 0; k < ultrasonic.size(); ++k) {
+    items.push_back({ultrasonic[k].t_ns, Measurement::Kind::kUltrasonic, k});
+  }
+  std::stable_sort(items.begin(), items.end(), [](const FeedItem& a, const FeedItem& b) { return a.t_ns < b.t_ns; });
+  auto feed = [&](const FeedItem& item) {
+    switch (item.kind) {
+      case Measurement::Kind::kRange: localizer.addRange(ranges[item.index]); break;
+      case Measurement::Kind::kTdoa: localizer.addTdoa(tdoa[item.index]); break;
+      case Measurement::Kind::kUltrasonic: localizer.addUltrasonic(ultrasonic[item.index]); break;
+    }
+  };
+
+  const std::size_t total = rec.imu.size() + items.size();
   const std::size_t progress_every = std::max<std::size_t>(1, total / 100);
   const auto wall_start = std::chrono::steady_clock::now();
   std::size_t i = 0, r = 0;
-  while (i < rec.imu.size() || r < ranges.size()) {
+  while (i < rec.imu.size() || r < items.size()) {
     if (settings.progress && (i + r) % progress_every == 0) {
       settings.progress(static_cast<double>(i + r) / static_cast<double>(total));
     }
-    if (r < ranges.size() && (i >= rec.imu.size() || ranges[r].t_ns <= rec.imu[i].t_ns)) {
-      localizer.addRange(ranges[r++]);
+    if (r < items.size() && (i >= rec.imu.size() || items[r].t_ns <= rec.imu[i].t_ns)) {
+      feed(items[r++]);
     } else {
       localizer.addImu(rec.imu[i++]);
     }

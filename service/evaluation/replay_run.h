@@ -19,8 +19,22 @@
 
 namespace rilo {
 
+/// Which measurement kinds of a recording reach the Localizer.
+struct MeasurementKinds {
+  bool range = true;       ///< UWB two-way ranges (range.csv)
+  bool tdoa = true;        ///< UWB TDoA rows (tdoa.csv)
+  bool ultrasonic = true;  ///< ultrasonic ranges (ultrasonic.csv)
+  bool operator==(const MeasurementKinds&) const = default;
+};
+
+/// Parses "range,tdoa,ultrasonic" (any non-empty subset, any order). Throws
+/// std::invalid_argument naming an unknown kind or an empty list.
+MeasurementKinds measurementKindsFromString(const std::string& list);
+/// "range,tdoa,ultrasonic" (the selected kinds in that order).
+std::string toString(const MeasurementKinds& kinds);
+
 struct ReplaySettings {
-  std::string smoother = "d-isam2";  ///< d-isam2 | isam2 | dogleg
+  std::string smoother = "d-isam2";  ///< d-isam2 | isam2 | dogleg | sliding-window | ekf
   std::string noise = "asymmetric";  ///< gaussian | huber | cauchy | asymmetric
   double range_hz = 0.0;             ///< thin ranges to this total rate (0: keep all)
   RangeThinning thinning = RangeThinning::kRotate;  ///< which ranges thinning keeps (range_thinning.h)
@@ -34,6 +48,24 @@ struct ReplaySettings {
   std::optional<double> floor_z_m;             ///< floor height in the world frame (m)
   std::optional<double> min_height_m, max_height_m;  ///< band above the floor (m)
   std::optional<double> vertical_speed_sigma_m_s;    ///< vertical speed prior (m/s; 0 none)
+  // Second system (seed 002): TDoA, ultrasonic, packet reception.
+  /// Kinds fed to the Localizer (default: every kind the recording has).
+  MeasurementKinds measurements;
+  /// Fraction of UWB packets kept, in [0, 1]: each TDoA epoch (the rows of
+  /// one time: one received packet and its differences) and each range is
+  /// kept with this probability, drawn in time order from reception_seed
+  /// (deterministic). Ultrasonic ranges are not UWB packets: all kept.
+  double reception = 1.0;
+  std::uint64_t reception_seed = 1;
+  /// Measurements closer than this share one state (ms; unset: the graph's
+  /// 5 ms, or 25 ms when TDoA rows are used: a TDoA round of 8 anchors is 8
+  /// packets 6.25 ms apart, grouped into ~40 states/s instead of 160).
+  std::optional<double> same_state_window_ms;
+  /// Per-link sigmas from DynamicCovariance (graph stream and EKF); unset: off.
+  std::optional<bool> dynamic_covariance;
+  // TDoA and ultrasonic noise models (unset: RangeImuGraphParams defaults).
+  std::optional<double> tdoa_sigma_m, ultrasonic_sigma_m;  ///< LOS std-dev (m)
+  std::optional<std::string> tdoa_noise, ultrasonic_noise;  ///< loss names (makeRangeLoss)
   /// Called now and then with the fraction of samples consumed (progress bars).
   std::function<void(double)> progress;
 };
@@ -44,11 +76,24 @@ struct ReplayUpdate {
   UpdateStats stats;
 };
 
+/// What happened to one measurement kind of the recording.
+struct MeasurementCount {
+  std::size_t recorded = 0;  ///< in the recording
+  std::size_t used = 0;      ///< fed to the Localizer
+  std::size_t dropped = 0;   ///< dropped by the simulated reception (ReplaySettings::reception)
+  bool selected = true;      ///< in ReplaySettings::measurements (else none used, none dropped)
+};
+
+struct MeasurementCounts {
+  MeasurementCount range, tdoa, ultrasonic;
+};
+
 struct ReplayResult {
   std::vector<RangeImuEstimator::TimedPose> online;    ///< newest state after each update
   std::vector<RangeImuEstimator::TimedPose> smoothed;  ///< final estimate of every state, time order
   std::vector<ReplayUpdate> updates;
-  std::size_t ranges_used = 0;        ///< after --range-hz thinning
+  std::size_t ranges_used = 0;        ///< after --range-hz thinning and reception
+  MeasurementCounts measurements;     ///< per kind: recorded, used, dropped
   std::uint64_t initializations = 0;
   std::uint64_t reinitializations = 0;
   std::string last_failure;           ///< why tracking last ended, empty if never
@@ -67,13 +112,14 @@ struct ReplayResult {
   double realtimeFactor() const { return wall_s > 0.0 ? data_s / wall_s : 0.0; }
 };
 
-/// Builds the Localizer parameters a replay of `rec` uses (IMU noise and lever
-/// arm from its meta.yaml, smoother and noise model from `settings`).
+/// Builds the Localizer parameters a replay of `rec` uses (IMU noise, lever
+/// arms and ultrasonic beacons from the recording, smoother and noise model
+/// from `settings`).
 LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& settings);
 
 /// Runs the pipeline over `rec`. Throws std::runtime_error naming the
-/// recording when it has no IMU or range samples, std::invalid_argument on bad
-/// settings.
+/// recording when it has no IMU samples or no measurement of a selected kind,
+/// std::invalid_argument on bad settings.
 ReplayResult replayRecording(const Recording& rec, const ReplaySettings& settings);
 
 }  // namespace rilo

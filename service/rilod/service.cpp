@@ -68,6 +68,10 @@ class Service::LaneSink final : public SampleSink {
       service_.publisher_wake_.notify();
     } else if (std::holds_alternative<RangeSample>(sample)) {
       counters.range_samples.add();
+    } else if (std::holds_alternative<TdoaSample>(sample)) {
+      counters.tdoa_samples.add();
+    } else if (std::holds_alternative<UltrasonicSample>(sample)) {
+      counters.ultrasonic_samples.add();
     }
   }
   void fault(const SourceFault& fault) noexcept override {
@@ -287,8 +291,12 @@ void Service::estimatorLoop() {
       }
       if (was_tracking) trust_.onRange(*range);
       localizer_.addRange(*range);
+    } else if (const auto* tdoa = std::get_if<TdoaSample>(&lane.pending)) {
+      localizer_.addTdoa(*tdoa);  // the Localizer skips anchors and beacons it does not know
+    } else if (const auto* us = std::get_if<UltrasonicSample>(&lane.pending)) {
+      localizer_.addUltrasonic(*us);
     } else {
-      continue;  // TDoA / ultrasonic: not used by the range-IMU estimator
+      continue;
     }
     stats.clear();
     const auto t_start = std::chrono::steady_clock::now();

@@ -10,6 +10,7 @@ ServiceOptions serviceOptions(const ServiceConfig& cfg) {
   ServiceOptions so;
   so.p_w_anchors = uwbAnchorsById(cfg.anchors);
   so.localizer.graph = cfg.estimator.graph;
+  so.localizer.graph.p_w_ultrasonic = ultrasonicBeaconsById(cfg.anchors);  // for ultrasonic ranges
   so.localizer.smoother = cfg.estimator.smoother;
   so.localizer.stream = cfg.estimator.stream;
   so.localizer.init.window_s = cfg.estimator.init_window_s;

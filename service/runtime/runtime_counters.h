@@ -24,6 +24,8 @@ class alignas(kCacheLineBytes) EventCounter {
 struct RuntimeCounters {
   EventCounter imu_samples;
   EventCounter range_samples;
+  EventCounter tdoa_samples;
+  EventCounter ultrasonic_samples;
   EventCounter queue_overflows;     ///< pushes rejected by a full queue
   EventCounter late_updates;        ///< smoother updates slower than the ranging period
   EventCounter sensor_faults;
@@ -41,6 +43,8 @@ struct RuntimeCounters {
   void fill(ServiceStatus& status) const noexcept {
     status.imu_samples = imu_samples.load();
     status.range_samples = range_samples.load();
+    status.tdoa_samples = tdoa_samples.load();
+    status.ultrasonic_samples = ultrasonic_samples.load();
     status.queue_overflows = queue_overflows.load();
     status.late_updates = late_updates.load();
     status.sensor_faults = sensor_faults.load();

@@ -2,7 +2,8 @@
 //
 // This file replaces the global operator new/delete of the core test binary
 // with versions that forward to malloc/free and count, on the calling thread
-// only, while a NewCounter is alive (thread-local flags, constant-initialized:
+// only, while a NewCounter (support/new_counter.h, usable from other test
+// files of the binary) is alive (thread-local flags, constant-initialized:
 // the rest of the binary is unaffected). The array, nothrow and sized forms
 // of the standard library forward to these two; the aligned forms (not used
 // by rilo) keep the library's own aligned_alloc/free pair. Eigen's dynamic
@@ -17,16 +18,17 @@
 #include "estimation/ekf/error_state_ekf.h"
 #include "estimation/noise/asymmetric_loss.h"
 #include "estimation/noise/huber_loss.h"
+#include "support/new_counter.h"
 
-namespace {
+namespace rilo::testing {
 
-thread_local bool t_counting = false;
-thread_local std::uint64_t t_news = 0;
+constinit thread_local bool t_counting_news = false;
+constinit thread_local std::uint64_t t_news = 0;
 
-}  // namespace
+}  // namespace rilo::testing
 
 void* operator new(std::size_t size) {
-  if (t_counting) ++t_news;
+  if (rilo::testing::t_counting_news) ++rilo::testing::t_news;
   void* p = std::malloc(size == 0 ? 1 : size);
   if (p == nullptr) throw std::bad_alloc();
   return p;
@@ -37,17 +39,7 @@ void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 namespace rilo {
 namespace {
 
-class NewCounter {
- public:
-  NewCounter() noexcept {
-    t_news = 0;
-    t_counting = true;
-  }
-  ~NewCounter() { t_counting = false; }
-  NewCounter(const NewCounter&) = delete;
-  NewCounter& operator=(const NewCounter&) = delete;
-  std::uint64_t count() const noexcept { return t_news; }
-};
+using testing::NewCounter;
 
 TEST(EkfAllocation, CounterSeesAllocations) {
   std::uint64_t n = 0;

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -66,6 +67,50 @@ TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
   std::string header;
   std::getline(timing, header);
   EXPECT_EQ(header, "t_s,update_ms,cliques_reeliminated,variables_relinearized,tries,accepted,lambda");
+}
+
+/// Runs `rilo args...`; returns the exit code (-1 if it did not exit).
+int runRilo(const std::vector<std::string>& args) {
+  const std::string exe = (testing::binaryDir() / "rilo").string();
+  std::vector<char*> argv{const_cast<char*>(exe.c_str())};
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::execv(exe.c_str(), argv.data());
+    ::_exit(127);
+  }
+  int status = 0;
+  if (::waitpid(pid, &status, 0) != pid || !WIFEXITED(status)) return -1;
+  return WEXITSTATUS(status);
+}
+
+TEST(RiloReplay, MeasurementKindsAndReceptionAreCountedInTheSummary) {
+  testing::TempDir out("rilo-replay-reception");
+  const std::string rec = (testing::sourceDir() / "tests" / "data" / "office-demo").string();
+  ASSERT_EQ(runRilo({"replay", rec, "--out", out.path().string(), "--measurements", "range", "--reception", "0.7",
+                     "--reception-seed", "3", "--smoother", "ekf"}),
+            0);
+  std::ifstream summary(out / "summary.json");
+  std::stringstream buffer;
+  buffer << summary.rdbuf();
+  const std::string text = buffer.str();
+  EXPECT_NE(text.find("\"selected\": \"range\", \"reception\": 0.7, \"reception_seed\": 3"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"tdoa\": {\"recorded\": 0, \"used\": 0, \"dropped\": 0, \"selected\": false}"), std::string::npos)
+      << text;
+  const std::size_t range = text.find("\"range\": {\"recorded\": ");
+  ASSERT_NE(range, std::string::npos) << text;
+  std::size_t recorded = 0, used = 0, dropped = 0;
+  ASSERT_EQ(std::sscanf(text.c_str() + range, "\"range\": {\"recorded\": %zu, \"used\": %zu, \"dropped\": %zu", &recorded,
+                        &used, &dropped),
+            3)
+      << text;
+  EXPECT_EQ(used + dropped, recorded);
+  EXPECT_NEAR(static_cast<double>(used) / static_cast<double>(recorded), 0.7, 0.05);
+  EXPECT_NE(text.find("\"ranges_used\": " + std::to_string(used)), std::string::npos);
+  // A kind the tool does not know, a reception outside [0, 1]: refused.
+  EXPECT_NE(runRilo({"replay", rec, "--out", out.path().string(), "--measurements", "range,lidar"}), 0);
+  EXPECT_NE(runRilo({"replay", rec, "--out", out.path().string(), "--reception", "1.5"}), 0);
 }
 
 TEST(RiloReplay, MissingRecordingIsAClearError) {

@@ -29,6 +29,13 @@ std::string statsJson(const PositionErrorStats& s) {
   return buf;
 }
 
+std::string countJson(const MeasurementCount& c) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "{\"recorded\": %zu, \"used\": %zu, \"dropped\": %zu, \"selected\": %s}", c.recorded,
+                c.used, c.dropped, c.selected ? "true" : "false");
+  return buf;
+}
+
 }  // namespace
 
 int runReplay(const ReplayOptions& o) {
@@ -63,6 +70,12 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"range_hz\": " << o.settings.range_hz
           << ",\n  \"thinning\": " << jsonString(rangeThinningName(o.settings.thinning))
           << ",\n  \"ranges_used\": " << run.ranges_used
+          << ",\n  \"measurements\": {\"selected\": " << jsonString(toString(o.settings.measurements))
+          << ", \"reception\": " << o.settings.reception << ", \"reception_seed\": " << o.settings.reception_seed
+          << ",\n    \"range\": " << countJson(run.measurements.range)
+          << ",\n    \"tdoa\": " << countJson(run.measurements.tdoa)
+          << ",\n    \"ultrasonic\": " << countJson(run.measurements.ultrasonic) << "}"
+          << ",\n  \"dynamic_covariance\": " << (o.settings.dynamic_covariance.value_or(false) ? "true" : "false")
           << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": {\"mean\": " << mean_ms
           << ", \"p99\": " << p99_ms << ", \"max\": " << max_ms << "},\n  \"realtime_factor\": " << run.realtimeFactor()
           << ",\n  \"initializations\": " << run.initializations
@@ -89,6 +102,19 @@ int runReplay(const ReplayOptions& o) {
   std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations\n",
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
               max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations));
+  {
+    const MeasurementCounts& m = run.measurements;
+    std::printf("  measurements used (dropped by --reception %.2f):", o.settings.reception);
+    for (const auto& [name, c] : {std::pair{"range", m.range}, std::pair{"tdoa", m.tdoa}, std::pair{"ultrasonic", m.ultrasonic}}) {
+      if (c.recorded == 0) continue;
+      if (!c.selected) {
+        std::printf(" %s not selected (%zu recorded);", name, c.recorded);
+      } else {
+        std::printf(" %s %zu of %zu (%zu);", name, c.used, c.recorded, c.dropped);
+      }
+    }
+    std::printf("\n");
+  }
   if (!run.height_band_note.empty()) std::printf("  %s\n", run.height_band_note.c_str());
   if (run.initializations == 0) std::printf("  never initialized: %s\n", run.init_status.c_str());
   if (!run.last_failure.empty()) std::printf("  last tracking failure: %s\n", run.last_failure.c_str());
@@ -135,6 +161,34 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--max-height", options->settings.max_height_m, "Highest tag height above the floor (m)");
   cmd->add_option("--vertical-speed-sigma", options->settings.vertical_speed_sigma_m_s,
                   "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none)")->check(CLI::Range(0.0, 100.0));
+  cmd->add_option_function<std::string>(
+         "--measurements", [options](const std::string& list) { options->settings.measurements = measurementKindsFromString(list); },
+         "Measurement kinds fed to the pipeline, comma-separated: range,tdoa,ultrasonic (default: every kind the recording has)")
+      ->check([](const std::string& list) {
+        try {
+          (void)measurementKindsFromString(list);
+          return std::string();
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+      });
+  cmd->add_option("--reception", options->settings.reception,
+                  "Fraction of UWB packets received (0..1): each TDoA epoch and each range kept with this probability (seeded)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--reception-seed", options->settings.reception_seed, "Seed of the --reception draws")->capture_default_str();
+  cmd->add_option("--state-window-ms", options->settings.same_state_window_ms,
+                  "Measurements closer than this share one state (ms; default 5, or 25 when TDoA rows are used)")
+      ->check(CLI::Range(0.0, 1000.0));
+  cmd->add_option("--tdoa-sigma", options->settings.tdoa_sigma_m, "LOS std-dev of a TDoA range difference (m)")
+      ->check(CLI::Range(0.001, 10.0));
+  cmd->add_option("--ultrasonic-sigma", options->settings.ultrasonic_sigma_m, "LOS std-dev of an ultrasonic range (m)")
+      ->check(CLI::Range(0.0001, 10.0));
+  cmd->add_option("--tdoa-noise", options->settings.tdoa_noise, "TDoA noise model (default huber)")
+      ->check(CLI::IsMember(rangeLossNames()));
+  cmd->add_option("--ultrasonic-noise", options->settings.ultrasonic_noise, "Ultrasonic noise model (default huber)")
+      ->check(CLI::IsMember(rangeLossNames()));
+  cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
+                  "Per-link measurement sigmas from their residuals (true/false; default false)");
   cmd->callback([options] {
     int code = 1;
     try {

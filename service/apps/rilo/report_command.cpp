@@ -16,6 +16,8 @@
 #include "estimation/pipeline/localizer.h"
 #include "evaluation/report.h"
 #include "evaluation/report_markdown.h"
+#include "evaluation/tdoa_report.h"
+#include "evaluation/tdoa_report_markdown.h"
 
 namespace rilo::tool {
 namespace {
@@ -78,6 +80,7 @@ std::string commandLine(const ReportCommandOptions& o) {
     for (const auto& item : items) s += (s.empty() ? "" : ",") + text(item);
     return s;
   };
+  if (o.system == "tdoa") cmd += " --system tdoa";
   if (!o.sim_seeds.empty()) {
     cmd += " --sim-seeds " + join(o.sim_seeds, [](std::uint64_t v) { return std::to_string(v); });
     char minutes[32];
@@ -89,11 +92,81 @@ std::string commandLine(const ReportCommandOptions& o) {
     std::snprintf(buf, sizeof buf, "%g", v);
     return std::string(buf);
   };
+  if (o.system == "tdoa") {
+    if (o.smoothers_given) cmd += " --smoothers " + join(o.smoothers, [](const std::string& s) { return s; });
+    cmd += " --receptions " + join(o.receptions, number) + " --measurements " + o.measurements;
+    cmd += " --reception-seed " + std::to_string(o.reception_seed);
+    if (o.dynamic_covariance) cmd += " --dynamic-covariance";
+    cmd += " --lag " + number(o.lag_s) + " --jobs " + std::to_string(o.jobs);
+    return cmd;
+  }
   cmd += " --rates " + join(o.rates_hz, number);
   cmd += " --smoothers " + join(o.smoothers, [](const std::string& s) { return s; });
   cmd += " --noises " + join(o.noises, [](const std::string& s) { return s; });
   cmd += " --lag " + number(o.lag_s) + " --jobs " + std::to_string(o.jobs);
   return cmd;
+}
+
+sim::OfficePlanKind planKind(const std::string& name) {
+  return name == "hall" ? sim::OfficePlanKind::kHall : name == "random" ? sim::OfficePlanKind::kRandom : sim::OfficePlanKind::kDefault;
+}
+
+/// `rilo report --system tdoa`: seed 002's table (evaluation/tdoa_report.h).
+int runTdoaReportCommand(const ReportCommandOptions& o) {
+  TdoaReportOptions options;
+  if (o.smoothers_given) options.estimators = o.smoothers;
+  options.receptions = o.receptions;
+  options.measurements = measurementKindsFromString(o.measurements);
+  options.reception_seed = o.reception_seed;
+  options.lag_s = o.lag_s;
+  if (o.dynamic_covariance) options.dynamic_covariance = true;
+  options.jobs = o.jobs;
+  options.validate();  // before minutes of simulation
+
+  const std::filesystem::path out(o.out);
+  if (std::filesystem::exists(out) && !std::filesystem::is_directory(out)) {
+    throw std::invalid_argument(o.out + " exists and is not a folder");
+  }
+  std::filesystem::create_directories(out);
+  std::vector<ReportRecording> recordings;
+  for (const std::string& dir : o.recordings) {
+    if (!std::filesystem::is_directory(dir)) throw std::invalid_argument("REC " + dir + " is not a folder");
+    recordings.push_back(loadReportRecording(dir));
+  }
+  if (!o.sim_seeds.empty()) {
+    std::vector<std::filesystem::path> dirs;
+    for (std::uint64_t seed : o.sim_seeds) {
+      dirs.push_back(out / "recordings" / ("sim-tdoa-" + o.sim_plan + "-seed-" + std::to_string(seed)));
+    }
+    ProgressBar bar("simulated sessions");
+    std::mutex mutex;
+    std::size_t done = 0;
+    bar(0, dirs.size());
+    parallelFor(dirs.size(), o.jobs, [&](std::size_t i) {
+      simulateTdoaReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i], planKind(o.sim_plan));
+      std::lock_guard<std::mutex> lock(mutex);
+      bar(++done, dirs.size());
+    });
+    for (const std::filesystem::path& dir : dirs) recordings.push_back(loadReportRecording(dir));
+  }
+  makeLabelsUnique(recordings);
+
+  TdoaReportResults results;
+  {
+    ProgressBar bar("runs");
+    options.progress = [&bar](std::size_t done, std::size_t total) { bar(done, total); };
+    results = runTdoaReport(recordings, options);
+  }
+  writeTdoaReport(out, recordings, results, currentReportHeader(commandLine(o)));
+  std::size_t failed = 0, threw = 0;
+  for (const TdoaRun& r : results.runs) {
+    if (r.failed(options.fail_mean_m)) ++failed;
+    if (r.threw) ++threw;
+  }
+  std::printf("rilo report --system tdoa: %zu runs on %zu recordings in %.1f s (%zu failed, %zu threw)\n",
+              results.runs.size(), recordings.size(), results.wall_s, failed, threw);
+  std::printf("  wrote %s/{%s,%s}\n", o.out.c_str(), kReportMarkdownFile, kReportCsvFile);
+  return 0;
 }
 
 }  // namespace
@@ -103,6 +176,7 @@ int runReportCommand(const ReportCommandOptions& o) {
     if (o.recordings.empty() && o.sim_seeds.empty()) {
       throw std::invalid_argument("give recordings (REC...) or --sim-seeds");
     }
+    if (o.system == "tdoa") return runTdoaReportCommand(o);
     ReportOptions options;
     options.rates_hz = o.rates_hz;
     options.smoothers = o.smoothers;
@@ -131,10 +205,7 @@ int runReportCommand(const ReportCommandOptions& o) {
         std::size_t done = 0;
         bar(0, dirs.size());
         parallelFor(dirs.size(), o.jobs, [&](std::size_t i) {
-          simulateReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i],
-                                  o.sim_plan == "hall"     ? sim::OfficePlanKind::kHall
-                                  : o.sim_plan == "random" ? sim::OfficePlanKind::kRandom
-                                                           : sim::OfficePlanKind::kDefault);
+          simulateReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i], planKind(o.sim_plan));
           std::lock_guard<std::mutex> lock(mutex);
           bar(++done, dirs.size());
         });
@@ -212,8 +283,25 @@ void addReportCommand(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::IsMember({"default", "random", "hall"}));
   cmd->add_option("--lag", o->lag_s, "Fixed lag of every smoother (s)")->capture_default_str()->check(CLI::Range(0.5, 600.0));
+  cmd->add_option("--system", o->system,
+                  "twr: the matrix of seed 000 (two-way ranges); tdoa: the table of seed 002 (TDoA + ultrasonic: "
+                  "sliding window vs EKF vs D-iSAM2, full and reduced packet reception)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"twr", "tdoa"}));
+  cmd->add_option("--receptions", o->receptions,
+                  "--system tdoa: packet receptions to run (comma separated, in (0, 1]; the highest is Table I's)")
+      ->delimiter(',')
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 1.0));
+  cmd->add_option("--measurements", o->measurements,
+                  "--system tdoa: measurement kinds fed (range,tdoa,ultrasonic; comma separated)")
+      ->capture_default_str();
+  cmd->add_option("--reception-seed", o->reception_seed, "--system tdoa: seed of the dropped packets")->capture_default_str();
+  cmd->add_flag("--dynamic-covariance", o->dynamic_covariance,
+                "--system tdoa: per-link measurement sigmas from their residuals (graph stream and EKF)");
   cmd->callback([o, rates, smoothers] {
     ReportCommandOptions run = *o;
+    run.smoothers_given = smoothers->count() > 0;
     if (run.quick) {
       ReportOptions quick;
       quick.makeQuick();

@@ -5,6 +5,10 @@
 // DIR/results.csv and DIR/figures/*.svg (evaluation/report_markdown.h).
 // With --sim-seeds it first simulates office sessions (the library behind
 // `rilo sim`) into DIR/recordings/.
+// --system tdoa runs the second system's table instead (seed 002 Table I:
+// sliding window vs EKF vs D-iSAM2 on TDoA + ultrasonic recordings, at full
+// and reduced packet reception; evaluation/tdoa_report.h), with --sim-seeds
+// simulating TDoA + ultrasonic sessions (SS-TWR kept).
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -27,6 +31,13 @@ struct ReportCommandOptions {
   double sim_minutes = 2.0;
   std::string sim_plan = "default";  ///< default | random | hall (as rilo sim --plan)
   double lag_s = 5.0;
+  // --system tdoa
+  std::string system = "twr";  ///< twr (seed 000's matrix) | tdoa (seed 002's table)
+  bool smoothers_given = false;  ///< --smoothers given: the TDoA table's estimators
+  std::vector<double> receptions{1.0, 0.4};
+  std::string measurements = "tdoa,ultrasonic";
+  std::uint64_t reception_seed = 1;
+  bool dynamic_covariance = false;
 };
 
 /// Returns the process exit code (0: report written, even if some runs

@@ -1,6 +1,7 @@
 #pragma once
 // Settings of the error-state EKF (error_state_ekf.h).
 #include "estimation/imu/imu_params.h"
+#include "estimation/noise/dynamic_covariance.h"
 
 namespace rilo {
 
@@ -26,6 +27,11 @@ struct EkfParams {
   /// outlier outright, e.g. a flat NLOS branch) skips the update
   /// (UpdateStatus::kZeroWeight) instead of dividing by ~0. In [0, 1).
   double min_robust_weight = 1e-6;
+
+  /// EkfEstimator: per-link measurement sigmas from DynamicCovariance, fed
+  /// with each update's innovation and its predicted variance H P H^T
+  /// (estimation/pipeline/measurement_noise.h). The filter itself ignores it.
+  DynamicCovarianceOptions dynamic_covariance;
 
   /// Throws std::invalid_argument naming the first bad field (also ImuParams'
   /// own checks).

@@ -25,6 +25,8 @@ struct EkfUpdateResult {
   double innovation = 0.0;
   /// innovation / sqrt(S_00), S the prior innovation covariance (unitless, signed).
   double normalized_innovation = 0.0;
+  /// (H P H^T)_00: the prior state's share of S_00 (m^2), S_00 = this + sigma^2.
+  double predicted_variance_m2 = 0.0;
   /// y^T S^-1 y over all rows (what the gate compares).
   double mahalanobis_sq = 0.0;
   /// Final IRLS weight of the range row (1 without a loss; measurement

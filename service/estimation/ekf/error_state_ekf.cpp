@@ -174,6 +174,7 @@ EkfUpdateResult ErrorStateEkf::update(const EkfPrediction<M>& pred, const Eigen:
   S.diagonal() += R;
   const MatM S_inv = S.inverse();  // fixed-size 1x1 / 2x2: closed form
   result.normalized_innovation = y(0) / std::sqrt(S(0, 0));
+  result.predicted_variance_m2 = HPHt(0, 0);
   result.mahalanobis_sq = y.dot(S_inv * y);
   if (!(result.mahalanobis_sq <= gate_chi2)) {  // NaN counts as gated
     ++counts.gated;

@@ -90,6 +90,17 @@ struct DynamicCovarianceParams {
   void validate() const;
 };
 
+/// Whether an estimator uses DynamicCovariance, and its settings (the graph
+/// stream's RangeImuStreamOptions and the EKF's EkfParams carry one).
+struct DynamicCovarianceOptions {
+  bool enabled = false;  ///< off: every measurement gets its kind's configured sigma
+  /// Table size, forgetting, warm-up, clipping and the per-kind bounds. The
+  /// estimators replace the per-kind nominal_sigma_m by their configured
+  /// sigmas (widening the bounds to include them when needed).
+  DynamicCovarianceParams params;
+  std::size_t max_pending = 128;  ///< graph stream: measurements of one state awaiting their post-fit residual, >= 1
+};
+
 enum class CovarianceUpdate {
   kWarmingUp,          ///< buffered; the key still reports its nominal sigma
   kUpdated,            ///< the key's sigma was updated

@@ -25,7 +25,8 @@ EkfEstimator::EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphPar
       ekf_(withImu(ekf, graph.imu)),
       range_loss_(makeRangeLoss(graph.range_loss, graph.range_noise)),
       tdoa_loss_(makeRangeLoss(graph.tdoa_loss, withSigma(graph.range_noise, graph.tdoa_sigma_m))),
-      ultrasonic_loss_(makeRangeLoss(graph.ultrasonic_loss, withSigma(graph.range_noise, graph.ultrasonic_sigma_m))) {
+      ultrasonic_loss_(makeRangeLoss(graph.ultrasonic_loss, withSigma(graph.range_noise, graph.ultrasonic_sigma_m))),
+      noise_(p_w_anchors_, graph_, ekf.dynamic_covariance) {
   if (graph_.same_state_window_ns < 0) throw std::invalid_argument("EkfEstimator: same_state_window_ns must be >= 0");
   pending_.reserve(64);
   ready_.reserve(16);
@@ -100,22 +101,24 @@ void EkfEstimator::propagateTo(std::int64_t t_ns, const ImuSample& next) {
 void EkfEstimator::apply(const Measurement& m) {
   const auto t0 = std::chrono::steady_clock::now();
   EkfUpdateResult r;
+  const double sigma_m = noise_.sigma(m);  // the kind's configured sigma unless dynamic covariance is on
   switch (m.kind) {
     case Measurement::Kind::kRange:
       if (m.anchor >= p_w_anchors_.size()) return;
-      r = ekf_.updateRange(p_w_anchors_[m.anchor], graph_.p_b_tag, m.value_m, graph_.range_noise.sigma_m, range_loss_.get());
+      r = ekf_.updateRange(p_w_anchors_[m.anchor], graph_.p_b_tag, m.value_m, sigma_m, range_loss_.get());
       break;
     case Measurement::Kind::kTdoa:
       if (m.anchor >= p_w_anchors_.size() || m.anchor_b >= p_w_anchors_.size() || m.anchor == m.anchor_b) return;
-      r = ekf_.updateTdoa(p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], graph_.p_b_tag, m.value_m,
-                          graph_.tdoa_sigma_m, tdoa_loss_.get());
+      r = ekf_.updateTdoa(p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], graph_.p_b_tag, m.value_m, sigma_m,
+                          tdoa_loss_.get());
       break;
     case Measurement::Kind::kUltrasonic:
       if (m.anchor >= graph_.p_w_ultrasonic.size()) return;
-      r = ekf_.updateUltrasonic(graph_.p_w_ultrasonic[m.anchor], graph_.p_b_ultrasonic, m.value_m,
-                                graph_.ultrasonic_sigma_m, std::nullopt, ultrasonic_loss_.get());
+      r = ekf_.updateUltrasonic(graph_.p_w_ultrasonic[m.anchor], graph_.p_b_ultrasonic, m.value_m, sigma_m,
+                                std::nullopt, ultrasonic_loss_.get());
       break;
   }
+  noise_.noteInnovation(m, r.innovation, r.predicted_variance_m2);
   if (!group_open_) {
     group_open_ = true;
     group_t0_ns_ = m.t_ns;

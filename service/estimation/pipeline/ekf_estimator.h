@@ -16,12 +16,17 @@
 // ranges with range_loss and range_noise.sigma_m, TDoA with tdoa_loss and
 // tdoa_sigma_m, ultrasonic with ultrasonic_loss and ultrasonic_sigma_m;
 // anchors are the surveyed constants. The first covariance is the graph's
-// first-state priors. Per-sample work is fixed size; buffers grow to their
+// first-state priors. With EkfParams::dynamic_covariance on, each update's
+// sigma is its link's DynamicCovariance estimate instead (nominal: the
+// graph's sigma of its kind), fed with the update's innovation and H P H^T,
+// gated updates included (clipping bounds their pull; a link gated for good
+// must still be able to earn a larger sigma). Per-sample work is fixed size; buffers grow to their
 // working size once (pending measurements, drained poses).
 #include <memory>
 #include <vector>
 
 #include "estimation/ekf/error_state_ekf.h"
+#include "estimation/pipeline/measurement_noise.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/range_imu_graph_stream.h"  // StateEstimate
 #include "estimation/pipeline/tracking_estimator.h"
@@ -45,6 +50,7 @@ class EkfEstimator final : public TrackingEstimator {
   std::optional<CovarianceBlock> latestVelocityCovariance() override;
 
   const ErrorStateEkf& filter() const { return ekf_; }
+  const MeasurementNoise& measurementNoise() const { return noise_; }
 
  private:
   /// Propagates to t_ns with an IMU sample interpolated between the last one and `next`.
@@ -58,6 +64,7 @@ class EkfEstimator final : public TrackingEstimator {
   RangeImuGraphParams graph_;
   ErrorStateEkf ekf_;
   RobustLossPtr range_loss_, tdoa_loss_, ultrasonic_loss_;
+  MeasurementNoise noise_;
 
   bool have_imu_ = false;
   ImuSample last_imu_;

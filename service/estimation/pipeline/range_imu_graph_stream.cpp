@@ -59,6 +59,7 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
       tdoa_loss_(makeRangeLoss(params_.tdoa_loss, withSigma(params_.range_noise, params_.tdoa_sigma_m))),
       ultrasonic_loss_(makeRangeLoss(params_.ultrasonic_loss, withSigma(params_.range_noise, params_.ultrasonic_sigma_m))),
       pim_(params_.imu, ImuBias(), PreintegratedImu::CovarianceMode::kCombined),
+      noise_(p_w_anchors_, params_, options_.dynamic_covariance),
       anchor_in_graph_(p_w_anchors_.size(), false),
       imu_(options.initial_imu_capacity),
       ranges_(64),
@@ -244,6 +245,7 @@ std::optional<GraphIncrement> RangeImuGraphStream::next(const StateEstimate& pre
   if (!allFinite(previous.T_w_b) || !previous.v_w.allFinite() || !previous.bias.vector().allFinite()) {
     throw std::invalid_argument("RangeImuGraphStream::next: previous estimate is not finite");
   }
+  noise_.notePostFit(previous.index, previous.T_w_b);  // no-op unless its measurements await it
   if (!plan_.empty() && stateReady(plan_.front())) return emitState(previous);
   if (carry_ranges_ > 0 && carryClosed()) return emitCarriedRanges();
   return std::nullopt;
@@ -276,6 +278,7 @@ GraphIncrement RangeImuGraphStream::emitState(const StateEstimate& previous) {
   inc.key_times_ns = {{sym::X(i), s.t_ns}, {sym::V(i), s.t_ns}, {sym::B(i), s.t_ns}};
 
   // Commit (nothing above changed the stream).
+  for (std::size_t k = carry_ranges_; k < carry_ranges_ + s.n_ranges; ++k) noise_.notePrediction(i, ranges_[k], nav.T_w_b);
   commitAnchors(inc);
   ranges_.pop_front(carry_ranges_ + s.n_ranges);
   carry_ranges_ = 0;
@@ -324,28 +327,29 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
   const bool vars = params_.anchors_as_variables;
   for (std::size_t k = first; k < first + n; ++k) {
     const Measurement& m = ranges_[k];
+    const double sigma_m = noise_.sigma(m);
     switch (m.kind) {
       case Measurement::Kind::kRange:
         if (vars) {
-          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), m.value_m, params_.range_noise.sigma_m,
-                                           params_.p_b_tag, range_loss_);
+          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), m.value_m, sigma_m, params_.p_b_tag,
+                                           range_loss_);
         } else {
-          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], m.value_m, params_.range_noise.sigma_m,
-                                           params_.p_b_tag, range_loss_);
+          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], m.value_m, sigma_m, params_.p_b_tag,
+                                           range_loss_);
         }
         break;
       case Measurement::Kind::kTdoa:
         if (vars) {
           const Key a = uwbAnchorKey(m.anchor, inc);
-          inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(m.anchor_b, inc), m.value_m, params_.tdoa_sigma_m,
-                                          params_.p_b_tag, tdoa_loss_);
+          inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(m.anchor_b, inc), m.value_m, sigma_m, params_.p_b_tag,
+                                          tdoa_loss_);
         } else {
-          inc.factors.emplace<TdoaFactor>(x, p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], m.value_m,
-                                          params_.tdoa_sigma_m, params_.p_b_tag, tdoa_loss_);
+          inc.factors.emplace<TdoaFactor>(x, p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], m.value_m, sigma_m,
+                                          params_.p_b_tag, tdoa_loss_);
         }
         break;
       case Measurement::Kind::kUltrasonic:
-        inc.factors.emplace<UltrasonicFactor>(x, params_.p_w_ultrasonic[m.anchor], m.value_m, params_.ultrasonic_sigma_m,
+        inc.factors.emplace<UltrasonicFactor>(x, params_.p_w_ultrasonic[m.anchor], m.value_m, sigma_m,
                                               params_.p_b_ultrasonic, std::nullopt, ultrasonic_loss_);
         break;
     }

@@ -51,6 +51,7 @@
 #include "estimation/graph/factor.h"
 #include "estimation/imu/preintegration.h"
 #include "estimation/pipeline/measurement.h"
+#include "estimation/pipeline/measurement_noise.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "hal/samples.h"
 
@@ -141,6 +142,16 @@ struct RangeImuStreamOptions {
   /// IMU-only state is committed (see the file comment); >= max_state_interval_ns.
   std::int64_t max_range_wait_ns = 2'000'000'000;
   std::size_t initial_imu_capacity = 1024;  ///< IMU ring preallocation (samples)
+  /// Per-link sigmas of new measurement factors (measurement_noise.h): off,
+  /// every factor has its kind's sigma from RangeImuGraphParams. On, a link's
+  /// factors get its DynamicCovariance estimate, fed from the innovation at
+  /// the IMU prediction and the residual at the smoother's estimate right
+  /// after the update (their product; see measurement_noise.h). The robust
+  /// losses keep their shape in sigmas (the default asymmetric NLOS scale,
+  /// 1.35 sigma, scales with the link). Here rather than in
+  /// RangeImuGraphParams: it is how the stream builds factors over time, not
+  /// what the graph is; LocalizerParams::stream carries it.
+  DynamicCovarianceOptions dynamic_covariance;
 };
 
 class RangeImuGraphStream {
@@ -196,6 +207,8 @@ class RangeImuGraphStream {
   std::size_t pendingStates() const { return plan_.size(); }     ///< planned states not yet emitted
   std::size_t droppedRanges() const { return dropped_ranges_; }  ///< measurements before t0, dropped by start()
   const RangeImuGraphParams& params() const { return params_; }
+  /// The sigmas given to measurement factors (and the dynamic estimate, if on).
+  const MeasurementNoise& measurementNoise() const { return noise_; }
 
  private:
   struct PlannedState {
@@ -223,6 +236,7 @@ class RangeImuGraphStream {
   RangeImuStreamOptions options_;
   RobustLossPtr range_loss_, tdoa_loss_, ultrasonic_loss_;
   PreintegratedImu pim_;  ///< scratch, reset per state
+  MeasurementNoise noise_;
 
   bool started_ = false;
   bool finished_ = false;

@@ -1,0 +1,182 @@
+// rilod's Service with a source that also delivers UWB TDoA rows and
+// ultrasonic ranges (seed 002's system): they are counted on the status and
+// reach the estimator (more states, so more pose publications, than the same
+// session without them); rows naming anchors or beacons the configuration
+// does not know are counted but skipped, without ending tracking.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <thread>
+#include <vector>
+
+#include "dds/participant.h"
+#include "dds/subscriber.h"
+#include "hal/recording/recording_reader.h"
+#include "hal/source.h"
+#include "rilod/service.h"
+#include "service_test_support.h"
+
+namespace rilo {
+namespace {
+
+using namespace std::chrono_literals;
+
+/// Pushes a fixed, time-ordered list of samples as fast as the service takes them.
+class VectorSource final : public SampleSource {
+ public:
+  explicit VectorSource(std::vector<Sample> samples) : samples_(std::move(samples)) {}
+  SourceEnd run(SampleSink& sink, const std::atomic<bool>& stop) override {
+    for (const Sample& s : samples_) {
+      if (stop.load()) return SourceEnd::kStopped;
+      sink.push(s);
+    }
+    return SourceEnd::kEndOfData;
+  }
+  std::string describe() const override { return "test vector"; }
+
+ private:
+  std::vector<Sample> samples_;
+};
+
+std::int64_t timeOf(const Sample& s) {
+  return std::visit([](const auto& v) { return v.t_ns; }, s);
+}
+
+struct Session {
+  std::vector<Sample> samples;
+  std::size_t ranges = 0, tdoa = 0, ultrasonic = 0;
+};
+
+const Vec3 kLeverArm(0.06, 0.0, 0.10);
+const Vec3 kBeacon(5.0, 4.0, 3.0);  ///< ultrasonic beacon id 20
+constexpr std::uint32_t kBeaconId = 20;
+
+/// The demo office session (IMU and ranges); with `extra`, also exact TDoA
+/// rows between consecutive anchors every 20 ms and ultrasonic ranges to one
+/// beacon every 100 ms from the ground truth, plus a few rows naming an
+/// unknown anchor or beacon.
+Session demoSession(const Recording& rec, bool extra) {
+  Session out;
+  const std::int64_t t_end = rec.imu.front().t_ns + 30'000'000'000;  // the first 30 s: initialization and 20 s of tracking
+  for (const ImuSample& m : rec.imu) {
+    if (m.t_ns < t_end) out.samples.push_back(m);
+  }
+  for (const RangeSample& r : rec.ranges) {
+    if (r.t_ns < t_end) {
+      out.samples.push_back(r);
+      ++out.ranges;
+    }
+  }
+  if (extra) {
+    const std::vector<Vec3> anchors = uwbAnchorsById(rec.anchors);
+    std::uint32_t a = 0;
+    for (std::size_t g = 0; g < rec.groundtruth.size() && rec.groundtruth[g].t_ns < t_end; ++g) {  // 50 Hz truth: a row every 20 ms
+      const GroundTruthPose& truth = rec.groundtruth[g];
+      const Pose3 T = truth.pose();
+      const Vec3 p_tag = T.R * kLeverArm + T.p;
+      const std::uint32_t b = (a + 1) % static_cast<std::uint32_t>(anchors.size());
+      TdoaSample d;
+      d.t_ns = truth.t_ns + 1'000'000;  // clear of the ranges' states
+      d.anchor_a = a;
+      d.anchor_b = g % 97 == 50 ? 99 : b;  // now and then an anchor rilod does not know
+      d.diff_m = (p_tag - anchors[b]).norm() - (p_tag - anchors[a]).norm();
+      out.samples.push_back(d);
+      ++out.tdoa;
+      a = b;
+      if (g % 5 == 0) {
+        UltrasonicSample u;
+        u.t_ns = truth.t_ns + 2'000'000;
+        u.anchor_id = g % 250 == 125 ? kBeaconId + 1 : kBeaconId;  // and a beacon it does not know
+        u.range_m = (T.p - kBeacon).norm();  // receiver at the body origin
+        out.samples.push_back(u);
+        ++out.ultrasonic;
+      }
+    }
+  }
+  std::stable_sort(out.samples.begin(), out.samples.end(),
+                   [](const Sample& x, const Sample& y) { return timeOf(x) < timeOf(y); });
+  return out;
+}
+
+struct RunResult {
+  ServiceStatus status;
+  std::size_t poses = 0;
+  int exit_code = -1;
+};
+
+RunResult runService(const Recording& rec, const Session& session, std::uint32_t domain) {
+  ServiceOptions so;
+  so.p_w_anchors = uwbAnchorsById(rec.anchors);
+  so.localizer.graph.p_b_tag = kLeverArm;
+  so.localizer.graph.p_w_ultrasonic.assign(kBeaconId + 1, Vec3::Constant(1e6));
+  so.localizer.graph.p_w_ultrasonic[kBeaconId] = kBeacon;
+  so.participant.domain_id = domain;
+  so.participant.config_xml = dds::loopbackConfigXml();
+  so.backpressure = true;
+  so.status_period_s = 0.05;
+  dds::ParticipantOptions po;
+  po.domain_id = domain;
+  po.config_xml = dds::loopbackConfigXml();
+  dds::Participant participant(po);
+  dds::Subscriber subscriber(participant);
+
+  std::vector<std::unique_ptr<SampleSource>> sources;
+  sources.push_back(std::make_unique<VectorSource>(session.samples));
+  Service service(so, std::move(sources));
+  RunResult out;
+  std::atomic<bool> stop{false}, done{false};
+  std::thread runner([&] {
+    out.exit_code = service.run(stop);
+    done.store(true);
+  });
+  std::vector<dds::PoseMessage> poses;
+  while (!done.load()) {
+    subscriber.waitForData(20ms);
+    subscriber.takePose(poses);
+  }
+  runner.join();
+  for (int i = 0; i < 20; ++i) {  // the last ones in flight
+    subscriber.waitForData(20ms);
+    subscriber.takePose(poses);
+  }
+  out.poses = poses.size();
+  out.status = service.status();
+  return out;
+}
+
+TEST(RilodTdoa, TdoaAndUltrasonicAreCountedAndReachTheEstimator) {
+  const Recording rec = readRecording(testing::sourceDir() / "tests" / "data" / "office-demo");
+  const Session plain = demoSession(rec, false);
+  const Session extra = demoSession(rec, true);
+  ASSERT_GT(extra.tdoa, 1000u);
+  ASSERT_GT(extra.ultrasonic, 200u);
+  ASSERT_EQ(extra.ranges, plain.ranges);
+  const std::uint32_t domain = 100 + static_cast<std::uint32_t>((::getpid() + 7) % 130);
+
+  const RunResult without = runService(rec, plain, domain);
+  const RunResult with = runService(rec, extra, domain);
+  EXPECT_EQ(without.exit_code, 0);
+  EXPECT_EQ(with.exit_code, 0);
+  EXPECT_EQ(without.status.tdoa_samples, 0u);
+  EXPECT_EQ(without.status.ultrasonic_samples, 0u);
+  EXPECT_EQ(with.status.tdoa_samples, extra.tdoa);
+  EXPECT_EQ(with.status.ultrasonic_samples, extra.ultrasonic);
+  EXPECT_EQ(with.status.range_samples, extra.ranges);
+  EXPECT_EQ(with.status.range_samples, without.status.range_samples);
+  // Unknown anchors and beacons were skipped, not fatal to tracking.
+  EXPECT_EQ(with.status.reinitializations, 0u);
+  // The TDoA rows (50/s) mostly open states of their own between the
+  // ranges' 5 ms groups: well over the publications of the ranges alone.
+  std::printf("poses published: %zu without TDoA/ultrasonic, %zu with\n", without.poses, with.poses);
+  ASSERT_GT(without.poses, 200u);
+  EXPECT_GT(static_cast<double>(with.poses), 1.3 * static_cast<double>(without.poses))
+      << with.poses << " vs " << without.poses;
+}
+
+}  // namespace
+}  // namespace rilo

@@ -142,7 +142,10 @@ void BayesTreeSmoother::eliminateTop(const std::vector<VarId>& top_vars, const s
   {
     std::vector<int> next(col_ptr.begin(), col_ptr.end() - 1);
     for (int item = 0; item < n_items; ++item) {
-      for (VarId v : item_vars(item)) incidence_rows[static_cast<std::size_t>(next[static_cast<std::size_t>(vars_[v].pos)]++)] = item;
+      for (VarId v : item_vars(item)) {
+        int& slot = next[static_cast<std::size_t>(vars_[v].pos)];
+        incidence_rows[static_cast<std::size_t>(slot++)] = item;
+      }
     }
   }
   const std::vector<int> order = constrainedColumnOrdering(n_items, col_ptr, incidence_rows, std::move(groups));
@@ -360,7 +363,9 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
         suffix_col_[static_cast<std::size_t>(s) - 1] = std::min(suffix_col_[static_cast<std::size_t>(s)], slot.col + o);
       }
     }
-    for (int i = 0; i < block_rows; ++i) row_leading_[r++] = suffix_col_[static_cast<std::size_t>(std::min(i, scalars))];
+    for (int i = 0; i < block_rows; ++i) {
+      row_leading_[r++] = suffix_col_[static_cast<std::size_t>(std::min(i, scalars))];
+    }
   };
   for (int attempt = 0; attempt < 2; ++attempt) {
     // Row sources: assigned factors, children's messages, damping rows, and

@@ -7,57 +7,6 @@
 
 namespace rilo {
 
-namespace {
-
-// Applies H = I - tau [1; v] [1; v]^T to rows [k, k + length) of columns
-// [first, cols) of the column-major W: per column, s = tau (w_k + v . w_tail),
-// then w_k -= s, w_tail -= s v. One pass over each column segment, which is
-// contiguous; Eigen's applyHouseholderOnTheLeft does the same in a gemv and a
-// rank-1 update over Block expressions, whose per-column overhead dominated
-// the clique QR (segments are a few rows long in a staircase).
-// Four columns at a time for instruction-level parallelism.
-void applyReflector(double* W, Eigen::Index ld, int k, int length, int first, int cols, const double* v, double tau) {
-  const int tail = length - 1;
-  int j = first;
-  for (; j + 4 <= cols; j += 4) {
-    double* c0 = W + static_cast<Eigen::Index>(j) * ld + k;
-    double* c1 = c0 + ld;
-    double* c2 = c1 + ld;
-    double* c3 = c2 + ld;
-    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-    for (int i = 0; i < tail; ++i) {
-      s0 += v[i] * c0[i + 1];
-      s1 += v[i] * c1[i + 1];
-      s2 += v[i] * c2[i + 1];
-      s3 += v[i] * c3[i + 1];
-    }
-    s0 = tau * (s0 + c0[0]);
-    s1 = tau * (s1 + c1[0]);
-    s2 = tau * (s2 + c2[0]);
-    s3 = tau * (s3 + c3[0]);
-    c0[0] -= s0;
-    c1[0] -= s1;
-    c2[0] -= s2;
-    c3[0] -= s3;
-    for (int i = 0; i < tail; ++i) {
-      c0[i + 1] -= s0 * v[i];
-      c1[i + 1] -= s1 * v[i];
-      c2[i + 1] -= s2 * v[i];
-      c3[i + 1] -= s3 * v[i];
-    }
-  }
-  for (; j < cols; ++j) {
-    double* c = W + static_cast<Eigen::Index>(j) * ld + k;
-    double s = 0.0;
-    for (int i = 0; i < tail; ++i) s += v[i] * c[i + 1];
-    s = tau * (s + c[0]);
-    c[0] -= s;
-    for (int i = 0; i < tail; ++i) c[i + 1] -= s * v[i];
-  }
-}
-
-}  // namespace
-
 // The clique QR is ~25% of a replay and its reflection sweeps are plain
 // elementwise loops: on x86-64 Linux the function is also compiled for AVX2
 // (4-wide instead of SSE2's 2-wide) and picked at load time when the CPU has
@@ -148,12 +97,10 @@ void staircaseQrInPlace(Eigen::Ref<RowMajorMatrixXd> W, int n, const int* rows_w
 }
 
 void staircaseQrInPlace(Eigen::Ref<Eigen::MatrixXd> W, int n, const int* rows_with_leading_le, double* workspace) {
-  (void)workspace;  // the column-major kernel needs none
+  // The reference layout (tests compare the two); Eigen's reflections.
   const int m = static_cast<int>(W.rows());
   const int cols = static_cast<int>(W.cols());
   const int steps = std::min(m, n);
-  double* data = W.data();
-  const Eigen::Index ld = W.outerStride();
   for (int k = 0; k < steps; ++k) {
     const int end = rows_with_leading_le ? std::max(k + 1, std::min(m, rows_with_leading_le[k])) : m;
     const int length = end - k;
@@ -162,8 +109,8 @@ void staircaseQrInPlace(Eigen::Ref<Eigen::MatrixXd> W, int n, const int* rows_wi
       double beta = 0.0;
       auto column = W.col(k).segment(k, length);
       column.makeHouseholderInPlace(tau, beta);
-      if (cols > k + 1 && tau != 0.0) {
-        applyReflector(data, ld, k, length, k + 1, cols, column.data() + 1, tau);
+      if (cols > k + 1) {
+        W.block(k, k + 1, length, cols - k - 1).applyHouseholderOnTheLeft(column.tail(length - 1), tau, workspace);
       }
       W(k, k) = beta;
       column.tail(length - 1).setZero();

@@ -27,7 +27,8 @@ using RowMajorMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, E
 /// axpy sweeps along the rows it spans (s = tau (w_k + sum_i v_i w_i), then
 /// w_k -= s, w_i -= v_i s), which vectorize without reordering any sum.
 void staircaseQrInPlace(Eigen::Ref<RowMajorMatrixXd> W, int n, const int* rows_with_leading_le, double* workspace);
-/// Same for a column-major W.
+/// Same for a column-major W (Eigen's Householder kernels; the reference the
+/// tests compare the row-major kernel with).
 void staircaseQrInPlace(Eigen::Ref<Eigen::MatrixXd> W, int n, const int* rows_with_leading_le, double* workspace);
 
 }  // namespace rilo

@@ -51,11 +51,14 @@ bool SupernodalCholesky::prepare(const SupernodalStructure& structure, std::span
       ++bucket_start[static_cast<std::size_t>(std::min(a, b)) + 1];
     }
   }
-  for (int c = 0; c < n; ++c) bucket_start[static_cast<std::size_t>(c) + 1] += bucket_start[static_cast<std::size_t>(c)];
+  for (std::size_t c = 0; c < static_cast<std::size_t>(n); ++c) bucket_start[c + 1] += bucket_start[c];
   std::vector<int> bucket(static_cast<std::size_t>(nnz));
   {
     std::vector<int> fill(bucket_start.begin(), bucket_start.end() - 1);
-    for (int p = 0; p < nnz; ++p) bucket[static_cast<std::size_t>(fill[static_cast<std::size_t>(entry_col[static_cast<std::size_t>(p)])]++)] = p;
+    for (int p = 0; p < nnz; ++p) {
+      int& slot = fill[static_cast<std::size_t>(entry_col[static_cast<std::size_t>(p)])];
+      bucket[static_cast<std::size_t>(slot++)] = p;
+    }
   }
 
   assembly_.assign(static_cast<std::size_t>(nnz), -1);

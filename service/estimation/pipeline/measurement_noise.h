@@ -61,6 +61,10 @@ class MeasurementNoise {
                    const DynamicCovarianceOptions& options);
 
   bool dynamic() const { return cov_.has_value(); }
+  /// Whether m's kind gets an estimated sigma (dynamic and in the options' kinds).
+  bool dynamicKind(Measurement::Kind kind) const {
+    return cov_.has_value() && dynamic_kind_[static_cast<std::size_t>(kind)];
+  }
   /// The link's current sigma (m); the kind's configured sigma when off or
   /// while the link warms up.
   double sigma(const Measurement& m) const;
@@ -101,6 +105,7 @@ class MeasurementNoise {
   Vec3 p_b_tag_, p_b_ultrasonic_;
   double sigma_range_m_, sigma_tdoa_m_, sigma_ultrasonic_m_;
   std::optional<DynamicCovariance> cov_;
+  bool dynamic_kind_[3] = {false, false, false};  ///< by Measurement::Kind
   std::vector<Pending> pending_;  ///< reserved to max_pending
   std::size_t max_pending_ = 0;
   std::uint64_t pending_index_ = 0;

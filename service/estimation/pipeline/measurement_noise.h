@@ -33,6 +33,16 @@
 //   (filtered, not smoothed: available one state later, not a lag later).
 //   Measurements that reach a state late (carried ranges) are not fed.
 //
+// Measured (rilo report --system tdoa, 2-minute sims, seeds 1-3 of the hall
+// and of the office plan, TDoA + ultrasonic, full reception): sliding-window
+// online 3D RMSE 57.7 -> 42.1 cm pooled (better on all six), smoothed 32.2 ->
+// 25.7 cm; D-iSAM2 57.7 -> 47.6 cm online; at 40 % reception the sliding
+// window 62.8 -> 41.2 cm. Two-way ranges (asymmetric loss) got 4-50 % worse,
+// hence DynamicCovarianceOptions::range off. The EKF stays erratic with or
+// without it (it diverges on most of these sims). The library default is off
+// (RangeImuStreamOptions, EkfParams); `rilo replay` turns it on for the graph
+// estimators when TDoA rows are used.
+//
 // Fixed storage: DynamicCovariance's table and a pending buffer of
 // max_pending measurements (one state's group; more are not fed, counted in
 // pendingOverflow()), all allocated in the constructor; the note* calls and

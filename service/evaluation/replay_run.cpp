@@ -94,10 +94,8 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.ultrasonic_sigma_m) lp.graph.ultrasonic_sigma_m = *s.ultrasonic_sigma_m;
   if (s.tdoa_noise) lp.graph.tdoa_loss = *s.tdoa_noise;
   if (s.ultrasonic_noise) lp.graph.ultrasonic_loss = *s.ultrasonic_noise;
-  if (s.dynamic_covariance) {
-    lp.stream.dynamic_covariance.enabled = *s.dynamic_covariance;
-    lp.ekf.dynamic_covariance.enabled = *s.dynamic_covariance;
-  }
+  lp.stream.dynamic_covariance.enabled = s.dynamic_covariance.value_or(tdoa_used);
+  lp.ekf.dynamic_covariance.enabled = s.dynamic_covariance.value_or(false);
   setEstimatorByName(lp, s.smoother);
   lp.smoother.lag_s = s.lag_s;
   lp.sliding_window.window_s = s.lag_s;
@@ -162,6 +160,8 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   const std::vector<UltrasonicSample> no_ultrasonic;
   const std::vector<UltrasonicSample>& ultrasonic = kinds.ultrasonic ? rec.ultrasonic : no_ultrasonic;
   out.ranges_used = counts.range.used = ranges.size();
+  out.dynamic_covariance = params.estimator == LocalizerParams::Estimator::kEkf ? params.ekf.dynamic_covariance.enabled
+                                                                                : params.stream.dynamic_covariance.enabled;
   counts.tdoa.used = tdoa.size();
   counts.ultrasonic.used = ultrasonic.size();
 

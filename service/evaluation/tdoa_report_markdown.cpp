@@ -170,7 +170,7 @@ std::string triple(const Pooled& p) {
 std::string tdoaResultsCsv(const std::vector<ReportRecording>& recordings, const TdoaReportResults& results) {
   std::string out = cat(kTdoaResultsCsvHeader, "\n");
   const TdoaReportOptions& o = results.options;
-  const std::string dc = o.dynamic_covariance.value_or(false) ? "1" : "0";
+  const std::string dc = !o.dynamic_covariance ? "auto" : *o.dynamic_covariance ? "1" : "0";
   for (const TdoaRun& r : results.runs) {
     const std::string label = r.spec.recording < recordings.size() ? recordings[r.spec.recording].label : "?";
     const char* status = r.threw ? "error" : !r.has_truth ? "no-truth" : r.failed(o.fail_mean_m) ? "fail" : "ok";
@@ -237,9 +237,12 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
         strf("; below 100 %% each TDoA epoch (the rows of one time) and each range is kept with that probability "
              "(seed %llu), ultrasonic ranges all kept\n",
              static_cast<unsigned long long>(o.reception_seed)));
-  md += strf("- Window / lag %.1f s; dynamic covariance %s; other parameters: the library defaults and each "
-             "recording's meta.yaml\n",
-             o.lag_s, o.dynamic_covariance.value_or(false) ? "on" : "off");
+  md += strf("- Window / lag %.1f s; dynamic covariance (per-link TDoA/ultrasonic sigmas) %s; other parameters: the "
+             "library defaults and each recording's meta.yaml\n",
+             o.lag_s,
+             !o.dynamic_covariance ? "on for the graph estimators when TDoA is used, off for the EKF (default)"
+             : *o.dynamic_covariance ? "on for every estimator"
+                                     : "off");
   md += strf("- \"Fail\": the run threw, never produced a pose matched to the ground truth, or its mean online error "
              "exceeds %.0f m (diverged); failed runs are left out of the pooled column\n",
              o.fail_mean_m);

@@ -14,6 +14,8 @@
 // recording (sqrt of the count-weighted mean square), mean likewise, max the
 // largest. A failed run (TdoaRun::failed: threw, never tracked, or diverged)
 // shows "Fail" and is left out of the pooled figures, which then say so.
+// results.csv's dynamic_covariance: 1 on for every estimator, 0 off, auto
+// the default (graph estimators on when TDoA is used, EKF off).
 #include <filesystem>
 #include <string>
 #include <vector>

@@ -281,19 +281,16 @@ void Service::estimatorLoop() {
       ranging_silence_ns_.store(gaps_.rangingSilent() ? gaps_.sinceLastRangeNs() : 0, std::memory_order_relaxed);
       localizer_.addImu(*imu);
     } else if (const auto* range = std::get_if<RangeSample>(&lane.pending)) {
-      const std::int64_t pause_ns = gaps_.onRange(range->t_ns);
-      ranging_silence_ns_.store(0, std::memory_order_relaxed);
-      if (pause_ns > 0) request_status = true;
-      if (pause_ns > 0 && options_.on_event) {
-        char text[96];
-        std::snprintf(text, sizeof text, "ranging back after %.1f s", static_cast<double>(pause_ns) * 1e-9);
-        options_.on_event(text);
-      }
+      request_status |= rangingArrived(range->t_ns);
       if (was_tracking) trust_.onRange(*range);
       localizer_.addRange(*range);
     } else if (const auto* tdoa = std::get_if<TdoaSample>(&lane.pending)) {
+      // TDoA rows and ultrasonic ranges fix the position too: a TDoA (+
+      // ultrasonic) deployment is not "without ranging".
+      request_status |= rangingArrived(tdoa->t_ns);
       localizer_.addTdoa(*tdoa);  // the Localizer skips anchors and beacons it does not know
     } else if (const auto* us = std::get_if<UltrasonicSample>(&lane.pending)) {
+      request_status |= rangingArrived(us->t_ns);
       localizer_.addUltrasonic(*us);
     } else {
       continue;
@@ -390,6 +387,17 @@ void Service::publishSmoothed(const NavigationState& state) {
   const double latency_ms = static_cast<double>(hal::monotonicNowNs() - state.t_ns) * 1e-6;
   std::lock_guard<std::mutex> lock(stats_mutex_);
   pose_latency_ms_ = latency_ms;
+}
+
+bool Service::rangingArrived(std::int64_t t_ns) {
+  const std::int64_t pause_ns = gaps_.onRange(t_ns);
+  ranging_silence_ns_.store(0, std::memory_order_relaxed);
+  if (pause_ns > 0 && options_.on_event) {
+    char text[96];
+    std::snprintf(text, sizeof text, "ranging back after %.1f s", static_cast<double>(pause_ns) * 1e-9);
+    options_.on_event(text);
+  }
+  return pause_ns > 0;
 }
 
 NavigationState Service::navigationState() {

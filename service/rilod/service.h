@@ -107,6 +107,9 @@ class Service {
   void publisherLoop();
   void publishStatus(std::int64_t now_ns);
   NavigationState navigationState();
+  /// A range, TDoA row or ultrasonic range at t_ns (estimator thread): ends a
+  /// ranging gap. Returns whether one ended (publish the status now).
+  bool rangingArrived(std::int64_t t_ns);
   bool allSourcesDone() const;
   void noteInitProgress(std::int64_t now_ns);
   void judgeRanges();

@@ -26,6 +26,7 @@ const std::vector<Vec3> kAnchors = {Vec3(0, 0, 2.5), Vec3(8, 0, 0.5), Vec3(8, 8,
 TEST(DynamicCovarianceAllocation, NotesAndSigmasDoNotAllocate) {
   DynamicCovarianceOptions options;
   options.enabled = true;
+  options.range = true;  // every kind
   MeasurementNoise noise(kAnchors, twoBeacons(), options);
   const Pose3 T(Mat3::Identity(), Vec3(3, 4, 1.2));
   std::uint64_t news = 0;

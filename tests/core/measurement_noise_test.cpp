@@ -172,6 +172,26 @@ TEST(MeasurementNoise, InnovationsWithTheirPredictedVarianceGiveTheLinkSigma) {
   EXPECT_EQ(noise.residualsFed(), 4000u);
 }
 
+TEST(MeasurementNoise, TwoWayRangesKeepTheirSigmaUnlessAsked) {
+  // Their asymmetric loss models the NLOS tail itself (DynamicCovarianceOptions::range).
+  const Measurement r{Measurement::Kind::kRange, 0, 2, 0, 5.0};
+  DynamicCovarianceOptions options = on();
+  MeasurementNoise noise(anchors(), geometryParams(), options);
+  EXPECT_FALSE(noise.dynamicKind(Measurement::Kind::kRange));
+  EXPECT_TRUE(noise.dynamicKind(Measurement::Kind::kTdoa));
+  for (int k = 0; k < 200; ++k) noise.noteInnovation(r, k % 2 == 0 ? 0.6 : -0.6, 0.0);
+  EXPECT_EQ(noise.sigma(r), 0.12);
+  EXPECT_EQ(noise.residualsFed(), 0u);
+  options.range = true;
+  options.ultrasonic = false;
+  MeasurementNoise with_ranges(anchors(), geometryParams(), options);
+  for (int k = 0; k < 200; ++k) with_ranges.noteInnovation(r, k % 2 == 0 ? 0.6 : -0.6, 0.0);
+  EXPECT_NEAR(with_ranges.sigma(r), 0.6, 0.1);
+  const Measurement u{Measurement::Kind::kUltrasonic, 0, 1, 0, 2.0};
+  with_ranges.notePrediction(3, u, Pose3());
+  EXPECT_EQ(with_ranges.pending(), 0u);
+}
+
 TEST(MeasurementNoise, PendingNotesOfAnotherStateAreDroppedAndTheBufferIsBounded) {
   DynamicCovarianceOptions o = on();
   o.max_pending = 3;

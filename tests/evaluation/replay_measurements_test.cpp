@@ -83,6 +83,15 @@ TEST(ReplayMeasurements, OnlyTheSelectedKindsReachThePipeline) {
   EXPECT_EQ(localizerParamsFor(rec, s).graph.same_state_window_ns, 5'000'000);
   EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).graph.same_state_window_ns, 25'000'000);
   EXPECT_NE(ranges_only.updates.size(), all.updates.size());
+  // Dynamic covariance by default: the graph stream when TDoA is used, never the EKF.
+  EXPECT_FALSE(localizerParamsFor(rec, s).stream.dynamic_covariance.enabled);
+  EXPECT_TRUE(localizerParamsFor(rec, ReplaySettings()).stream.dynamic_covariance.enabled);
+  EXPECT_FALSE(localizerParamsFor(rec, ReplaySettings()).ekf.dynamic_covariance.enabled);
+  EXPECT_TRUE(all.dynamic_covariance);
+  EXPECT_FALSE(ranges_only.dynamic_covariance);
+  ReplaySettings off;
+  off.dynamic_covariance = false;
+  EXPECT_FALSE(localizerParamsFor(rec, off).stream.dynamic_covariance.enabled);
   // The ultrasonic beacons and the receiver's lever arm come from the recording.
   const LocalizerParams lp = localizerParamsFor(rec, ReplaySettings());
   EXPECT_EQ(lp.graph.p_b_ultrasonic, rec.meta.ultrasonic_lever_arm_m);
@@ -97,7 +106,11 @@ TEST(ReplayMeasurements, RangeCsvIsOptionalButSomeSelectedKindIsNeeded) {
   Recording rec = hallRecording();
   rec.ranges.clear();
   ReplaySettings s;
-  EXPECT_NO_THROW(replayRecording(rec, s));  // TDoA and ultrasonic only
+  const ReplayResult tdoa_only = replayRecording(rec, s);  // TDoA and ultrasonic: initialized from them
+  EXPECT_GE(tdoa_only.initializations, 1u) << tdoa_only.init_status;
+  EXPECT_EQ(tdoa_only.measurements.range.recorded, 0u);
+  ASSERT_TRUE(tdoa_only.ape_smoothed.has_value());
+  EXPECT_LT(tdoa_only.ape_smoothed->ape_3d.rmse, 0.6);
   s.measurements = measurementKindsFromString("range");
   try {
     replayRecording(rec, s);

@@ -146,8 +146,8 @@ TEST(TdoaReportMarkdown, TableOneImprovementPooledFiguresAndDivergedRuns) {
   const std::string csv = tdoaResultsCsv(recs, res);
   EXPECT_EQ(countLines(csv), 1 + res.runs.size());
   EXPECT_EQ(csv.rfind(kTdoaResultsCsvHeader, 0), 0u);
-  EXPECT_NE(csv.find("\"office-1\",ekf,0.4,\"tdoa,ultrasonic\",0,fail,50.0000"), std::string::npos) << csv;
-  EXPECT_NE(csv.find("\"hall-1\",sliding-window,1,\"tdoa,ultrasonic\",0,ok,0.1000,0.0800,0.0800,0.2000,0.0500"),
+  EXPECT_NE(csv.find("\"office-1\",ekf,0.4,\"tdoa,ultrasonic\",auto,fail,50.0000"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\"hall-1\",sliding-window,1,\"tdoa,ultrasonic\",auto,ok,0.1000,0.0800,0.0800,0.2000,0.0500"),
             std::string::npos)
       << csv;
 }
@@ -177,8 +177,7 @@ TEST(TdoaReportRun, ShortHallSessionRunsEveryEstimatorAtBothReceptions) {
   EXPECT_FALSE(recs[0].data.tdoa.empty());
   EXPECT_FALSE(recs[0].data.ultrasonic.empty());
   EXPECT_FALSE(recs[0].data.ranges.empty());  // SS-TWR kept
-  TdoaReportOptions o;
-  o.measurements = measurementKindsFromString("range,tdoa,ultrasonic");
+  TdoaReportOptions o;  // TDoA and ultrasonic: the two-way ranges stay unused
   o.receptions = {1.0, 0.5};
   std::size_t calls = 0;
   o.progress = [&](std::size_t, std::size_t) { ++calls; };
@@ -194,6 +193,8 @@ TEST(TdoaReportRun, ShortHallSessionRunsEveryEstimatorAtBothReceptions) {
     EXPECT_GE(r.update_p99_ms, r.update_mean_ms * 0.5);
     EXPECT_LE(r.update_p99_ms, r.update_max_ms);
     const MeasurementCounts& m = r.measurements;
+    EXPECT_EQ(m.range.used, 0u);
+    EXPECT_FALSE(m.range.selected);
     if (r.spec.reception < 1.0) {
       EXPECT_GT(m.tdoa.dropped, 0u);
       EXPECT_NEAR(static_cast<double>(m.tdoa.used) / static_cast<double>(m.tdoa.recorded), 0.5, 0.06);
@@ -210,8 +211,7 @@ TEST(RiloReportTdoa, WritesTheTableAndTheTwrReportStaysTheDefault) {
   testing::TempDir dir("rilo-report-tdoa");
   const testing::ToolRun run = testing::runRilo(
       {"report", "--system", "tdoa", "--out", (dir / "tdoa").string(), "--sim-seeds", "2", "--sim-minutes", "0.3",
-       "--sim-plan", "hall", "--smoothers", "ekf", "--receptions", "1,0.5", "--measurements", "range,tdoa,ultrasonic",
-       "--jobs", "1"},
+       "--sim-plan", "hall", "--smoothers", "ekf", "--receptions", "1,0.5", "--jobs", "1"},
       dir.path());
   ASSERT_EQ(run.exit_code, 0) << run.out << run.err;
   const std::string md = testing::readFile(dir / "tdoa" / "report.md");

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <string>
 #include <cstdio>
 #include <thread>
 #include <vector>
@@ -60,14 +61,15 @@ constexpr std::uint32_t kBeaconId = 20;
 /// rows between consecutive anchors every 20 ms and ultrasonic ranges to one
 /// beacon every 100 ms from the ground truth, plus a few rows naming an
 /// unknown anchor or beacon.
-Session demoSession(const Recording& rec, bool extra) {
+Session demoSession(const Recording& rec, bool extra, bool with_ranges = true, std::int64_t blackout_from_ns = 0,
+                    std::int64_t blackout_to_ns = 0) {
   Session out;
   const std::int64_t t_end = rec.imu.front().t_ns + 30'000'000'000;  // the first 30 s: initialization and 20 s of tracking
   for (const ImuSample& m : rec.imu) {
     if (m.t_ns < t_end) out.samples.push_back(m);
   }
   for (const RangeSample& r : rec.ranges) {
-    if (r.t_ns < t_end) {
+    if (with_ranges && r.t_ns < t_end) {
       out.samples.push_back(r);
       ++out.ranges;
     }
@@ -77,6 +79,7 @@ Session demoSession(const Recording& rec, bool extra) {
     std::uint32_t a = 0;
     for (std::size_t g = 0; g < rec.groundtruth.size() && rec.groundtruth[g].t_ns < t_end; ++g) {  // 50 Hz truth: a row every 20 ms
       const GroundTruthPose& truth = rec.groundtruth[g];
+      if (truth.t_ns >= blackout_from_ns && truth.t_ns < blackout_to_ns) continue;
       const Pose3 T = truth.pose();
       const Vec3 p_tag = T.R * kLeverArm + T.p;
       const std::uint32_t b = (a + 1) % static_cast<std::uint32_t>(anchors.size());
@@ -106,6 +109,7 @@ Session demoSession(const Recording& rec, bool extra) {
 struct RunResult {
   ServiceStatus status;
   std::size_t poses = 0;
+  std::vector<std::string> events;
   int exit_code = -1;
 };
 
@@ -119,6 +123,8 @@ RunResult runService(const Recording& rec, const Session& session, std::uint32_t
   so.participant.config_xml = dds::loopbackConfigXml();
   so.backpressure = true;
   so.status_period_s = 0.05;
+  RunResult out;
+  so.on_event = [&out](const std::string& e) { out.events.push_back(e); };
   dds::ParticipantOptions po;
   po.domain_id = domain;
   po.config_xml = dds::loopbackConfigXml();
@@ -128,7 +134,6 @@ RunResult runService(const Recording& rec, const Session& session, std::uint32_t
   std::vector<std::unique_ptr<SampleSource>> sources;
   sources.push_back(std::make_unique<VectorSource>(session.samples));
   Service service(so, std::move(sources));
-  RunResult out;
   std::atomic<bool> stop{false}, done{false};
   std::thread runner([&] {
     out.exit_code = service.run(stop);
@@ -176,6 +181,28 @@ TEST(RilodTdoa, TdoaAndUltrasonicAreCountedAndReachTheEstimator) {
   ASSERT_GT(without.poses, 200u);
   EXPECT_GT(static_cast<double>(with.poses), 1.3 * static_cast<double>(without.poses))
       << with.poses << " vs " << without.poses;
+}
+
+TEST(RilodTdoa, TdoaAloneInitializesAndItsBlackoutIsARangingGap) {
+  // No two-way ranges at all: the service tracks on TDoA and ultrasonic
+  // (initialized from them), and a 4 s pause of both is a ranging gap like a
+  // pause of ranges would be.
+  const Recording rec = readRecording(testing::sourceDir() / "tests" / "data" / "office-demo");
+  const std::int64_t t0 = rec.imu.front().t_ns;
+  const Session session = demoSession(rec, true, false, t0 + 20'000'000'000, t0 + 24'000'000'000);
+  ASSERT_EQ(session.ranges, 0u);
+  const RunResult run = runService(rec, session, 100 + static_cast<std::uint32_t>((::getpid() + 11) % 130));
+  EXPECT_EQ(run.exit_code, 0);
+  EXPECT_EQ(run.status.range_samples, 0u);
+  EXPECT_EQ(run.status.tdoa_samples, session.tdoa);
+  EXPECT_GT(run.poses, 200u);
+  EXPECT_EQ(run.status.ranging_gaps, 1u);
+  const bool back = std::any_of(run.events.begin(), run.events.end(),
+                                [](const std::string& e) { return e.rfind("ranging back after", 0) == 0; });
+  EXPECT_TRUE(back);
+  const bool initialized = std::any_of(run.events.begin(), run.events.end(),
+                                       [](const std::string& e) { return e.rfind("initialized", 0) == 0; });
+  EXPECT_TRUE(initialized);
 }
 
 }  // namespace

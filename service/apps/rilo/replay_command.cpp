@@ -75,7 +75,7 @@ int runReplay(const ReplayOptions& o) {
           << ",\n    \"range\": " << countJson(run.measurements.range)
           << ",\n    \"tdoa\": " << countJson(run.measurements.tdoa)
           << ",\n    \"ultrasonic\": " << countJson(run.measurements.ultrasonic) << "}"
-          << ",\n  \"dynamic_covariance\": " << (o.settings.dynamic_covariance.value_or(false) ? "true" : "false")
+          << ",\n  \"dynamic_covariance\": " << (run.dynamic_covariance ? "true" : "false")
           << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": {\"mean\": " << mean_ms
           << ", \"p99\": " << p99_ms << ", \"max\": " << max_ms << "},\n  \"realtime_factor\": " << run.realtimeFactor()
           << ",\n  \"initializations\": " << run.initializations
@@ -188,7 +188,8 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--ultrasonic-noise", options->settings.ultrasonic_noise, "Ultrasonic noise model (default huber)")
       ->check(CLI::IsMember(rangeLossNames()));
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
-                  "Per-link measurement sigmas from their residuals (true/false; default false)");
+                  "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on for the graph "
+                  "estimators when TDoA rows are used, off for the EKF)");
   cmd->callback([options] {
     int code = 1;
     try {

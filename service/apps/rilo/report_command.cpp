@@ -96,7 +96,7 @@ std::string commandLine(const ReportCommandOptions& o) {
     if (o.smoothers_given) cmd += " --smoothers " + join(o.smoothers, [](const std::string& s) { return s; });
     cmd += " --receptions " + join(o.receptions, number) + " --measurements " + o.measurements;
     cmd += " --reception-seed " + std::to_string(o.reception_seed);
-    if (o.dynamic_covariance) cmd += " --dynamic-covariance";
+    cmd += " --dynamic-covariance " + o.dynamic_covariance;
     cmd += " --lag " + number(o.lag_s) + " --jobs " + std::to_string(o.jobs);
     return cmd;
   }
@@ -119,7 +119,7 @@ int runTdoaReportCommand(const ReportCommandOptions& o) {
   options.measurements = measurementKindsFromString(o.measurements);
   options.reception_seed = o.reception_seed;
   options.lag_s = o.lag_s;
-  if (o.dynamic_covariance) options.dynamic_covariance = true;
+  if (o.dynamic_covariance != "auto") options.dynamic_covariance = o.dynamic_covariance == "on";
   options.jobs = o.jobs;
   options.validate();  // before minutes of simulation
 
@@ -297,8 +297,11 @@ void addReportCommand(CLI::App& app) {
                   "--system tdoa: measurement kinds fed (range,tdoa,ultrasonic; comma separated)")
       ->capture_default_str();
   cmd->add_option("--reception-seed", o->reception_seed, "--system tdoa: seed of the dropped packets")->capture_default_str();
-  cmd->add_flag("--dynamic-covariance", o->dynamic_covariance,
-                "--system tdoa: per-link measurement sigmas from their residuals (graph stream and EKF)");
+  cmd->add_option("--dynamic-covariance", o->dynamic_covariance,
+                  "--system tdoa: per-link TDoA/ultrasonic sigmas from their residuals: auto (graph estimators on, "
+                  "the EKF baseline off), on (every estimator) or off")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   cmd->callback([o, rates, smoothers] {
     ReportCommandOptions run = *o;
     run.smoothers_given = smoothers->count() > 0;

@@ -37,7 +37,7 @@ struct ReportCommandOptions {
   std::vector<double> receptions{1.0, 0.4};
   std::string measurements = "tdoa,ultrasonic";
   std::uint64_t reception_seed = 1;
-  bool dynamic_covariance = false;
+  std::string dynamic_covariance = "auto";  ///< auto | on | off (ReplaySettings::dynamic_covariance)
 };
 
 /// Returns the process exit code (0: report written, even if some runs

@@ -37,6 +37,9 @@ MeasurementNoise::MeasurementNoise(std::vector<Vec3> p_w_anchors, const RangeImu
   if (!options.enabled) return;
   if (options.max_pending < 1) throw std::invalid_argument("DynamicCovarianceOptions.max_pending must be >= 1");
   cov_.emplace(dynamicCovarianceParamsFor(graph, options.params));
+  dynamic_kind_[static_cast<std::size_t>(Measurement::Kind::kRange)] = options.range;
+  dynamic_kind_[static_cast<std::size_t>(Measurement::Kind::kTdoa)] = options.tdoa;
+  dynamic_kind_[static_cast<std::size_t>(Measurement::Kind::kUltrasonic)] = options.ultrasonic;
   max_pending_ = options.max_pending;
   pending_.reserve(max_pending_);
 }
@@ -60,7 +63,7 @@ NoiseKey MeasurementNoise::keyOf(const Measurement& m) {
 }
 
 double MeasurementNoise::sigma(const Measurement& m) const {
-  return cov_ ? cov_->sigma(keyOf(m)) : nominalSigma(m.kind);
+  return dynamicKind(m.kind) ? cov_->sigma(keyOf(m)) : nominalSigma(m.kind);
 }
 
 double MeasurementNoise::predict(const Measurement& m, const Pose3& T_w_b) const {
@@ -81,7 +84,7 @@ void MeasurementNoise::count(CovarianceUpdate u) {
 }
 
 void MeasurementNoise::notePrediction(std::uint64_t state_index, const Measurement& m, const Pose3& T_w_b_predicted) {
-  if (!cov_) return;
+  if (!dynamicKind(m.kind)) return;
   if (!pending_.empty() && pending_index_ != state_index) pending_.clear();
   pending_index_ = state_index;
   if (pending_.size() >= max_pending_) {
@@ -103,7 +106,7 @@ void MeasurementNoise::notePostFit(std::uint64_t state_index, const Pose3& T_w_b
 }
 
 void MeasurementNoise::noteInnovation(const Measurement& m, double innovation_m, double predicted_var_m2) {
-  if (!cov_) return;
+  if (!dynamicKind(m.kind)) return;
   count(cov_->update(keyOf(m), innovation_m, std::max(0.0, predicted_var_m2)));
 }
 

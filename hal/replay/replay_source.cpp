@@ -2,6 +2,7 @@
 
 #include <time.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -60,12 +61,36 @@ std::size_t ReplaySource::sampleCount() const {
          (options_.tdoa ? recording_.tdoa.size() : 0) + (options_.ultrasonic ? recording_.ultrasonic.size() : 0);
 }
 
+std::int64_t ReplaySource::passPeriodNs() const {
+  const Recording& r = recording_;
+  std::int64_t first = std::numeric_limits<std::int64_t>::max();
+  std::int64_t last = std::numeric_limits<std::int64_t>::min();
+  auto span = [&](const auto& rows, bool selected) {
+    if (!selected || rows.empty()) return;
+    first = std::min(first, rows.front().t_ns);  // each file is in time order (reader)
+    last = std::max(last, rows.back().t_ns);
+  };
+  span(r.imu, options_.imu);
+  span(r.ranges, options_.ranges);
+  span(r.tdoa, options_.tdoa);
+  span(r.ultrasonic, options_.ultrasonic);
+  if (first > last) return 0;
+  std::int64_t step = 1'000'000;
+  if (options_.imu && r.imu.size() >= 2) {
+    const auto intervals = static_cast<std::int64_t>(r.imu.size() - 1);
+    step = std::max<std::int64_t>(1, (r.imu.back().t_ns - r.imu.front().t_ns) / intervals);
+  }
+  return last - first + step;
+}
+
 std::string ReplaySource::describe() const {
   std::string d = "replay " + name_;
-  if (options_.pacing == ReplayOptions::Pacing::kAsFastAsPossible) return d + " (as fast as possible)";
+  if (options_.pacing == ReplayOptions::Pacing::kAsFastAsPossible) {
+    return d + (options_.loop ? " (as fast as possible, looped)" : " (as fast as possible)");
+  }
   char speed[32];
   std::snprintf(speed, sizeof(speed), "%g", options_.speed);
-  return d + " (paced x" + speed + (options_.shift_to_now ? ", time shifted to now)" : ")");
+  return d + " (paced x" + speed + (options_.shift_to_now ? ", time shifted to now" : "") + (options_.loop ? ", looped)" : ")");
 }
 
 SourceEnd ReplaySource::run(SampleSink& sink, const std::atomic<bool>& stop) {
@@ -109,14 +134,23 @@ SourceEnd ReplaySource::run(SampleSink& sink, const std::atomic<bool>& stop) {
   const int first = pick();
   const std::int64_t t_first = first >= 0 ? timeOf(first, 0) : 0;
   const std::int64_t start = paced ? now() : 0;
+  const std::int64_t pass_period = options_.loop ? passPeriodNs() : 0;
   shift_ns_ = paced && options_.shift_to_now ? start - t_first : 0;
+  passes_ = first >= 0 ? 1 : 0;
+  std::int64_t pass_offset = 0;  // pass k: k * pass_period
 
   for (;;) {
     if (stop.load(std::memory_order_relaxed)) return SourceEnd::kStopped;
-    const int s = pick();
-    if (s < 0) return SourceEnd::kEndOfData;
+    int s = pick();
+    if (s < 0) {
+      if (!options_.loop || first < 0) return SourceEnd::kEndOfData;
+      for (std::size_t& n : next) n = 0;
+      pass_offset += pass_period;
+      ++passes_;
+      s = pick();
+    }
     const std::size_t i = next[s]++;
-    const std::int64_t t = timeOf(s, i);
+    const std::int64_t t = timeOf(s, i) + pass_offset;
     if (paced) {
       const double offset_ns = static_cast<double>(t - t_first) / options_.speed;
       const std::int64_t due = start + static_cast<std::int64_t>(std::llround(offset_ns));
@@ -126,28 +160,29 @@ SourceEnd ReplaySource::run(SampleSink& sink, const std::atomic<bool>& stop) {
       }
       if (stop.load(std::memory_order_relaxed)) return SourceEnd::kStopped;
     }
+    const std::int64_t shift = shift_ns_ + pass_offset;
     switch (s) {
       case kImu: {
         ImuSample m = r.imu[i];
-        m.t_ns += shift_ns_;
+        m.t_ns += shift;
         sink.push(Sample{m});
         break;
       }
       case kRange: {
         RangeSample m = r.ranges[i];
-        m.t_ns += shift_ns_;
+        m.t_ns += shift;
         sink.push(Sample{m});
         break;
       }
       case kTdoa: {
         TdoaSample m = r.tdoa[i];
-        m.t_ns += shift_ns_;
+        m.t_ns += shift;
         sink.push(Sample{m});
         break;
       }
       default: {
         UltrasonicSample m = r.ultrasonic[i];
-        m.t_ns += shift_ns_;
+        m.t_ns += shift;
         sink.push(Sample{m});
         break;
       }

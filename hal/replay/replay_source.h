@@ -27,6 +27,14 @@
 //  clock without sleeping); by default CLOCK_MONOTONIC and clock_nanosleep
 //  with TIMER_ABSTIME.
 //
+// Loop. With `loop`, the end of the data starts the next pass from the
+// beginning instead of returning kEndOfData. Pass k's samples carry
+// t_ns + k * (span + step), where span is last - first sample time and step
+// the mean IMU period (1 ms without IMU), so time keeps increasing at the
+// recording's rate across the seam and a paced replay stays on schedule.
+// For soak runs and demos: the tag jumps back to its starting place at each
+// seam, which an estimator sees as an inconsistency (and re-initializes).
+//
 // Stop. `stop` is read before every sample and between sleeps of at most
 // max_sleep_ns, so run() returns kStopped within max_sleep_ns (paced) or
 // one sample (fast) of stop becoming true.
@@ -55,6 +63,7 @@ struct ReplayOptions {
   Pacing pacing = Pacing::kAsFastAsPossible;
   double speed = 1.0;          ///< kRealTime: recording seconds per clock second, > 0
   bool shift_to_now = false;   ///< kRealTime: shift t_ns so the first sample is at the start time
+  bool loop = false;           ///< at the end, replay again from the start (time keeps increasing)
   bool imu = true;             ///< streams to replay
   bool ranges = true;
   bool tdoa = true;
@@ -75,8 +84,9 @@ class ReplaySource final : public SampleSource {
   /// readRecording). `name` appears in describe() and in fault devices.
   ReplaySource(Recording recording, std::string name, ReplayOptions options = {});
 
-  /// Pushes the samples in order until the end (kEndOfData) or `stop`
-  /// (kStopped). May be called again: each call replays from the start.
+  /// Pushes the samples in order until the end (kEndOfData; never with
+  /// `loop` unless there is nothing to replay) or `stop` (kStopped). May be
+  /// called again: each call replays from the start.
   SourceEnd run(SampleSink& sink, const std::atomic<bool>& stop) override;
   std::string describe() const override;
 
@@ -86,6 +96,10 @@ class ReplaySource final : public SampleSource {
   std::size_t sampleCount() const;
   /// The shift added to t_ns by the last run() (0 unless shift_to_now).
   std::int64_t timeShiftNs() const { return shift_ns_; }
+  /// Passes begun by the last run() (1 without `loop`; 0 if it pushed nothing).
+  std::int64_t passes() const { return passes_; }
+  /// Time added to the samples of each further pass with `loop`.
+  std::int64_t passPeriodNs() const;
 
  private:
   void checkOptions() const;
@@ -97,6 +111,7 @@ class ReplaySource final : public SampleSource {
   std::string name_;
   ReplayOptions options_;
   std::int64_t shift_ns_ = 0;
+  std::int64_t passes_ = 0;
 };
 
 }  // namespace rilo

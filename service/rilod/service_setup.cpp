@@ -37,6 +37,7 @@ std::unique_ptr<SampleSource> makeReplaySource(const ReplaySourceConfig& replay)
                                                    : ReplayOptions::Pacing::kAsFastAsPossible;
   ro.speed = replay.speed;
   ro.shift_to_now = replay.shift_to_now && ro.pacing == ReplayOptions::Pacing::kRealTime;
+  ro.loop = replay.loop;
   std::unique_ptr<SampleSource> source = std::make_unique<ReplaySource>(replay.path, ro);
   if (!replay.faults.empty()) source = std::make_unique<FaultInjectingSource>(std::move(source), replay.faults);
   return source;

@@ -310,6 +310,57 @@ TEST(ReplaySource, BadOptionsThrow) {
   EXPECT_THROW(ReplaySource(tiedRecording(), "mem", o), std::invalid_argument);
 }
 
+TEST(ReplaySource, LoopReplaysAgainWithTimeRunningOn) {
+  ReplayOptions o;
+  o.loop = true;
+  ReplaySource src(tiedRecording(), "mem", o);
+  EXPECT_EQ(src.describe(), "replay mem (as fast as possible, looped)");
+  // Span 5..30 ns plus the mean IMU period (10 ns).
+  EXPECT_EQ(src.passPeriodNs(), 35);
+  std::atomic<bool> stop{false};
+  CollectingSink sink(&stop, 21);  // two passes and three samples of the third
+  EXPECT_EQ(src.run(sink, stop), SourceEnd::kStopped);
+  ASSERT_EQ(sink.samples.size(), 21u);
+  EXPECT_EQ(src.passes(), 3);
+  for (std::size_t i = 9; i < sink.samples.size(); ++i) {
+    const Sample& again = sink.samples[i];
+    const Sample& once = sink.samples[i % 9];
+    EXPECT_EQ(again.index(), once.index()) << i;
+    EXPECT_EQ(timeOf(again), timeOf(once) + 35 * static_cast<std::int64_t>(i / 9)) << i;
+    EXPECT_GE(timeOf(again), timeOf(sink.samples[i - 1])) << i;  // never back in time
+  }
+  // The seam: the last IMU sample of pass 0 (30) to the first of pass 1 (45).
+  EXPECT_EQ(timeOf(sink.samples[8]), 30);
+  EXPECT_EQ(timeOf(sink.samples[10]), 45);
+  // Nothing to replay: the end of the data, not an endless loop.
+  ReplaySource empty(Recording{}, "empty", o);
+  CollectingSink none;
+  EXPECT_EQ(empty.run(none, stop = false), SourceEnd::kEndOfData);
+  EXPECT_EQ(empty.passes(), 0);
+}
+
+TEST(ReplaySource, PacedLoopStaysOnTheRecordingsSchedule) {
+  FakeClock clock;
+  ReplayOptions o;
+  o.pacing = ReplayOptions::Pacing::kRealTime;
+  o.shift_to_now = true;
+  o.loop = true;
+  clock.install(o);
+  ReplaySource src(tiedRecording(), "mem", o);
+  EXPECT_EQ(src.describe(), "replay mem (paced x1, time shifted to now, looped)");
+  std::atomic<bool> stop{false};
+  CollectingSink sink(&stop, 18, &clock.now);
+  const std::int64_t start = clock.now;
+  EXPECT_EQ(src.run(sink, stop), SourceEnd::kStopped);
+  ASSERT_EQ(sink.samples.size(), 18u);
+  for (std::size_t i = 0; i < sink.samples.size(); ++i) {
+    // Shifted to now and paced at speed 1: each sample is pushed at its own t_ns.
+    EXPECT_EQ(sink.push_clock[i], timeOf(sink.samples[i])) << i;
+  }
+  EXPECT_EQ(timeOf(sink.samples.front()), start);
+  EXPECT_EQ(timeOf(sink.samples[9]), start + 35);
+}
+
 TEST(ReplaySource, PacedOnTheRealClockRunsToTheEnd) {
   // Smoke test of the default clock and sleep (no timing assertion): 25 ns of
   // recording at speed 1 finish at once.

@@ -20,6 +20,7 @@ void LocalizerParams::validate() const {
   if (!(max_gyro_bias_rad_s > 0.0)) fail("max_gyro_bias_rad_s", "must be > 0");
   if (!(max_imu_gap_s > 0.0)) fail("max_imu_gap_s", "must be > 0");
   if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
+  range_consistency.validate();
   height_band.validate("LocalizerParams.height_band");
   if (!(vertical_speed_sigma_m_s >= 0.0 && std::isfinite(vertical_speed_sigma_m_s))) fail("vertical_speed_sigma_m_s", "must be finite and >= 0");
   smoother.validate();
@@ -91,7 +92,9 @@ LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors
 Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
     : p_w_anchors_(std::move(p_w_anchors)),
       params_(resolved(std::move(params), p_w_anchors_, height_band_note_)),
-      initializer_(p_w_anchors_, params_.init) {
+      initializer_(p_w_anchors_, params_.init),
+      consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
+                   params_.graph.same_state_window_ns, params_.range_consistency) {
   params_.validate();
 }
 
@@ -114,6 +117,7 @@ void Localizer::addImu(const ImuSample& sample) {
 void Localizer::addRange(const RangeSample& sample) {
   if (sample.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
   if (phase_ == Phase::kTracking) {
+    consistency_.onRange(sample);
     guarded([&] { estimator_->addRange(sample); });
   } else {
     initializer_.addRange(sample);
@@ -153,6 +157,7 @@ int Localizer::process(std::vector<UpdateStats>* stats) {
     checkHealth(s);
     if (phase_ != Phase::kTracking) break;
   }
+  if (phase_ == Phase::kTracking && updates > 0) checkConsistency();
   return updates;
 }
 
@@ -188,6 +193,7 @@ void Localizer::startTracking() {
   guarded([&] { handOver(initializer_, *estimator_); });
   if (phase_ != Phase::kTracking) return;
   consecutive_rejections_ = 0;
+  consistency_.reset();
   ++initializations_;
 }
 
@@ -214,6 +220,15 @@ void Localizer::checkHealth(const UpdateStats& stats) {
   } else if (stats.step_accepted) {
     consecutive_rejections_ = 0;
   }
+}
+
+void Localizer::checkConsistency() {
+  const StateEstimate& s = estimator_->latest();
+  if (consistency_.judge(s.t_ns, s.T_w_b)) return;
+  char why[160];
+  std::snprintf(why, sizeof why, "%.0f%% of the last %d ranges much shorter than the estimate predicts at t=%.3f s",
+                100.0 * consistency_.shortShare(), consistency_.judgedInWindow(), static_cast<double>(s.t_ns) * 1e-9);
+  fail(why);
 }
 
 void Localizer::fail(std::string why) {

@@ -14,6 +14,7 @@
 #include "estimation/ekf/ekf_params.h"
 #include "estimation/graph/factor.h"
 #include "estimation/pipeline/initializer.h"
+#include "estimation/pipeline/range_consistency.h"
 #include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/pipeline/tracking_estimator.h"
 #include "estimation/smoother/sliding_window_params.h"
@@ -46,6 +47,8 @@ struct LocalizerParams {
   double max_gyro_bias_rad_s = 0.3;
   double max_imu_gap_s = 1.0;        ///< IMU silence longer than this: the motion model is broken
   int max_consecutive_rejections = 40;  ///< D-iSAM2 updates keeping the previous estimate in a row
+  /// Too many two-way ranges much shorter than the estimate predicts (see range_consistency.h).
+  RangeConsistencyParams range_consistency;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -108,6 +111,7 @@ class Localizer {
  private:
   void startTracking();
   void checkHealth(const UpdateStats& stats);
+  void checkConsistency();
   void fail(std::string why);
   template <typename F>
   void guarded(F&& f);
@@ -118,6 +122,7 @@ class Localizer {
   Phase phase_ = Phase::kInitializing;
   Initializer initializer_;
   std::unique_ptr<TrackingEstimator> estimator_;
+  RangeConsistencyMonitor consistency_;
   std::int64_t last_imu_ns_ = 0;
   bool have_imu_ = false;
   int consecutive_rejections_ = 0;

@@ -1,0 +1,140 @@
+// RangeConsistencyMonitor: ranges much shorter than the estimate predicts
+// flag an inconsistent estimate; long (NLOS) ranges never do.
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+
+#include "estimation/pipeline/range_consistency.h"
+
+namespace rilo {
+namespace {
+
+const std::vector<Vec3> kAnchors = {Vec3(0, 0, 2), Vec3(10, 0, 2), Vec3(0, 10, 2), Vec3(10, 10, 2)};
+
+RangeSample rangeTo(std::uint32_t id, std::int64_t t_ns, const Vec3& p_w_tag, double error_m) {
+  RangeSample r;
+  r.t_ns = t_ns;
+  r.anchor_id = id;
+  r.range_m = (p_w_tag - kAnchors[id]).norm() + error_m;
+  return r;
+}
+
+Pose3 at(const Vec3& p) {
+  Pose3 T;
+  T.p = p;
+  return T;
+}
+
+RangeConsistencyParams smallWindow() {
+  RangeConsistencyParams p;
+  p.window = 10;
+  p.min_judged = 8;
+  p.max_short_share = 0.3;
+  p.short_sigmas = 5.0;
+  p.short_floor_m = 0.5;
+  return p;
+}
+
+TEST(RangeConsistency, ResidualUsesTheLeverArmAndSign) {
+  const Vec3 lever(0.0, 0.0, 0.1);
+  RangeConsistencyMonitor m(kAnchors, lever, 0.1, 5'000'000, smallWindow());
+  const Vec3 p_tag(5, 5, 1.1);
+  const RangeSample r = rangeTo(1, 0, p_tag, -0.3);
+  EXPECT_NEAR(m.residual(r, at(Vec3(5, 5, 1.0))), -0.3, 1e-12);  // body at 1.0 m, antenna 0.1 m above
+}
+
+TEST(RangeConsistency, NlosLongRangesNeverFlagButShortOnesDo) {
+  RangeConsistencyMonitor m(kAnchors, Vec3::Zero(), 0.1, 5'000'000, smallWindow());
+  const Vec3 p(5, 5, 1);
+  std::int64_t t = 0;
+  // Heavy NLOS: every range 3 m too long. Consistent (the tail's business).
+  for (int k = 0; k < 20; ++k, t += 25'000'000) {
+    m.onRange(rangeTo(static_cast<std::uint32_t>(k % 4), t, p, 3.0));
+    EXPECT_TRUE(m.judge(t, at(p))) << k;
+  }
+  EXPECT_EQ(m.shortShare(), 0.0);
+  EXPECT_EQ(m.judgedInWindow(), 10);
+  // The estimate is 4 m off: ranges to anchors on the far side are short.
+  const Pose3 wrong = at(p + Vec3(4, 0, 0));
+  int first_failure = -1;
+  for (int k = 0; k < 20 && first_failure < 0; ++k, t += 25'000'000) {
+    m.onRange(rangeTo(static_cast<std::uint32_t>(k % 4), t, p, 0.0));
+    if (!m.judge(t, wrong)) first_failure = k;
+  }
+  ASSERT_GE(first_failure, 0) << "never flagged";
+  EXPECT_GT(m.shortShare(), 0.3);
+  // Half the anchors are short at this geometry: the share crosses 0.3 after
+  // 4 of the 10 slots hold short ranges, i.e. within 8 ranges.
+  EXPECT_LE(first_failure, 8);
+  // Reset: a new start judges afresh.
+  m.reset();
+  EXPECT_EQ(m.judgedInWindow(), 0);
+  EXPECT_EQ(m.shortShare(), 0.0);
+}
+
+TEST(RangeConsistency, NoVerdictBeforeMinJudgedAndOnlyTheNewestStatesRanges) {
+  RangeConsistencyMonitor m(kAnchors, Vec3::Zero(), 0.1, 5'000'000, smallWindow());
+  const Vec3 p(5, 5, 1);
+  const Pose3 far = at(Vec3(-20, -20, 1));  // every range short
+  for (int k = 0; k < 7; ++k) {
+    m.onRange(rangeTo(static_cast<std::uint32_t>(k % 4), k * 25'000'000, p, 0.0));
+    EXPECT_TRUE(m.judge(k * 25'000'000, far)) << "only " << k + 1 << " judged";
+  }
+  EXPECT_EQ(m.shortShare(), 1.0);
+  // A range of a later state waits for that state's update.
+  m.onRange(rangeTo(0, 1'000'000'000, p, 0.0));
+  EXPECT_TRUE(m.judge(200'000'000, far));
+  EXPECT_EQ(m.judgedInWindow(), 7);
+  // Ranges older than max_age at the update are dropped unjudged.
+  RangeConsistencyParams params = smallWindow();
+  params.max_age_ns = 50'000'000;
+  RangeConsistencyMonitor old(kAnchors, Vec3::Zero(), 0.1, 5'000'000, params);
+  old.onRange(rangeTo(0, 0, p, 0.0));
+  old.onRange(rangeTo(1, 100'000'000, p, 0.0));
+  old.judge(100'000'000, at(p));
+  EXPECT_EQ(old.judgedInWindow(), 1);
+  // Unknown anchors are ignored.
+  RangeSample unknown = rangeTo(0, 200'000'000, p, 0.0);
+  unknown.anchor_id = 7;
+  old.onRange(unknown);
+  old.judge(200'000'000, at(p));
+  EXPECT_EQ(old.judgedInWindow(), 1);
+}
+
+TEST(RangeConsistency, DisabledNeverFlags) {
+  RangeConsistencyParams params = smallWindow();
+  params.enabled = false;
+  RangeConsistencyMonitor m(kAnchors, Vec3::Zero(), 0.1, 5'000'000, params);
+  for (int k = 0; k < 20; ++k) {
+    m.onRange(rangeTo(static_cast<std::uint32_t>(k % 4), k, Vec3(5, 5, 1), 0.0));
+    EXPECT_TRUE(m.judge(k, at(Vec3(-20, -20, 1))));
+  }
+  EXPECT_EQ(m.judgedInWindow(), 0);
+}
+
+TEST(RangeConsistency, BadParamsNameTheField) {
+  auto message = [](RangeConsistencyParams p) {
+    try {
+      p.validate();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  RangeConsistencyParams p;
+  p.window = 0;
+  EXPECT_NE(message(p).find("window"), std::string::npos);
+  p = {};
+  p.min_judged = p.window + 1;
+  EXPECT_NE(message(p).find("min_judged"), std::string::npos);
+  p = {};
+  p.max_short_share = 0.0;
+  EXPECT_NE(message(p).find("max_short_share"), std::string::npos);
+  p = {};
+  p.short_floor_m = -1.0;
+  EXPECT_NE(message(p).find("short_floor_m"), std::string::npos);
+  EXPECT_EQ(message(RangeConsistencyParams{}), "");
+}
+
+}  // namespace
+}  // namespace rilo

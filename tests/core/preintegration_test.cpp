@@ -107,6 +107,9 @@ TEST(ImuParams, ValidateNamesTheBadField) {
       {"accel_bias_tau_s", &ImuParams::accel_bias_tau_s, {-10.0, 0.0, nan}},
       {"integration_noise_density", &ImuParams::integration_noise_density, {-1e-4, 0.0, nan}},
       {"gravity_m_s2", &ImuParams::gravity_m_s2, {-9.81, nan, HUGE_VAL}},
+      {"gap_threshold_s", &ImuParams::gap_threshold_s, {-0.02, 0.0, nan, HUGE_VAL}},
+      {"gap_accel_sigma_m_s2", &ImuParams::gap_accel_sigma_m_s2, {-1.0, nan, HUGE_VAL}},
+      {"gap_gyro_sigma_rad_s", &ImuParams::gap_gyro_sigma_rad_s, {-1.0, nan}},
   };
   for (const Case& c : cases) {
     for (double v : c.bad) {
@@ -271,6 +274,34 @@ TEST(Preintegration, BiasCorrectionBeyondPi) {
 }
 
 // ----------------------------------------------------------------- covariance
+
+TEST(Preintegration, GapIntervalAddsTheUnmeasuredMotionVariance) {
+  // One interval at rest, theta = 0 (Jr = I): the covariance is exactly the
+  // input variances, so the gap term shows as a difference of (sigma dt)^2.
+  ImuParams no_gap_noise;
+  no_gap_noise.gap_accel_sigma_m_s2 = no_gap_noise.gap_gyro_sigma_rad_s = 0.0;
+  const ImuParams with_gap_noise;  // defaults: 2 m/s^2, 0.5 rad/s beyond 0.02 s
+  const Vec3 f_b(0.0, 0.0, kG), w_b = Vec3::Zero();
+  for (double dt : {0.01, 0.5}) {
+    PreintegratedImu a(no_gap_noise), b(with_gap_noise);
+    a.integrate(f_b, w_b, dt);
+    b.integrate(f_b, w_b, dt);
+    const Mat9 d = b.covariance() - a.covariance();
+    const Eigen::Matrix<double, 15, 15> dc = b.combinedCovariance() - a.combinedCovariance();
+    if (dt <= with_gap_noise.gap_threshold_s) {
+      EXPECT_EQ(d.norm(), 0.0) << "no gap at dt " << dt;
+      EXPECT_EQ(dc.norm(), 0.0);
+      continue;
+    }
+    const double sa2 = 4.0, sg2 = 0.25, dt2 = dt * dt;
+    const Mat3 I = Mat3::Identity();
+    EXPECT_TRUE((d.block<3, 3>(0, 0).isApprox(sg2 * dt2 * I, 1e-9))) << d.block<3, 3>(0, 0);  // rotation
+    EXPECT_TRUE((d.block<3, 3>(3, 3).isApprox(sa2 * dt2 * dt2 * 0.25 * I, 1e-9)));  // position
+    EXPECT_TRUE((d.block<3, 3>(3, 6).isApprox(sa2 * dt2 * dt * 0.5 * I, 1e-9)));  // p-v
+    EXPECT_TRUE((d.block<3, 3>(6, 6).isApprox(sa2 * dt2 * I, 1e-9))) << d.block<3, 3>(6, 6);  // velocity
+    EXPECT_TRUE((dc.topLeftCorner<9, 9>().isApprox(d, 1e-9)));
+  }
+}
 
 TEST(Preintegration, CovarianceModesKeepTheSameMatrices) {
   const sim::LissajousWalk walk;

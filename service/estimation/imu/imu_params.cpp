@@ -71,6 +71,13 @@ void ImuParams::validate() const {
     fail("integration_noise_density", "finite and > 0", integration_noise_density);
   }
   if (!(std::isfinite(gravity_m_s2) && gravity_m_s2 >= 0.0)) fail("gravity_m_s2", "finite and >= 0", gravity_m_s2);
+  requirePositiveFinite(gap_threshold_s, "gap_threshold_s");
+  if (!(std::isfinite(gap_accel_sigma_m_s2) && gap_accel_sigma_m_s2 >= 0.0)) {
+    fail("gap_accel_sigma_m_s2", "finite and >= 0", gap_accel_sigma_m_s2);
+  }
+  if (!(std::isfinite(gap_gyro_sigma_rad_s) && gap_gyro_sigma_rad_s >= 0.0)) {
+    fail("gap_gyro_sigma_rad_s", "finite and >= 0", gap_gyro_sigma_rad_s);
+  }
 }
 
 }  // namespace rilo

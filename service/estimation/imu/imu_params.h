@@ -57,6 +57,20 @@ struct ImuParams {
 
   double gravity_m_s2 = 9.81;  ///< magnitude of gravity (m/s^2); world gravity is (0, 0, -g), z up
 
+  // Missing samples. A sample interval longer than gap_threshold_s means the
+  // IMU dropped samples: the held sample stands for motion nobody measured.
+  // Such an interval gets, on top of the white noise, a per-interval input
+  // variance of (gap sigma)^2, i.e. an unknown constant accel/rate deviation
+  // over the gap: velocity sigma gap_accel * dt, rotation sigma gap_gyro * dt.
+  // Without it a 0.6 s gap was integrated as exactly known and the smoother
+  // pushed the error into the biases (gyro bias 5-9x its value, tracking
+  // 0.39 -> 0.52 m; 0.9 s gaps ended tracking 23 s later). Defaults: a
+  // walking person's accel and turn-rate variability. Must exceed the
+  // nominal sample interval (0.02 s: IMU rates >= 50 Hz).
+  double gap_threshold_s = 0.02;
+  double gap_accel_sigma_m_s2 = 2.0;
+  double gap_gyro_sigma_rad_s = 0.5;
+
   /// Steady-state bias standard deviation q sqrt(tau/2): rad/s (gyro), m/s^2
   /// (accel); +inf for a random walk.
   double gyroBiasSigma() const;
@@ -73,7 +87,7 @@ struct ImuParams {
 
   /// Throws std::invalid_argument naming the first bad field: densities must be
   /// finite and > 0 (integration_noise_density >= 0), tau > 0 (may be +inf),
-  /// gravity finite and >= 0.
+  /// gravity finite and >= 0, gap threshold > 0 and gap sigmas >= 0.
   void validate() const;
 };
 

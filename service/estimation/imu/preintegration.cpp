@@ -179,7 +179,11 @@ void PreintegratedImu::integrate(const Vec3& accel_m_s2, const Vec3& gyro_rad_s,
   J.Rd = f.R * dt_s;                               // d v+ / d a
   J.Jd = f.Jr_inv * dt_s;                          // d theta+ / d w
   const Mat3& JJt = f.JJt;
-  const double va = accel_var_density_ / dt_s, vg = gyro_var_density_ / dt_s;  // discrete sample variances
+  double va = accel_var_density_ / dt_s, vg = gyro_var_density_ / dt_s;  // discrete sample variances
+  if (dt_s > params_.gap_threshold_s) {  // dropped samples: unmeasured motion (ImuParams)
+    va += params_.gap_accel_sigma_m_s2 * params_.gap_accel_sigma_m_s2;
+    vg += params_.gap_gyro_sigma_rad_s * params_.gap_gyro_sigma_rad_s;
+  }
 
   if (hasCovariance()) {
     propagate(cov_, J);

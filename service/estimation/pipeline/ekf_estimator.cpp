@@ -151,7 +151,8 @@ void EkfEstimator::closeGroup() {
   // back (seen on the hall sim with TDoA: 90 % gated while the error grew to
   // 50 m); reported as a rejected step, so that a long enough run of them
   // makes the Localizer re-initialize (max_consecutive_rejections; a lucky
-  // measurement now and then still breaks the run). Healthy tracking gates
+  // measurement now and then breaks such a run, hence also the windowed
+  // share, LocalizerParams::rejection_window). Healthy tracking gates
   // 15-35 % of the rows there, so few groups lose half of theirs.
   s.step_accepted = 2 * group_accepted_ >= group_size_;
   s.time_s = group_time_s_;

@@ -20,6 +20,8 @@ void LocalizerParams::validate() const {
   if (!(max_gyro_bias_rad_s > 0.0)) fail("max_gyro_bias_rad_s", "must be > 0");
   if (!(max_imu_gap_s > 0.0)) fail("max_imu_gap_s", "must be > 0");
   if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
+  if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
+  if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   height_band.validate("LocalizerParams.height_band");
   if (!(vertical_speed_sigma_m_s >= 0.0 && std::isfinite(vertical_speed_sigma_m_s))) fail("vertical_speed_sigma_m_s", "must be finite and >= 0");
   smoother.validate();
@@ -93,6 +95,7 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       params_(resolved(std::move(params), p_w_anchors_, height_band_note_)),
       initializer_(p_w_anchors_, params_.init) {
   params_.validate();
+  if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
 }
 
 void Localizer::addImu(const ImuSample& sample) {
@@ -188,6 +191,7 @@ void Localizer::startTracking() {
   guarded([&] { handOver(initializer_, *estimator_); });
   if (phase_ != Phase::kTracking) return;
   consecutive_rejections_ = 0;
+  if (rejection_window_) rejection_window_->reset();
   ++initializations_;
 }
 
@@ -210,6 +214,10 @@ void Localizer::checkHealth(const UpdateStats& stats) {
     fail(why);
   } else if (!stats.step_accepted && ++consecutive_rejections_ >= params_.max_consecutive_rejections) {
     std::snprintf(why, sizeof why, "%d updates in a row kept the previous estimate at t=%.3f s", consecutive_rejections_, t_s);
+    fail(why);
+  } else if (rejection_window_ && rejection_window_->note(stats.step_accepted)) {
+    std::snprintf(why, sizeof why, "%d of the last %d updates kept the previous estimate at t=%.3f s (limit %.0f %%)",
+                  rejection_window_->rejected(), rejection_window_->length(), t_s, 100.0 * params_.max_rejection_share);
     fail(why);
   } else if (stats.step_accepted) {
     consecutive_rejections_ = 0;

@@ -124,6 +124,10 @@ void EkfEstimator::apply(const Measurement& m) {
     group_t0_ns_ = m.t_ns;
     group_size_ = group_accepted_ = 0;
     group_time_s_ = 0.0;
+    // One group is one state of the graph, which gets the vertical speed
+    // prior once (RangeImuGraphParams::vertical_speed_sigma_m_s): the same
+    // motion knowledge for the baseline.
+    if (graph_.vertical_speed_sigma_m_s > 0.0) ekf_.applyVerticalSpeedPrior(graph_.vertical_speed_sigma_m_s);
   }
   // The graph holds every state in the tag height band (HeightBandFactor on
   // the body height); the filter applies the same band after each update.

@@ -81,10 +81,10 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.floor_z_m) lp.height_band.floor_z_m = *s.floor_z_m;
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;
   if (s.max_height_m) lp.height_band.max_height_m = *s.max_height_m;
-  if (s.vertical_speed_sigma_m_s) lp.vertical_speed_sigma_m_s = *s.vertical_speed_sigma_m_s;
   lp.graph.p_b_ultrasonic = rec.meta.ultrasonic_lever_arm_m;
   lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(rec.anchors);
   const bool tdoa_used = s.measurements.tdoa && !rec.tdoa.empty();
+  lp.vertical_speed_sigma_m_s = s.vertical_speed_sigma_m_s.value_or(tdoa_used ? kTdoaVerticalSpeedSigmaMs : 0.0);
   if (s.same_state_window_ms) {
     lp.graph.same_state_window_ns = static_cast<std::int64_t>(std::llround(*s.same_state_window_ms * 1e6));
   } else if (tdoa_used) {

@@ -1,5 +1,7 @@
 #include "evaluation/tdoa_report_markdown.h"
 
+#include "evaluation/replay_run.h"  // kTdoaVerticalSpeedSigmaMs
+
 #include <algorithm>
 #include <cmath>
 #include <cstdarg>
@@ -237,12 +239,14 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
         strf("; below 100 %% each TDoA epoch (the rows of one time) and each range is kept with that probability "
              "(seed %llu), ultrasonic ranges all kept\n",
              static_cast<unsigned long long>(o.reception_seed)));
-  md += strf("- Window / lag %.1f s; dynamic covariance (per-link TDoA/ultrasonic sigmas) %s; other parameters: the "
+  md += strf("- Window / lag %.1f s; dynamic covariance (per-link TDoA/ultrasonic sigmas) %s; vertical speed prior "
+             "%.2f m/s on every estimator's states (replay's default with TDoA); other parameters: the "
              "library defaults and each recording's meta.yaml\n",
              o.lag_s,
              !o.dynamic_covariance ? "on for the graph estimators when TDoA is used, off for the EKF (default)"
              : *o.dynamic_covariance ? "on for every estimator"
-                                     : "off");
+                                     : "off",
+             kTdoaVerticalSpeedSigmaMs);
   md += strf("- \"Fail\": the run threw, never produced a pose matched to the ground truth, or its mean online error "
              "exceeds %.0f m (diverged); failed runs are left out of the pooled column\n",
              o.fail_mean_m);

@@ -120,5 +120,26 @@ TEST(EkfEstimator, HeightBandPullsTheFilterBackIntoTheBand) {
   EXPECT_THROW(ekf.applyHeightBand(0.9, 1.9, 0.0), std::invalid_argument);
 }
 
+TEST(EkfEstimator, VerticalSpeedPriorPullsOnlyTheVerticalVelocity) {
+  ErrorStateEkf ekf;
+  EkfState x;
+  x.v_w = Vec3(1.0, -0.5, 0.8);
+  ekf.initialize(0, x, Mat15::Identity() * 0.25);
+  ekf.applyVerticalSpeedPrior(0.1);
+  // Kalman gain on v_z alone: 0.25 / (0.25 + 0.01) of the 0.8 m/s goes.
+  EXPECT_NEAR(ekf.state().v_w.z(), 0.8 * 0.01 / 0.26, 1e-9);
+  EXPECT_NEAR(ekf.state().v_w.x(), 1.0, 1e-12) << "uncorrelated states stay";
+  EXPECT_NEAR(ekf.state().v_w.y(), -0.5, 1e-12);
+  EXPECT_NEAR(ekf.covariance()(8, 8), 0.25 * 0.01 / 0.26, 1e-9);
+  EXPECT_EQ(ekf.covariance()(6, 6), 0.25);
+  EXPECT_EQ(ekf.counters().vertical_speed.accepted, 1u);
+  // Never gated: a 20 m/s vertical speed is pulled too.
+  x.v_w.z() = 20.0;
+  ekf.initialize(0, x, Mat15::Identity() * 0.25);
+  ekf.applyVerticalSpeedPrior(0.1);
+  EXPECT_LT(ekf.state().v_w.z(), 1.0);
+  EXPECT_THROW(ekf.applyVerticalSpeedPrior(0.0), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace rilo

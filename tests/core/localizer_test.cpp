@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <memory>
+#include <string>
 
 #include "hal/sim/office_scenario.h"
 #include "hal/sim/range_imu_scenario.h"
@@ -168,6 +170,61 @@ TEST(Localizer, SlidingWindowTracksAfterTheSameInitialization) {
   EXPECT_GT(run.tracked_updates, 200);
   EXPECT_LT(run.mean_error_m, 1.0);
   ASSERT_TRUE(localizer.latestPoseCovariance().has_value());
+}
+
+/// The time in a failure reason ("... at t=27.950 s ..."), or -1.
+double failureTime(const std::string& why) {
+  const auto at = why.find("at t=");
+  return at == std::string::npos ? -1.0 : std::stod(why.substr(at + 5));
+}
+
+// A filter that gates most of its measurements but accepts one group in
+// three breaks every run of rejections in a row (max_consecutive_rejections:
+// 40); the windowed share catches it within a window. Here 2 of every 3
+// ranges in [25, 33) s carry +6 m (beyond every gate).
+TEST(Localizer, MostlyRejectedUpdatesReinitializeDespiteLuckyAcceptances) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 40.0;
+  sp.seed = 3;
+  sim::Scenario s = sim::simulateScenario(sp);
+  const std::int64_t t0_ns = s.imu.front().t_ns;
+  const std::int64_t bad_from_ns = t0_ns + 25'000'000'000, bad_to_ns = t0_ns + 33'000'000'000;
+  int k = 0;
+  for (RangeSample& r : s.ranges) {
+    if (r.t_ns >= bad_from_ns && r.t_ns < bad_to_ns && (k++ % 3) != 0) r.range_m += 6.0;
+  }
+  auto run = [&](int window) {
+    LocalizerParams p = paramsFor(s);
+    setEstimatorByName(p, "ekf");
+    p.rejection_window = window;
+    auto localizer = std::make_unique<Localizer>(s.p_w_anchors, p);
+    feed(s, *localizer);
+    return localizer;
+  };
+  const double t_bad_s = static_cast<double>(bad_from_ns) * 1e-9;
+  const auto without = run(0);
+  // Without the window the run of rejections in a row never reaches 40
+  // while the lucky third arrives (measured: no failure before 39.5 s).
+  if (without->reinitializations() > 0) {
+    EXPECT_GT(failureTime(without->lastFailure()), t_bad_s + 8.0) << without->lastFailure();
+  }
+  const auto with = run(100);
+  ASSERT_GE(with->reinitializations(), 1u);
+  EXPECT_NE(with->lastFailure().find("of the last 100 updates"), std::string::npos) << with->lastFailure();
+  // 100 updates at ~25 per second: measured 2.95 s after the first bad range.
+  EXPECT_LT(failureTime(with->lastFailure()), t_bad_s + 8.0) << with->lastFailure();
+  std::printf("without the window: %s; with it: %s\n", without->lastFailure().c_str(), with->lastFailure().c_str());
+}
+
+TEST(Localizer, RejectionWindowParametersAreValidated) {
+  LocalizerParams p;
+  p.rejection_window = -1;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p.rejection_window = 0;  // off
+  EXPECT_NO_THROW(p.validate());
+  p.rejection_window = 100;
+  p.max_rejection_share = 1.0;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
 }
 
 TEST(Localizer, NamesTheSmoothers) {

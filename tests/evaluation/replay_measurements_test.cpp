@@ -92,6 +92,16 @@ TEST(ReplayMeasurements, OnlyTheSelectedKindsReachThePipeline) {
   ReplaySettings off;
   off.dynamic_covariance = false;
   EXPECT_FALSE(localizerParamsFor(rec, off).stream.dynamic_covariance.enabled);
+  // The vertical speed prior by default when TDoA is used (every estimator; the EKF reads it from graph).
+  EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
+  EXPECT_EQ(localizerParamsFor(rec, s).vertical_speed_sigma_m_s, 0.0);
+  ReplaySettings no_prior;
+  no_prior.vertical_speed_sigma_m_s = 0.0;
+  EXPECT_EQ(localizerParamsFor(rec, no_prior).vertical_speed_sigma_m_s, 0.0);
+  ReplaySettings ekf;
+  ekf.smoother = "ekf";
+  const Localizer with_ekf(uwbAnchorsById(rec.anchors), localizerParamsFor(rec, ekf));
+  EXPECT_EQ(with_ekf.params().graph.vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
   // The ultrasonic beacons and the receiver's lever arm come from the recording.
   const LocalizerParams lp = localizerParamsFor(rec, ReplaySettings());
   EXPECT_EQ(lp.graph.p_b_ultrasonic, rec.meta.ultrasonic_lever_arm_m);
@@ -206,6 +216,7 @@ TEST(ReplayMeasurements, ReceptionOneAndAllKindsOfATwrRecordingChangeNothing) {
   EXPECT_EQ(lp.graph.same_state_window_ns, 5'000'000);
   EXPECT_FALSE(lp.stream.dynamic_covariance.enabled);
   EXPECT_FALSE(lp.ekf.dynamic_covariance.enabled);
+  EXPECT_EQ(lp.vertical_speed_sigma_m_s, 0.0);
   ReplaySettings dc;
   dc.dynamic_covariance = true;
   EXPECT_TRUE(localizerParamsFor(rec, dc).stream.dynamic_covariance.enabled);

@@ -52,6 +52,7 @@ struct EkfCounters {
   EkfUpdateCounts tdoa;
   EkfUpdateCounts ultrasonic;
   EkfUpdateCounts height_band;  ///< applyHeightBand updates
+  EkfUpdateCounts vertical_speed;  ///< applyVerticalSpeedPrior updates
 
   std::uint64_t updates() const { return range.accepted + tdoa.accepted + ultrasonic.accepted; }
   std::uint64_t gated() const { return range.gated + tdoa.gated + ultrasonic.gated; }

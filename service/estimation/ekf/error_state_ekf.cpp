@@ -275,6 +275,34 @@ bool ErrorStateEkf::applyHeightBand(double z_min_m, double z_max_m, double sigma
          UpdateStatus::kAccepted;
 }
 
+void ErrorStateEkf::applyVerticalSpeedPrior(double sigma_m_s) {
+  requireInitialized("applyVerticalSpeedPrior");
+  requireSigma(sigma_m_s, "applyVerticalSpeedPrior", "sigma_m_s");
+  // Scalar update of the error state's dv_z (EkfPrediction covers the pose
+  // block only): H = e_{vz}, y = 0 - v_z, Joseph form, then the usual
+  // injection and reset.
+  constexpr int kVz = ekf_index::kVel + 2;
+  const double r = sigma_m_s * sigma_m_s;
+  const Vec15 PHt = P_.col(kVz);
+  const double S = PHt(kVz) + r;
+  const Vec15 K = PHt / S;
+  const Vec15 dx = K * (0.0 - x_.v_w.z());
+  Mat15 X = P_;
+  X.noalias() -= K * PHt.transpose();  // (I - K H) P
+  const Vec15 XHt = X.col(kVz);
+  P_ = X;
+  P_.noalias() -= XHt * K.transpose();
+  P_.noalias() += r * K * K.transpose();
+  x_ = x_.retract(dx);
+  const Mat3 G = so3::rightJacobian(dx.segment<3>(kTheta));
+  const Eigen::Matrix<double, 3, 15> top = G * P_.topRows<3>();
+  P_.topRows<3>() = top;
+  const Eigen::Matrix<double, 15, 3> left = P_.leftCols<3>() * G.transpose();
+  P_.leftCols<3>() = left;
+  symmetrize(P_);
+  ++counters_.vertical_speed.accepted;
+}
+
 EkfUpdateResult ErrorStateEkf::updateUltrasonic(const Vec3& p_w_anchor, const Vec3& p_b_us, double range_m,
                                                 double sigma_m, const std::optional<UltrasonicElevation>& elevation,
                                                 const RobustLoss* loss) {

@@ -110,6 +110,10 @@ class ErrorStateEkf {
   /// with std-dev sigma_m; inside, nothing. Never gated (it is a prior, not a
   /// measurement that can be an outlier). Returns whether it updated.
   bool applyHeightBand(double z_min_m, double z_max_m, double sigma_m);
+  /// Zero-mean prior on the vertical velocity v_w.z with std-dev sigma_m_s
+  /// (the graph's per-state PriorVec3Factor of vertical_speed_sigma_m_s, once
+  /// per state): a pseudo-measurement, never gated.
+  void applyVerticalSpeedPrior(double sigma_m_s);
 
   bool initialized() const { return initialized_; }
   std::int64_t t_ns() const { return t_ns_; }          ///< time of the state (ns)

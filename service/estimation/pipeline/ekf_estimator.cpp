@@ -124,6 +124,10 @@ void EkfEstimator::apply(const Measurement& m) {
     group_t0_ns_ = m.t_ns;
     group_size_ = group_accepted_ = 0;
     group_time_s_ = 0.0;
+    // One group is one state of the graph, which gets the vertical speed
+    // prior once (RangeImuGraphParams::vertical_speed_sigma_m_s): the same
+    // motion knowledge for the baseline.
+    if (graph_.vertical_speed_sigma_m_s > 0.0) ekf_.applyVerticalSpeedPrior(graph_.vertical_speed_sigma_m_s);
   }
   // The graph holds every state in the tag height band (HeightBandFactor on
   // the body height); the filter applies the same band after each update.
@@ -151,7 +155,8 @@ void EkfEstimator::closeGroup() {
   // back (seen on the hall sim with TDoA: 90 % gated while the error grew to
   // 50 m); reported as a rejected step, so that a long enough run of them
   // makes the Localizer re-initialize (max_consecutive_rejections; a lucky
-  // measurement now and then still breaks the run). Healthy tracking gates
+  // measurement now and then breaks such a run, hence also the windowed
+  // share, LocalizerParams::rejection_window). Healthy tracking gates
   // 15-35 % of the rows there, so few groups lose half of theirs.
   s.step_accepted = 2 * group_accepted_ >= group_size_;
   s.time_s = group_time_s_;

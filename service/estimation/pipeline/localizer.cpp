@@ -21,6 +21,8 @@ void LocalizerParams::validate() const {
   if (!(max_imu_gap_s > 0.0)) fail("max_imu_gap_s", "must be > 0");
   if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
   range_consistency.validate();
+  if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
+  if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   height_band.validate("LocalizerParams.height_band");
   if (!(vertical_speed_sigma_m_s >= 0.0 && std::isfinite(vertical_speed_sigma_m_s))) fail("vertical_speed_sigma_m_s", "must be finite and >= 0");
   smoother.validate();
@@ -96,6 +98,7 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
                    params_.graph.same_state_window_ns, params_.range_consistency) {
   params_.validate();
+  if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
 }
 
 void Localizer::addImu(const ImuSample& sample) {
@@ -194,6 +197,7 @@ void Localizer::startTracking() {
   if (phase_ != Phase::kTracking) return;
   consecutive_rejections_ = 0;
   consistency_.reset();
+  if (rejection_window_) rejection_window_->reset();
   ++initializations_;
 }
 
@@ -216,6 +220,10 @@ void Localizer::checkHealth(const UpdateStats& stats) {
     fail(why);
   } else if (!stats.step_accepted && ++consecutive_rejections_ >= params_.max_consecutive_rejections) {
     std::snprintf(why, sizeof why, "%d updates in a row kept the previous estimate at t=%.3f s", consecutive_rejections_, t_s);
+    fail(why);
+  } else if (rejection_window_ && rejection_window_->note(stats.step_accepted)) {
+    std::snprintf(why, sizeof why, "%d of the last %d updates kept the previous estimate at t=%.3f s (limit %.0f %%)",
+                  rejection_window_->rejected(), rejection_window_->length(), t_s, 100.0 * params_.max_rejection_share);
     fail(why);
   } else if (stats.step_accepted) {
     consecutive_rejections_ = 0;

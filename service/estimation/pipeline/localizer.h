@@ -16,6 +16,7 @@
 #include "estimation/pipeline/initializer.h"
 #include "estimation/pipeline/range_consistency.h"
 #include "estimation/pipeline/range_imu_estimator.h"
+#include "estimation/pipeline/rejection_window.h"
 #include "estimation/pipeline/tracking_estimator.h"
 #include "estimation/smoother/sliding_window_params.h"
 #include "estimation/smoother/smoother_params.h"
@@ -49,6 +50,13 @@ struct LocalizerParams {
   int max_consecutive_rejections = 40;  ///< D-iSAM2 updates keeping the previous estimate in a row
   /// Too many two-way ranges much shorter than the estimate predicts (see range_consistency.h).
   RangeConsistencyParams range_consistency;
+  /// Windowed rejection share (RejectionWindow, see its notes for the
+  /// measurements behind the defaults): fail when more than
+  /// max_rejection_share of the last rejection_window updates were rejected.
+  /// Catches a diverged EKF that a lucky accepted group now and then keeps
+  /// clear of max_consecutive_rejections. rejection_window 0: off.
+  int rejection_window = 100;
+  double max_rejection_share = 0.5;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -126,6 +134,7 @@ class Localizer {
   std::int64_t last_imu_ns_ = 0;
   bool have_imu_ = false;
   int consecutive_rejections_ = 0;
+  std::optional<RejectionWindow> rejection_window_;  ///< empty when params_.rejection_window == 0
   std::uint64_t initializations_ = 0;
   std::uint64_t reinitializations_ = 0;
   std::string last_failure_;

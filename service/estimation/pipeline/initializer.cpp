@@ -505,28 +505,37 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   const double range_cpr = range_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.range_factors));
   const double imu_cpf = imu_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.imu_factors));
   const Key x_last = sym::X(n_states - 1);
-  std::string cov_failure;
-  const std::optional<CovarianceBlock> cov = lm.marginalCovariance(x_last, &cov_failure);
   const Pose3 T_last = out.values.pose(x_last);
-  double pos_sigma = std::numeric_limits<double>::infinity(), yaw_sigma = pos_sigma;
-  if (cov && cov->rows() == 6) {
-    pos_sigma = std::sqrt(std::max(0.0, cov->bottomRightCorner<3, 3>().trace()));
-    // World yaw: the right perturbation phi of R is R phi in the world frame.
-    const Mat3 cov_rot_w = T_last.R * cov->topLeftCorner<3, 3>() * T_last.R.transpose();
-    yaw_sigma = std::sqrt(std::max(0.0, cov_rot_w(2, 2)));
-  }
-  const Vec3 tag_last = T_last.transformFrom(P.graph.p_b_tag);
-  const std::string summary =
-      strprintf("batch over %.1f s (%zu states): ", toS(win.graph.state_t_ns.back() - t_graph0), n_states) +
-      strprintf("range cost %.2f, IMU cost %.3g per factor, sigma %.2f m, yaw sigma %.1f deg", range_cpr, imu_cpf,
-                pos_sigma, yaw_sigma * kRadToDeg);
   std::string reject;
   if (!out.result.converged()) {
     reject = std::string("not converged (") + toString(out.result.status) + ")";
   } else if (range_cpr > P.max_range_cost_per_range || imu_cpf > P.max_imu_cost_per_factor) {
     reject = "cost too high";
-  } else if (!cov) {
-    reject = "covariance unavailable (" + cov_failure + ")";
+  }
+  // The marginal covariance (a factorization and a selected inverse) only
+  // once the solve converged with plausible costs: a rejected solve does not
+  // pay for it. The checks keep their order, so the same solves are accepted.
+  std::optional<CovarianceBlock> cov;
+  double pos_sigma = std::numeric_limits<double>::infinity(), yaw_sigma = pos_sigma;
+  if (reject.empty()) {
+    std::string cov_failure;
+    cov = lm.marginalCovariance(x_last, &cov_failure);
+    if (cov && cov->rows() == 6) {
+      pos_sigma = std::sqrt(std::max(0.0, cov->bottomRightCorner<3, 3>().trace()));
+      // World yaw: the right perturbation phi of R is R phi in the world frame.
+      const Mat3 cov_rot_w = T_last.R * cov->topLeftCorner<3, 3>() * T_last.R.transpose();
+      yaw_sigma = std::sqrt(std::max(0.0, cov_rot_w(2, 2)));
+    }
+    if (!cov) reject = "covariance unavailable (" + cov_failure + ")";
+  }
+  const Vec3 tag_last = T_last.transformFrom(P.graph.p_b_tag);
+  std::string summary =
+      strprintf("batch over %.1f s (%zu states): ", toS(win.graph.state_t_ns.back() - t_graph0), n_states) +
+      strprintf("range cost %.2f, IMU cost %.3g per factor, ", range_cpr, imu_cpf);
+  summary += cov ? strprintf("sigma %.2f m, yaw sigma %.1f deg", pos_sigma, yaw_sigma * kRadToDeg)
+                 : std::string("sigmas not computed");
+  if (!reject.empty()) {
+    // Already rejected above.
   } else if (!(pos_sigma <= P.max_position_sigma_m) || !(yaw_sigma <= P.max_yaw_sigma_rad)) {
     reject = "state not determined well enough yet";
   } else if (!P.height_band.contains(tag_last.z(), 3.0 * P.height_band.sigma_m)) {

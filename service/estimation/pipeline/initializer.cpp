@@ -58,6 +58,50 @@ TagFix tagFixOf(const TdoaFix& f) {
   return t;
 }
 
+/// Starts the states of a batch window at a previous solve's solution:
+/// states at a time the previous window also had take its values; the others
+/// are propagated from the state before them along the strapdown deltas
+/// (from one window reference time, `deltas[i]` at `t_ns[i]`) with that
+/// state's bias, so the track stays continuous where the windows stop
+/// overlapping. Anchor variables take the previous values too. Leaves
+/// `initial` alone and returns false unless the previous solution has the
+/// window's first state.
+bool warmStart(const std::vector<std::int64_t>& prev_t_ns, const Values& prev, const std::vector<std::int64_t>& t_ns,
+               const std::vector<StrapdownDelta>& deltas, double gravity_m_s2, Values& initial) {
+  if (t_ns.empty() || deltas.size() != t_ns.size()) return false;
+  auto prevIndex = [&](std::int64_t t) -> std::optional<std::size_t> {
+    const auto it = std::lower_bound(prev_t_ns.begin(), prev_t_ns.end(), t);
+    if (it == prev_t_ns.end() || *it != t) return std::nullopt;
+    return static_cast<std::size_t>(it - prev_t_ns.begin());
+  };
+  if (!prevIndex(t_ns.front())) return false;
+  const Vec3 g_w(0.0, 0.0, -gravity_m_s2);
+  for (std::size_t i = 0; i < t_ns.size(); ++i) {
+    const std::optional<std::size_t> j = prevIndex(t_ns[i]);
+    if (j) {
+      initial.update(sym::X(i), prev.pose(sym::X(*j)));
+      initial.update(sym::V(i), prev.vec3(sym::V(*j)));
+      initial.update(sym::B(i), prev.bias(sym::B(*j)));
+      continue;
+    }
+    // From state i - 1 (already set): the motion between the two deltas, bias-corrected.
+    const Pose3 T_k = initial.pose(sym::X(i - 1));
+    const Vec3 v_k = initial.vec3(sym::V(i - 1));
+    const ImuBias b_k = initial.bias(sym::B(i - 1));
+    const StrapdownDelta::Corrected ck = deltas[i - 1].corrected(b_k), ct = deltas[i].corrected(b_k);
+    const double dt = deltas[i].dt_s - deltas[i - 1].dt_s;
+    const Mat3 R_r = T_k.R * ck.dR.transpose();  // the reference frame as state i - 1 sees it
+    const Vec3 p = T_k.p + v_k * dt + 0.5 * g_w * dt * dt + R_r * (ct.dp - ck.dp - ck.dv * dt);
+    initial.update(sym::X(i), Pose3(so3::normalize(R_r * ct.dR), p));
+    initial.update(sym::V(i), Vec3(v_k + g_w * dt + R_r * (ct.dv - ck.dv)));
+    initial.update(sym::B(i), b_k);
+  }
+  for (const auto& [key, value] : prev) {
+    if (keySymbol(key) == 'l' && initial.exists(key)) initial.update(key, value);
+  }
+  return true;
+}
+
 }  // namespace
 
 const char* toString(InitState s) {
@@ -97,6 +141,8 @@ void InitializerParams::validate() const {
   if (!(max_imu_cost_per_factor > 0.0)) fail("max_imu_cost_per_factor", "must be > 0");
   if (!(max_range_m > 0.0)) fail("max_range_m", "must be > 0");
   if (!(zero_velocity_sigma_m_s > 0.0)) fail("zero_velocity_sigma_m_s", "must be > 0 (+inf disables)");
+  if (!(batch_gate_sigma_factor >= 1.0)) fail("batch_gate_sigma_factor", "must be >= 1 (+inf disables)");
+  if (!(batch_gate_max_s > 0.0)) fail("batch_gate_max_s", "must be > 0");
   height_band.validate("InitializerParams.height_band");
   fix.validate();
   gravity.validate();
@@ -152,6 +198,9 @@ void Initializer::reset() {
   grow_window_ = false;
   dropped_imu_ = dropped_meas_ = 0;
   status_ = InitStatus();
+  last_solution_.reset();
+  batch_stage_reached_ = false;
+  last_batch_ns_ = 0;
   result_.reset();
 }
 
@@ -466,6 +515,11 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     initial.insert(sym::B(i), align.bias);
   }
   for (Key l : win.graph.anchor_keys) initial.insert(l, p_w_anchors_.at(keyIndex(l)));
+  if (P.warm_start_batch && last_solution_ &&
+      warmStart(last_solution_->state_t_ns, last_solution_->values, win.graph.state_t_ns, deltas,
+                P.graph.imu.gravity_m_s2, initial)) {
+    ++status_.warm_started_solves;
+  }
   double still_s = 0.0;
   if (std::isfinite(P.zero_velocity_sigma_m_s)) {
     const std::vector<StillInterval> still = findStillIntervals(imu, t_graph0, t_now, P.gravity);
@@ -483,12 +537,45 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     for (const StillInterval& iv : still) still_s += toS(iv.t1_ns - iv.t0_ns);
   }
 
+  const std::size_t n_states = win.graph.state_t_ns.size();
+  const Key x_last = sym::X(n_states - 1);
+  // The gate: the newest state's marginal sigmas at the starting values (one
+  // factorization, no iterations) predict those at the solution (measured on
+  // the 7 sims: within 0.5 deg of yaw, 8 %). Well above what acceptance
+  // allows, the solve would be rejected: skip it, unless batch_gate_max_s of
+  // data passed since the last solve that ran (or since the first attempt
+  // that got this far).
+  if (!batch_stage_reached_) {
+    batch_stage_reached_ = true;
+    last_batch_ns_ = t_now;
+  }
+  if (std::isfinite(P.batch_gate_sigma_factor) && t_now - last_batch_ns_ < toNs(P.batch_gate_max_s)) {
+    LmParams probe_params = P.lm;
+    probe_params.max_iterations = 0;
+    BatchLevenbergMarquardt probe(probe_params);
+    probe.optimize(win.graph.graph, initial);
+    const std::optional<CovarianceBlock> cov0 = probe.marginalCovariance(x_last);
+    if (cov0 && cov0->rows() == 6) {
+      const Pose3& T0 = initial.pose(x_last);
+      const double pos0 = std::sqrt(std::max(0.0, cov0->bottomRightCorner<3, 3>().trace()));
+      const Mat3 cov_rot_w = T0.R * cov0->topLeftCorner<3, 3>() * T0.R.transpose();
+      const double yaw0 = std::sqrt(std::max(0.0, cov_rot_w(2, 2)));
+      if (pos0 > P.batch_gate_sigma_factor * P.max_position_sigma_m ||
+          yaw0 > P.batch_gate_sigma_factor * P.max_yaw_sigma_rad) {
+        ++status_.gated_solves;
+        setStatus(InitState::kBatchRejected,
+                  strprintf("waiting: state not determined well enough yet (predicted before solving: sigma %.2f m, "
+                            "yaw sigma %.1f deg)", pos0, yaw0 * kRadToDeg));
+        return false;
+      }
+    }
+  }
   ++status_.batch_solves;
+  last_batch_ns_ = t_now;
   BatchLevenbergMarquardt lm(P.lm);
   BatchLevenbergMarquardt::Output out = lm.optimize(win.graph.graph, initial);
   // Factor layout of buildRangeImuGraph: 3 first-state priors, the IMU factors, the measurement factors, anchor
   // priors, motion priors.
-  const std::size_t n_states = win.graph.state_t_ns.size();
   const std::size_t first_imu = 3, first_range = 3 + win.graph.imu_factors;
   double imu_cost = 0.0, range_cost = 0.0;
   for (std::size_t k = first_imu; k < first_range; ++k) imu_cost += win.graph.graph[k]->error(out.values);
@@ -504,8 +591,12 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   }
   const double range_cpr = range_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.range_factors));
   const double imu_cpf = imu_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.imu_factors));
-  const Key x_last = sym::X(n_states - 1);
   const Pose3 T_last = out.values.pose(x_last);
+  if (out.result.converged()) {
+    last_solution_ = BatchSolution{win.graph.state_t_ns, out.values};
+  } else {
+    last_solution_.reset();
+  }
   std::string reject;
   if (!out.result.converged()) {
     reject = std::string("not converged (") + toString(out.result.status) + ")";

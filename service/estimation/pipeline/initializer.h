@@ -128,6 +128,24 @@ struct InitializerParams {
   /// the states could not follow the IMU (time gaps, a broken model).
   double max_imu_cost_per_factor = 30.0;
   LmParams lm = defaultLmParams();
+  /// Start the batch's states from the previous attempt's converged solution
+  /// where the windows overlap (states at the same time; later states
+  /// propagated from it along the IMU), instead of the aligned strapdown
+  /// track. The optimum is the same (the previous solve's states are close to
+  /// it); the solve needs fewer iterations. Only when the previous solution
+  /// has the window's first state (same window start).
+  bool warm_start_batch = false;
+  /// Gate of the batch solve: the newest state's marginal position and yaw
+  /// sigmas at the starting values (one factorization, no LM iterations)
+  /// predict those at the solution; above this factor times
+  /// max_position_sigma_m / max_yaw_sigma_rad the solve is skipped as it
+  /// would be rejected. +inf disables (every attempt that passes the
+  /// alignment solves).
+  double batch_gate_sigma_factor = 1.15;
+  /// ... but a solve runs at least every this much data time (s), whatever
+  /// the prediction: a prediction that is off delays initialization by at
+  /// most this much.
+  double batch_gate_max_s = 4.0;
   /// Zero-velocity updates: batch states inside a still interval of the IMU
   /// (findStillIntervals) get a zero-velocity prior, sigma * sqrt(1 s / the
   /// state's interval) per state (the same weight per second at any ranging
@@ -168,6 +186,8 @@ struct InitStatus {
   std::int64_t t_ns = 0;  ///< data time of the last attempt
   int attempts = 0;       ///< attempts so far (since construction or reset)
   int batch_solves = 0;   ///< attempts that got as far as the batch solve (the expensive step)
+  int warm_started_solves = 0;
+  int gated_solves = 0;   ///< batch solves skipped by the gate (batch_gate_sigma_factor)  ///< batch solves started from the previous solve's solution (warm_start_batch)
 };
 
 /// The batch-solved window, for a caller that seeds its smoother with it.
@@ -268,6 +288,15 @@ class Initializer {
   double interval_s_ = 0.5;   ///< current attempt interval (see max_attempt_interval_s)
   bool grow_window_ = false;  ///< window_s was not enough for yaw: use up to max_window_s
   std::size_t dropped_imu_ = 0, dropped_meas_ = 0;
+
+  /// The last converged batch solve (warm_start_batch).
+  struct BatchSolution {
+    std::vector<std::int64_t> state_t_ns;
+    Values values;
+  };
+  std::optional<BatchSolution> last_solution_;
+  bool batch_stage_reached_ = false;  ///< an attempt got as far as the batch since construction or reset
+  std::int64_t last_batch_ns_ = 0;    ///< data time of the last batch solve that ran (or of the first attempt that got that far)
 
   InitStatus status_;
   std::optional<InitResult> result_;

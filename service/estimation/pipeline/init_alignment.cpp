@@ -98,9 +98,13 @@ struct SmallRotation {
   double a, b;
   explicit SmallRotation(const Vec3& phi_rad) : phi(phi_rad) {
     const double theta2 = phi.squaredNorm();
-    if (theta2 < 1e-10) {  // theta < so3's small angle (1e-5)
-      a = 1.0 - theta2 / 6.0;
-      b = 0.5 - theta2 / 24.0;
+    if (theta2 < 2.5e-3) {
+      // theta < 0.05 rad (a gyro-bias correction always is): the series of
+      // sin(theta) / theta and (1 - cos theta) / theta^2 to theta^8, exact to
+      // double precision there (next terms < 3e-21), without sin and cos.
+      const double t2 = theta2, t4 = t2 * t2;
+      a = 1.0 - t2 / 6.0 + t4 / 120.0 - t4 * t2 / 5040.0 + t4 * t4 / 362880.0;
+      b = 0.5 - t2 / 24.0 + t4 / 720.0 - t4 * t2 / 40320.0 + t4 * t4 / 3628800.0;
     } else {
       const double theta = std::sqrt(theta2);
       const double s_half = std::sin(0.5 * theta);
@@ -271,8 +275,14 @@ Fit solve(const Problem& pr, const State& s0) {
     }
     if (!accepted || converged) break;
   }
-  linearize(pr, f.s, f.H, g);
+  // f.H is at the state before the last accepted step: refreshed by
+  // finishFit for the one fit whose covariance is used.
   return f;
+}
+
+void finishFit(const Problem& pr, Fit& f) {
+  Vec15d g;
+  linearize(pr, f.s, f.H, g);
 }
 
 double wrapAngle(double a) { return std::remainder(a, 2.0 * M_PI); }
@@ -374,6 +384,7 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
   for (std::size_t k = 1; k < fits.size(); ++k) {
     if (fits[k].cost.total < fits[best].cost.total) best = k;
   }
+  finishFit(pr, fits[best]);
   const Fit& f = fits[best];
   if (!std::isfinite(f.cost.total) || !f.s.R.allFinite() || !f.s.p.allFinite() || !f.s.v.allFinite()) {
     out.message = "alignment diverged";

@@ -58,50 +58,6 @@ TagFix tagFixOf(const TdoaFix& f) {
   return t;
 }
 
-/// Starts the states of a batch window at a previous solve's solution:
-/// states at a time the previous window also had take its values; the others
-/// are propagated from the state before them along the strapdown deltas
-/// (from one window reference time, `deltas[i]` at `t_ns[i]`) with that
-/// state's bias, so the track stays continuous where the windows stop
-/// overlapping. Anchor variables take the previous values too. Leaves
-/// `initial` alone and returns false unless the previous solution has the
-/// window's first state.
-bool warmStart(const std::vector<std::int64_t>& prev_t_ns, const Values& prev, const std::vector<std::int64_t>& t_ns,
-               const std::vector<StrapdownDelta>& deltas, double gravity_m_s2, Values& initial) {
-  if (t_ns.empty() || deltas.size() != t_ns.size()) return false;
-  auto prevIndex = [&](std::int64_t t) -> std::optional<std::size_t> {
-    const auto it = std::lower_bound(prev_t_ns.begin(), prev_t_ns.end(), t);
-    if (it == prev_t_ns.end() || *it != t) return std::nullopt;
-    return static_cast<std::size_t>(it - prev_t_ns.begin());
-  };
-  if (!prevIndex(t_ns.front())) return false;
-  const Vec3 g_w(0.0, 0.0, -gravity_m_s2);
-  for (std::size_t i = 0; i < t_ns.size(); ++i) {
-    const std::optional<std::size_t> j = prevIndex(t_ns[i]);
-    if (j) {
-      initial.update(sym::X(i), prev.pose(sym::X(*j)));
-      initial.update(sym::V(i), prev.vec3(sym::V(*j)));
-      initial.update(sym::B(i), prev.bias(sym::B(*j)));
-      continue;
-    }
-    // From state i - 1 (already set): the motion between the two deltas, bias-corrected.
-    const Pose3 T_k = initial.pose(sym::X(i - 1));
-    const Vec3 v_k = initial.vec3(sym::V(i - 1));
-    const ImuBias b_k = initial.bias(sym::B(i - 1));
-    const StrapdownDelta::Corrected ck = deltas[i - 1].corrected(b_k), ct = deltas[i].corrected(b_k);
-    const double dt = deltas[i].dt_s - deltas[i - 1].dt_s;
-    const Mat3 R_r = T_k.R * ck.dR.transpose();  // the reference frame as state i - 1 sees it
-    const Vec3 p = T_k.p + v_k * dt + 0.5 * g_w * dt * dt + R_r * (ct.dp - ck.dp - ck.dv * dt);
-    initial.update(sym::X(i), Pose3(so3::normalize(R_r * ct.dR), p));
-    initial.update(sym::V(i), Vec3(v_k + g_w * dt + R_r * (ct.dv - ck.dv)));
-    initial.update(sym::B(i), b_k);
-  }
-  for (const auto& [key, value] : prev) {
-    if (keySymbol(key) == 'l' && initial.exists(key)) initial.update(key, value);
-  }
-  return true;
-}
-
 }  // namespace
 
 const char* toString(InitState s) {
@@ -198,9 +154,9 @@ void Initializer::reset() {
   grow_window_ = false;
   dropped_imu_ = dropped_meas_ = 0;
   status_ = InitStatus();
-  last_solution_.reset();
   batch_stage_reached_ = false;
   last_batch_ns_ = 0;
+  rejected_input_.reset();
   result_.reset();
 }
 
@@ -299,6 +255,11 @@ bool Initializer::runAttempt() {
     return false;
   }
   const std::int64_t t_now = imu_.back().t_ns;
+  // The batch was rejected (solved or gated) on exactly this data: the same
+  // attempt would reach the same verdict. Keep it instead of repeating it.
+  const InputStamp stamp{t_now, meas_.size(), meas_.back().t_ns};
+  if (rejected_input_ && *rejected_input_ == stamp && status_.state == InitState::kBatchRejected) return false;
+  rejected_input_.reset();
   const std::int64_t span = t_now - std::max(imu_.front().t_ns, data_start_ns_);
   const std::size_t end = rangeIndexFrom(meas_, t_now + 1);  // measurements the IMU covers
 
@@ -328,7 +289,9 @@ bool Initializer::runAttempt() {
     setStatus(aligned.state, aligned.message);
     return false;
   }
-  return solveBatch(aligned, t_now);
+  const bool ok = solveBatch(aligned, t_now);
+  if (!ok && status_.state == InitState::kBatchRejected) rejected_input_ = stamp;
+  return ok;
 }
 
 int Initializer::sourcesHeard(std::size_t begin, std::size_t end) const {
@@ -515,11 +478,6 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     initial.insert(sym::B(i), align.bias);
   }
   for (Key l : win.graph.anchor_keys) initial.insert(l, p_w_anchors_.at(keyIndex(l)));
-  if (P.warm_start_batch && last_solution_ &&
-      warmStart(last_solution_->state_t_ns, last_solution_->values, win.graph.state_t_ns, deltas,
-                P.graph.imu.gravity_m_s2, initial)) {
-    ++status_.warm_started_solves;
-  }
   double still_s = 0.0;
   if (std::isfinite(P.zero_velocity_sigma_m_s)) {
     const std::vector<StillInterval> still = findStillIntervals(imu, t_graph0, t_now, P.gravity);
@@ -592,11 +550,6 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   const double range_cpr = range_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.range_factors));
   const double imu_cpf = imu_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.imu_factors));
   const Pose3 T_last = out.values.pose(x_last);
-  if (out.result.converged()) {
-    last_solution_ = BatchSolution{win.graph.state_t_ns, out.values};
-  } else {
-    last_solution_.reset();
-  }
   std::string reject;
   if (!out.result.converged()) {
     reject = std::string("not converged (") + toString(out.result.status) + ")";

@@ -39,7 +39,10 @@
 //     aligned strapdown track, zero-velocity priors on the states inside
 //     still intervals of the IMU, batch Levenberg-Marquardt; accepted when it
 //     converged, the range and IMU costs per factor are plausible, and the
-//     newest state's marginal position and yaw sigmas are small.
+//     newest state's marginal position and yaw sigmas are small. The solve
+//     is skipped (batch_gate_sigma_factor) while those sigmas, taken at the
+//     starting values before any iteration, are well above the limits, and
+//     not repeated on the same data after a rejection.
 // Known limit (architecture "Known hard cases"): with 25 % persistent NLOS
 // the window's height can be off by 0.3-0.9 m while the horizontal error
 // stays below 0.3 m; the estimator started at the true state shows the same.
@@ -128,13 +131,6 @@ struct InitializerParams {
   /// the states could not follow the IMU (time gaps, a broken model).
   double max_imu_cost_per_factor = 30.0;
   LmParams lm = defaultLmParams();
-  /// Start the batch's states from the previous attempt's converged solution
-  /// where the windows overlap (states at the same time; later states
-  /// propagated from it along the IMU), instead of the aligned strapdown
-  /// track. The optimum is the same (the previous solve's states are close to
-  /// it); the solve needs fewer iterations. Only when the previous solution
-  /// has the window's first state (same window start).
-  bool warm_start_batch = false;
   /// Gate of the batch solve: the newest state's marginal position and yaw
   /// sigmas at the starting values (one factorization, no LM iterations)
   /// predict those at the solution; above this factor times
@@ -186,8 +182,7 @@ struct InitStatus {
   std::int64_t t_ns = 0;  ///< data time of the last attempt
   int attempts = 0;       ///< attempts so far (since construction or reset)
   int batch_solves = 0;   ///< attempts that got as far as the batch solve (the expensive step)
-  int warm_started_solves = 0;
-  int gated_solves = 0;   ///< batch solves skipped by the gate (batch_gate_sigma_factor)  ///< batch solves started from the previous solve's solution (warm_start_batch)
+  int gated_solves = 0;   ///< batch solves skipped by the gate (batch_gate_sigma_factor)
 };
 
 /// The batch-solved window, for a caller that seeds its smoother with it.
@@ -289,12 +284,14 @@ class Initializer {
   bool grow_window_ = false;  ///< window_s was not enough for yaw: use up to max_window_s
   std::size_t dropped_imu_ = 0, dropped_meas_ = 0;
 
-  /// The last converged batch solve (warm_start_batch).
-  struct BatchSolution {
-    std::vector<std::int64_t> state_t_ns;
-    Values values;
+  /// What an attempt saw: the newest IMU time and the measurement buffer's size and newest time.
+  struct InputStamp {
+    std::int64_t t_imu_ns = 0;
+    std::size_t measurements = 0;
+    std::int64_t t_meas_ns = 0;
+    bool operator==(const InputStamp&) const = default;
   };
-  std::optional<BatchSolution> last_solution_;
+  std::optional<InputStamp> rejected_input_;  ///< input of the last attempt whose batch was rejected
   bool batch_stage_reached_ = false;  ///< an attempt got as far as the batch since construction or reset
   std::int64_t last_batch_ns_ = 0;    ///< data time of the last batch solve that ran (or of the first attempt that got that far)
 

@@ -3,11 +3,15 @@
 // Initializer's LM settings, started from a perturbed ground truth. Besides
 // whole solves, the parts of one LM iteration: linearization into the normal
 // equations, the numeric factorization, the nonlinear error, and the
-// marginal covariance of the newest pose the Initializer asks for.
+// marginal covariance of the newest pose the Initializer asks for; the
+// Initializer's gate probe (that marginal at the starting values) and its
+// range-inertial yaw alignment, which every attempt runs.
 #include <benchmark/benchmark.h>
 
 #include <string>
 
+#include "estimation/pipeline/init_alignment.h"
+#include "estimation/pipeline/init_gravity.h"
 #include "estimation/pipeline/initializer.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/solver/batch_lm.h"
@@ -114,6 +118,50 @@ void BM_InitWindowError(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(wp.graph.graph.error(wp.initial));
 }
 BENCHMARK(BM_InitWindowError)->Arg(10)->Arg(20)->Unit(benchmark::kMicrosecond);
+
+/// The Initializer's batch gate: the newest pose's marginal at the starting
+/// values (no LM iteration: structure, one linearization, one factorization),
+/// to compare with BM_InitWindowSolve.
+void BM_InitWindowGateProbe(benchmark::State& state) {
+  const WindowProblem wp = makeWindow(static_cast<double>(state.range(0)));
+  const Key x_last = sym::X(wp.graph.state_t_ns.size() - 1);
+  LmParams probe_params = InitializerParams::defaultLmParams();
+  probe_params.max_iterations = 0;
+  for (auto _ : state) {
+    BatchLevenbergMarquardt probe(probe_params);
+    benchmark::DoNotOptimize(probe.optimize(wp.graph.graph, wp.initial).result.initial_error);
+    benchmark::DoNotOptimize(probe.marginalCovariance(x_last));
+  }
+  state.counters["states"] = static_cast<double>(wp.graph.state_t_ns.size());
+}
+BENCHMARK(BM_InitWindowGateProbe)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+/// The range-inertial yaw alignment every attempt runs (8 yaw hypotheses, 15
+/// unknowns, every measurement of the window) from the window start.
+void BM_InitAlignment(benchmark::State& state) {
+  sim::ScenarioParams sp;
+  sp.duration_s = static_cast<double>(state.range(0));
+  const sim::Scenario s = sim::simulateScenario(sp);
+  const std::int64_t t0 = s.ranges.front().t_ns;
+  GravityParams gp;
+  const GravityAlignment gravity = alignGravity(s.imu, t0, s.imu.back().t_ns, 9.81, gp);
+  AlignmentParams ap;
+  ap.range_sigma_m = sp.range_sigma_m;
+  ap.p_b_tag = s.p_b_tag;
+  ap.band.enabled = false;
+  const sim::KinematicState st0 = s.truthAt(t0);
+  const Vec3 p_tag0 = st0.T_w_b.transformFrom(s.p_b_tag) + Vec3(0.2, -0.1, 0.1);  // a fix's error
+  std::vector<Measurement> meas;
+  for (const RangeSample& r : s.ranges) meas.push_back(Measurement::of(r));
+  AlignmentResult last;
+  for (auto _ : state) {
+    last = alignRangeInertial(s.imu, meas, t0, s.p_w_anchors, gravity, p_tag0, st0.v_w, ap);
+    benchmark::DoNotOptimize(last.cost);
+  }
+  state.counters["measurements"] = last.measurements;
+  state.counters["yaw_sigma_deg"] = last.yaw_sigma_rad * 180.0 / M_PI;
+}
+BENCHMARK(BM_InitAlignment)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace
 }  // namespace rilo

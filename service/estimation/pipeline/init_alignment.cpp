@@ -38,7 +38,6 @@ namespace {
 
 using Vec15d = Eigen::Matrix<double, 15, 1>;
 using Mat15d = Eigen::Matrix<double, 15, 15>;
-using Mat3x15 = Eigen::Matrix<double, 3, 15>;
 
 // Unknowns, in this order: rotation (right perturbation of R_r), p_r, v_r, b_a, b_g.
 constexpr int kRot = 0, kPos = 3, kVel = 6, kBa = 9, kBg = 12;
@@ -88,23 +87,75 @@ double weightOf(const Problem& pr, const Obs& o, double r) {
   return o.kind == Measurement::Kind::kTdoa ? pr.loss.long_side->weight(std::abs(r)) : pr.loss.weight(r);
 }
 
-/// Sensor (antenna or receiver) position at one measurement time and, when J
-/// is given, its Jacobian.
-Vec3 tagAt(const Problem& pr, const State& s, const Obs& o, Mat3x15* J) {
-  const StrapdownDelta& d = *o.delta;
-  const StrapdownDelta::Corrected c = d.corrected(s.b);
-  const Vec3& p_bt = *o.p_b_sensor;
-  const Vec3 lever = c.dR * p_bt;
-  const Vec3 tag = s.p + s.v * d.dt_s + 0.5 * pr.g_w * d.dt_s * d.dt_s + s.R * (c.dp + lever);
-  if (J) {
-    J->setZero();
-    J->block<3, 3>(0, kRot) = -s.R * so3::hat(c.dp + lever);
-    J->block<3, 3>(0, kPos).setIdentity();
-    J->block<3, 3>(0, kVel) = d.dt_s * Mat3::Identity();
-    J->block<3, 3>(0, kBa) = s.R * d.dp_dba;
-    J->block<3, 3>(0, kBg) = s.R * (d.dp_dbg - c.dR * so3::hat(p_bt) * d.dR_dbg);
+/// The gyro-bias correction Exp(phi) of one delta's rotation, applied to
+/// vectors without forming the matrix: R = I + a W + b W^2 with W = hat(phi)
+/// (so3::exp's coefficients), so v -> v + a phi x v + b phi x (phi x v). The
+/// alignment evaluates it at every measurement for every cost and
+/// linearization; two cross products instead of a matrix exponential and a
+/// 3x3 product.
+struct SmallRotation {
+  Vec3 phi;
+  double a, b;
+  explicit SmallRotation(const Vec3& phi_rad) : phi(phi_rad) {
+    const double theta2 = phi.squaredNorm();
+    if (theta2 < 2.5e-3) {
+      // theta < 0.05 rad (a gyro-bias correction always is): the series of
+      // sin(theta) / theta and (1 - cos theta) / theta^2 to theta^8, exact to
+      // double precision there (next terms < 3e-21), without sin and cos.
+      const double t2 = theta2, t4 = t2 * t2;
+      a = 1.0 - t2 / 6.0 + t4 / 120.0 - t4 * t2 / 5040.0 + t4 * t4 / 362880.0;
+      b = 0.5 - t2 / 24.0 + t4 / 720.0 - t4 * t2 / 40320.0 + t4 * t4 / 3628800.0;
+    } else {
+      const double theta = std::sqrt(theta2);
+      const double s_half = std::sin(0.5 * theta);
+      a = std::sin(theta) / theta;
+      b = 2.0 * s_half * s_half / theta2;
+    }
   }
-  return tag;
+  Vec3 rotate(const Vec3& v) const {
+    const Vec3 c = phi.cross(v);
+    return v + a * c + b * phi.cross(c);
+  }
+  Vec3 inverseRotate(const Vec3& v) const {  // Exp(phi)^T v = Exp(-phi) v
+    const Vec3 c = phi.cross(v);
+    return v - a * c + b * phi.cross(c);
+  }
+};
+
+/// The sensor (antenna or receiver) position at one measurement time, with
+/// what its Jacobian needs.
+struct TagEval {
+  Vec3 tag;
+  Vec3 x_b;  ///< R_r^T (tag - p_r - v_r dt - g dt^2 / 2): corrected dp plus the rotated lever arm
+  SmallRotation corr;
+};
+
+TagEval tagAt(const Problem& pr, const State& s, const Obs& o) {
+  const StrapdownDelta& d = *o.delta;
+  // StrapdownDelta::corrected(s.b), only the parts the track needs.
+  TagEval e{Vec3::Zero(), Vec3::Zero(), SmallRotation(d.dR_dbg * s.b.gyro)};
+  const Vec3 dp = d.dp + d.dp_dba * s.b.accel + d.dp_dbg * s.b.gyro;
+  const Vec3 lever = d.dR * e.corr.rotate(*o.p_b_sensor);
+  e.x_b = dp + lever;
+  e.tag = s.p + s.v * d.dt_s + 0.5 * pr.g_w * d.dt_s * d.dt_s + s.R * e.x_b;
+  return e;
+}
+
+/// g^T J for a world-frame row g, J the 3 x 15 Jacobian of the sensor
+/// position (tagAt) w.r.t. [rot, p_r, v_r, b_a, b_g]:
+///   J = [-R hat(x_b), I, dt I, R dp_dba, R (dp_dbg - dR(b) hat(p_b) dR_dbg)]
+/// evaluated as vector products (u = R^T g).
+Eigen::Matrix<double, 1, 15> rowJacobian(const State& s, const Obs& o, const TagEval& e, const Vec3& g) {
+  const StrapdownDelta& d = *o.delta;
+  const Vec3 u = s.R.transpose() * g;
+  const Vec3 w = e.corr.inverseRotate(d.dR.transpose() * u);  // dR(b)^T u
+  Eigen::Matrix<double, 1, 15> Jg;
+  Jg.segment<3>(kRot) = e.x_b.cross(u).transpose();
+  Jg.segment<3>(kPos) = g.transpose();
+  Jg.segment<3>(kVel) = d.dt_s * g.transpose();
+  Jg.segment<3>(kBa) = (d.dp_dba.transpose() * u).transpose();
+  Jg.segment<3>(kBg) = (d.dp_dbg.transpose() * u - d.dR_dbg.transpose() * w.cross(*o.p_b_sensor)).transpose();
+  return Jg;
 }
 
 struct Costs {
@@ -119,7 +170,7 @@ Costs costOf(const Problem& pr, const State& s) {
   const AlignmentParams& P = *pr.params;
   Costs c;
   for (const Obs& o : pr.obs) {
-    const Vec3 tag = tagAt(pr, s, o, nullptr);
+    const Vec3 tag = tagAt(pr, s, o).tag;
     c.measurements += rhoOf(pr, o, (o.value_m - o.predict(tag, nullptr)) * o.inv_sigma);
     if (!onBand(o)) continue;
     const double rb = P.band.residual(tag.z());
@@ -140,21 +191,20 @@ void linearize(const Problem& pr, const State& s, Mat15d& H, Vec15d& g) {
   const AlignmentParams& P = *pr.params;
   H.setZero();
   g.setZero();
-  Mat3x15 J;
   for (const Obs& o : pr.obs) {
-    const Vec3 tag = tagAt(pr, s, o, &J);
+    const TagEval e = tagAt(pr, s, o);
     Eigen::RowVector3d grad;
-    const double r = (o.value_m - o.predict(tag, &grad)) * o.inv_sigma;
-    const Eigen::Matrix<double, 1, 15> Jr = -o.inv_sigma * grad * J;
+    const double r = (o.value_m - o.predict(e.tag, &grad)) * o.inv_sigma;
+    const Eigen::Matrix<double, 1, 15> Jr = rowJacobian(s, o, e, -o.inv_sigma * grad.transpose());
     const double w = weightOf(pr, o, r);
     H.noalias() += w * Jr.transpose() * Jr;
     g.noalias() += w * Jr.transpose() * r;
     if (!onBand(o)) continue;
-    const double jb = P.band.derivative(tag.z());
+    const double jb = P.band.derivative(e.tag.z());
     if (jb != 0.0) {
-      const Eigen::Matrix<double, 1, 15> Jb = jb * J.row(2);
+      const Eigen::Matrix<double, 1, 15> Jb = rowJacobian(s, o, e, jb * Vec3::UnitZ());
       H.noalias() += Jb.transpose() * Jb;
-      g.noalias() += Jb.transpose() * P.band.residual(tag.z());
+      g.noalias() += Jb.transpose() * P.band.residual(e.tag.z());
     }
   }
   // Bias priors.
@@ -225,8 +275,14 @@ Fit solve(const Problem& pr, const State& s0) {
     }
     if (!accepted || converged) break;
   }
-  linearize(pr, f.s, f.H, g);
+  // f.H is at the state before the last accepted step: refreshed by
+  // finishFit for the one fit whose covariance is used.
   return f;
+}
+
+void finishFit(const Problem& pr, Fit& f) {
+  Vec15d g;
+  linearize(pr, f.s, f.H, g);
 }
 
 double wrapAngle(double a) { return std::remainder(a, 2.0 * M_PI); }
@@ -328,6 +384,7 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
   for (std::size_t k = 1; k < fits.size(); ++k) {
     if (fits[k].cost.total < fits[best].cost.total) best = k;
   }
+  finishFit(pr, fits[best]);
   const Fit& f = fits[best];
   if (!std::isfinite(f.cost.total) || !f.s.R.allFinite() || !f.s.p.allFinite() || !f.s.v.allFinite()) {
     out.message = "alignment diverged";

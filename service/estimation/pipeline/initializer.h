@@ -39,7 +39,10 @@
 //     aligned strapdown track, zero-velocity priors on the states inside
 //     still intervals of the IMU, batch Levenberg-Marquardt; accepted when it
 //     converged, the range and IMU costs per factor are plausible, and the
-//     newest state's marginal position and yaw sigmas are small.
+//     newest state's marginal position and yaw sigmas are small. The solve
+//     is skipped (batch_gate_sigma_factor) while those sigmas, taken at the
+//     starting values before any iteration, are well above the limits, and
+//     not repeated on the same data after a rejection.
 // Known limit (architecture "Known hard cases"): with 25 % persistent NLOS
 // the window's height can be off by 0.3-0.9 m while the horizontal error
 // stays below 0.3 m; the estimator started at the true state shows the same.
@@ -128,6 +131,17 @@ struct InitializerParams {
   /// the states could not follow the IMU (time gaps, a broken model).
   double max_imu_cost_per_factor = 30.0;
   LmParams lm = defaultLmParams();
+  /// Gate of the batch solve: the newest state's marginal position and yaw
+  /// sigmas at the starting values (one factorization, no LM iterations)
+  /// predict those at the solution; above this factor times
+  /// max_position_sigma_m / max_yaw_sigma_rad the solve is skipped as it
+  /// would be rejected. +inf disables (every attempt that passes the
+  /// alignment solves).
+  double batch_gate_sigma_factor = 1.15;
+  /// ... but a solve runs at least every this much data time (s), whatever
+  /// the prediction: a prediction that is off delays initialization by at
+  /// most this much.
+  double batch_gate_max_s = 4.0;
   /// Zero-velocity updates: batch states inside a still interval of the IMU
   /// (findStillIntervals) get a zero-velocity prior, sigma * sqrt(1 s / the
   /// state's interval) per state (the same weight per second at any ranging
@@ -168,6 +182,7 @@ struct InitStatus {
   std::int64_t t_ns = 0;  ///< data time of the last attempt
   int attempts = 0;       ///< attempts so far (since construction or reset)
   int batch_solves = 0;   ///< attempts that got as far as the batch solve (the expensive step)
+  int gated_solves = 0;   ///< batch solves skipped by the gate (batch_gate_sigma_factor)
 };
 
 /// The batch-solved window, for a caller that seeds its smoother with it.
@@ -268,6 +283,17 @@ class Initializer {
   double interval_s_ = 0.5;   ///< current attempt interval (see max_attempt_interval_s)
   bool grow_window_ = false;  ///< window_s was not enough for yaw: use up to max_window_s
   std::size_t dropped_imu_ = 0, dropped_meas_ = 0;
+
+  /// What an attempt saw: the newest IMU time and the measurement buffer's size and newest time.
+  struct InputStamp {
+    std::int64_t t_imu_ns = 0;
+    std::size_t measurements = 0;
+    std::int64_t t_meas_ns = 0;
+    bool operator==(const InputStamp&) const = default;
+  };
+  std::optional<InputStamp> rejected_input_;  ///< input of the last attempt whose batch was rejected
+  bool batch_stage_reached_ = false;  ///< an attempt got as far as the batch since construction or reset
+  std::int64_t last_batch_ns_ = 0;    ///< data time of the last batch solve that ran (or of the first attempt that got that far)
 
   InitStatus status_;
   std::optional<InitResult> result_;

@@ -190,7 +190,9 @@ TEST(TdoaReportRun, ShortHallSessionRunsEveryEstimatorAtBothReceptions) {
     EXPECT_GE(r.initializations, 1u);
     EXPECT_FALSE(r.failed(o.fail_mean_m));
     EXPECT_GT(r.updates, 100u);
-    EXPECT_GE(r.update_p99_ms, r.update_mean_ms * 0.5);
+    // Order statistics only: a few slow updates can put the mean above the
+    // p99 (the EKF's mean is 5 us with rare 1 ms groups), so no mean bound.
+    EXPECT_GT(r.update_p99_ms, 0.0);
     EXPECT_LE(r.update_p99_ms, r.update_max_ms);
     const MeasurementCounts& m = r.measurements;
     EXPECT_EQ(m.range.used, 0u);

@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <string>
 #include <memory>
 
 #include "estimation/pipeline/localizer.h"
@@ -79,6 +81,73 @@ TEST_P(LowRateTracking, OneHertzCleanWalkStaysOnTrack) {
   // D-iSAM2 before the fixes: mean 11.6 km.
   EXPECT_LT(e.mean_m, 1.0) << smootherMethodName(GetParam());
   EXPECT_LT(e.max_m, 4.0) << smootherMethodName(GetParam());
+}
+
+// From scratch at 1 Hz (issue 4): the Localizer initializes (the alignment's
+// yaw gate at the window's end, a window of up to 45 s) and tracks from the
+// batch's marginals (the hand-over), with no re-initialization. On the
+// office/hall replays at 1 Hz, main's pipeline never initialized 3 of 7 and
+// re-initialized 2 (online 4.9-5.9 m); without the covariance hand-over the
+// same gates gave 7 re-initializations. Measured here: seed 1 initialized
+// at 35 s, mean 0.40 m, max 0.75 m; seed 2 at 44 s, 0.39 m, 1.14 m.
+struct FromScratch {
+  bool initialized = false;
+  std::uint64_t reinitializations = 0;
+  double init_time_s = 0.0;
+  TrackingError error;
+  std::string status;
+};
+
+FromScratch localizeFromScratch(const sim::Scenario& s, const std::vector<RangeSample>& ranges) {
+  LocalizerParams lp;  // the pipeline's defaults, as rilo replay uses them
+  lp.graph.imu = sim::imuParamsOf(s.params);
+  lp.graph.p_b_tag = s.p_b_tag;
+  Localizer loc(s.p_w_anchors, lp);
+  FromScratch out;
+  std::size_t i = 0, r = 0;
+  while (i < s.imu.size() || r < ranges.size()) {
+    if (r < ranges.size() && (i >= s.imu.size() || ranges[r].t_ns <= s.imu[i].t_ns)) {
+      loc.addRange(ranges[r++]);
+    } else {
+      loc.addImu(s.imu[i++]);
+    }
+    if (loc.process() == 0 || !loc.tracking()) continue;
+    if (!out.initialized) out.init_time_s = 1e-9 * static_cast<double>(loc.latest().t_ns - s.t0_ns);
+    out.initialized = true;
+    const StateEstimate& x = loc.latest();
+    const double err = (x.T_w_b.p - s.truthAt(x.t_ns).T_w_b.p).norm();
+    out.error.mean_m += err;
+    out.error.max_m = std::max(out.error.max_m, err);
+    ++out.error.states;
+  }
+  if (out.error.states > 0) out.error.mean_m /= out.error.states;
+  out.reinitializations = loc.reinitializations();
+  out.status = loc.initStatus().message + " / " + loc.lastFailure();
+  return out;
+}
+
+TEST(LowRateFromScratch, OneHertzWalkInitializesAndTracksWithoutReinitialization) {
+  for (std::uint64_t seed : {1u, 2u}) {
+    sim::OfficeScenarioParams p;
+    p.seed = seed;
+    p.duration_s = 120.0;
+    p.plan = sim::OfficePlanKind::kRandom;
+    p.channel.nlos_severity = 0.0;
+    const sim::Scenario s = sim::simulateOfficeScenario(p);
+    RangeThinningOptions thin;
+    thin.rate_hz = 1.0;
+    const std::vector<RangeSample> ranges = thinRanges(s.ranges, thin);
+    const FromScratch f = localizeFromScratch(s, ranges);
+    std::printf("1 Hz from scratch, seed %llu: initialized at %.1f s, %d states, mean %.2f m, max %.2f m, %llu re-inits\n",
+                static_cast<unsigned long long>(seed), f.init_time_s, f.error.states, f.error.mean_m, f.error.max_m,
+                static_cast<unsigned long long>(f.reinitializations));
+    ASSERT_TRUE(f.initialized) << "seed " << seed << ": " << f.status;
+    EXPECT_LT(f.init_time_s, 60.0) << "seed " << seed;
+    EXPECT_EQ(f.reinitializations, 0u) << "seed " << seed << ": " << f.status;
+    EXPECT_GT(f.error.states, 60) << "seed " << seed;
+    EXPECT_LT(f.error.mean_m, 1.0) << "seed " << seed;
+    EXPECT_LT(f.error.max_m, 3.0) << "seed " << seed;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Smoothers, LowRateTracking,

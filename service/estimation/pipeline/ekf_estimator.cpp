@@ -32,15 +32,29 @@ EkfEstimator::EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphPar
   ready_.reserve(16);
 }
 
-UpdateStats EkfEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0) {
-  // The graph's first-state priors: rotation sigmas in the body chart, an
-  // isotropic position sigma (the same in world), velocity and biases.
+UpdateStats EkfEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0,
+                                const std::optional<StartCovariance>& covariance) {
   Mat15 P = Mat15::Zero();
-  P.block<3, 3>(0, 0).diagonal() = graph_.first_pose_sigmas.head<3>().cwiseAbs2();
-  P.block<3, 3>(3, 3).diagonal().setConstant(graph_.first_pose_sigmas.tail<3>().cwiseAbs2().maxCoeff());
-  P.block<3, 3>(6, 6).diagonal().setConstant(graph_.first_velocity_sigma_m_s * graph_.first_velocity_sigma_m_s);
-  P.block<3, 3>(9, 9).diagonal().setConstant(graph_.first_accel_bias_sigma * graph_.first_accel_bias_sigma);
-  P.block<3, 3>(12, 12).diagonal().setConstant(graph_.first_gyro_bias_sigma * graph_.first_gyro_bias_sigma);
+  if (covariance) {
+    // Error [dtheta body, dp world, dv, dba, dbg]; Pose3's translation
+    // perturbation is body-frame (p + R rho), so dp = R rho.
+    const StartCovariance& c = *covariance;
+    const Mat3& R = T_w_b0.R;
+    P.block<3, 3>(0, 0) = c.pose.topLeftCorner<3, 3>();
+    P.block<3, 3>(0, 3) = c.pose.topRightCorner<3, 3>() * R.transpose();
+    P.block<3, 3>(3, 0) = P.block<3, 3>(0, 3).transpose();
+    P.block<3, 3>(3, 3) = R * c.pose.bottomRightCorner<3, 3>() * R.transpose();
+    P.block<3, 3>(6, 6) = c.velocity;
+    P.block<6, 6>(9, 9) = c.bias;  // ErrorStateEkf::initialize checks P (finite, symmetric, positive definite)
+  } else {
+    // The graph's first-state priors: rotation sigmas in the body chart, an
+    // isotropic position sigma (the same in world), velocity and biases.
+    P.block<3, 3>(0, 0).diagonal() = graph_.first_pose_sigmas.head<3>().cwiseAbs2();
+    P.block<3, 3>(3, 3).diagonal().setConstant(graph_.first_pose_sigmas.tail<3>().cwiseAbs2().maxCoeff());
+    P.block<3, 3>(6, 6).diagonal().setConstant(graph_.first_velocity_sigma_m_s * graph_.first_velocity_sigma_m_s);
+    P.block<3, 3>(9, 9).diagonal().setConstant(graph_.first_accel_bias_sigma * graph_.first_accel_bias_sigma);
+    P.block<3, 3>(12, 12).diagonal().setConstant(graph_.first_gyro_bias_sigma * graph_.first_gyro_bias_sigma);
+  }
   EkfState x;
   x.R_w_b = T_w_b0.R;
   x.p_w_b = T_w_b0.p;

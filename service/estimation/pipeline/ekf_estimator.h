@@ -38,7 +38,12 @@ class EkfEstimator final : public TrackingEstimator {
   /// Throws std::invalid_argument on bad parameters (naming the field).
   EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphParams& graph, const EkfParams& ekf = EkfParams());
 
-  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0) override;
+  using TrackingEstimator::start;
+  /// The initial covariance: `covariance` in the filter's error chart (rotation
+  /// body, position world: the pose block's translation rotated by R), else
+  /// the graph's first-state priors.
+  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0,
+                    const std::optional<StartCovariance>& covariance) override;
   bool started() const override { return ekf_.initialized(); }
   void addImu(const ImuSample& sample) override;
   void addMeasurement(const Measurement& m) override;

@@ -411,6 +411,14 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
     const Mat3 cov_rot_w = f.s.R * cov.block<3, 3>(kRot, kRot) * f.s.R.transpose();
     out.yaw_sigma_rad = std::sqrt(std::max(0.0, cov_rot_w(2, 2)));
     out.position_sigma_m = std::sqrt(std::max(0.0, cov.block<3, 3>(kPos, kPos).trace()));
+    // At the newest measurement: R_end = R_r dR(b_g), whose world perturbation is
+    // R_r phi + R_end dR_dbg delta_b_g (dR(b) ~= dR Exp(dR_dbg b_g)).
+    const StrapdownDelta& d_end = deltas.back();
+    const Mat3 R_end = f.s.R * d_end.corrected(f.s.b).dR;
+    Eigen::Matrix<double, 1, 15> j_yaw_end = Eigen::Matrix<double, 1, 15>::Zero();
+    j_yaw_end.segment<3>(kRot) = f.s.R.row(2);
+    j_yaw_end.segment<3>(kBg) = (R_end * d_end.dR_dbg).row(2);
+    out.yaw_sigma_end_rad = std::sqrt(std::max(0.0, (j_yaw_end * cov * j_yaw_end.transpose())(0, 0)));
   }
 
   // Excitation of the fitted track.

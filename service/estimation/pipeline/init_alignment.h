@@ -87,6 +87,12 @@ struct AlignmentResult {
   double cost = std::numeric_limits<double>::infinity();  ///< robust cost incl. priors (whitened, ~chi^2/2)
   double measurement_cost = std::numeric_limits<double>::infinity();  ///< robust cost of the measurements only
   double yaw_sigma_rad = std::numeric_limits<double>::infinity();   ///< marginal sigma of the world yaw at t_r
+  /// Marginal sigma of the world yaw at the newest measurement (end of the
+  /// window): R(t) = R_r dR(t, b_g), so it carries the yaw at t_r and the
+  /// gyro bias with their correlation. At t_r the gyro bias prior alone adds
+  /// up to its sigma times the window length (0.01 rad/s over 30 s: 17 deg)
+  /// that the fit cannot resolve; at the end the window's own motion pins it.
+  double yaw_sigma_end_rad = std::numeric_limits<double>::infinity();
   double position_sigma_m = std::numeric_limits<double>::infinity();  ///< sqrt(trace) of p_r's covariance
   double second_cost_gap = std::numeric_limits<double>::infinity();   ///< cost of the best solution with a distinct yaw minus cost
   double moved_m = 0.0;            ///< largest horizontal distance of the fitted antenna track from its start (m)

@@ -99,6 +99,7 @@ void InitializerParams::validate() const {
   if (!(zero_velocity_sigma_m_s > 0.0)) fail("zero_velocity_sigma_m_s", "must be > 0 (+inf disables)");
   if (!(batch_gate_sigma_factor >= 1.0)) fail("batch_gate_sigma_factor", "must be >= 1 (+inf disables)");
   if (!(batch_gate_max_s > 0.0)) fail("batch_gate_max_s", "must be > 0");
+  hand_over_conditioning.validate();
   height_band.validate("InitializerParams.height_band");
   fix.validate();
   gravity.validate();
@@ -427,10 +428,12 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
     w.message = "waiting: alignment failed: " + a.message;
     return w;
   }
-  if (a.yaw_sigma_rad > P.max_alignment_yaw_sigma_rad || a.second_cost_gap < P.min_yaw_cost_gap) {
+  // Yaw at the window's end, where the batch hands over: at its start the
+  // unresolved gyro bias adds up to 0.01 rad/s x the window (init_alignment.h).
+  if (a.yaw_sigma_end_rad > P.max_alignment_yaw_sigma_rad || a.second_cost_gap < P.min_yaw_cost_gap) {
     w.state = InitState::kYawUnobservable;
     w.message = strprintf("yaw not observable yet: moved %.1f m, horizontal speed change %.2f m/s, yaw sigma %.1f deg",
-                          a.moved_m, a.horizontal_dv_m_s, a.yaw_sigma_rad * kRadToDeg);
+                          a.moved_m, a.horizontal_dv_m_s, a.yaw_sigma_end_rad * kRadToDeg);
     if (std::isfinite(a.second_cost_gap)) {
       w.message += strprintf(", another yaw fits almost as well (cost +%.1f)", a.second_cost_gap);
     }
@@ -597,6 +600,14 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   res.state.v_w = out.values.vec3(sym::V(n_states - 1));
   res.state.bias = out.values.bias(sym::B(n_states - 1));
   res.pose_covariance = *cov;
+  if (P.hand_over_covariance) {
+    // The tracker starts from these (handOver); without them it falls back to the loose defaults.
+    const std::optional<CovarianceBlock> cov_v = lm.marginalCovariance(sym::V(n_states - 1));
+    const std::optional<CovarianceBlock> cov_b = lm.marginalCovariance(sym::B(n_states - 1));
+    if (cov_v && cov_b && cov_v->rows() == 3 && cov_b->rows() == 6) {
+      res.start_covariance = conditionStartCovariance(Mat6(*cov), Mat3(*cov_v), Mat6(*cov_b), P.hand_over_conditioning);
+    }
+  }
   res.data_start_ns = data_start_ns_;
   res.window_start_ns = t_graph0;
   res.time_to_init_s = toS(t_now - data_start_ns_);
@@ -624,7 +635,8 @@ int handOver(const Initializer& initializer, TrackingEstimator& estimator) {
   if (estimator.started()) throw std::logic_error("handOver: the estimator was already started");
   const StateEstimate& s = initializer.result().state;
   int updates = 0;
-  estimator.start(s.t_ns, s.T_w_b, s.v_w, s.bias);  // the batch's bias too: the hand-over loses nothing
+  // The batch's bias and marginals too: the hand-over loses nothing but the cross-covariances.
+  estimator.start(s.t_ns, s.T_w_b, s.v_w, s.bias, initializer.result().start_covariance);
   const std::vector<ImuSample>& imu = initializer.imuBuffer();
   const std::vector<Measurement>& meas = initializer.measurementBuffer();
   std::size_t i = imuIndexAt(imu, s.t_ns), r = rangeIndexFrom(meas, s.t_ns);

@@ -67,6 +67,7 @@
 #include "estimation/pipeline/measurement.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/range_imu_graph_stream.h"
+#include "estimation/pipeline/start_covariance.h"
 #include "estimation/solver/lm_params.h"
 #include "estimation/solver/lm_result.h"
 #include "hal/samples.h"
@@ -87,8 +88,12 @@ struct InitializerParams {
   double window_s = 10.0;          ///< batch window (s); seed 000 uses 10 s
   double min_window_s = 3.0;       ///< first attempt once this much data is buffered (s)
   /// The window grows up to this for sparse ranging (to hold
-  /// min_window_ranges) and when window_s was too short for yaw (s).
-  double max_window_s = 30.0;
+  /// min_window_ranges) and when window_s was too short for yaw (s). 45 s
+  /// for 1 Hz ranging: with 30 s the newest state's yaw sigma stayed at
+  /// 6-7 deg (> max_yaw_sigma_rad) on half the office/hall replays, which
+  /// then never initialized in 120 s; with 45 s all seven did, 40 Hz
+  /// unchanged (it rarely grows the window past window_s).
+  double max_window_s = 45.0;
   int min_window_ranges = 40;      ///< measurements the window should hold (grown up to max_window_s for them)
   int min_alignment_ranges = 12;   ///< fewer measurements in the window: wait
   double attempt_interval_s = 0.5; ///< data time between attempts (s) ...
@@ -115,7 +120,11 @@ struct InitializerParams {
   AlignmentParams alignment;
 
   // Observability gates of the alignment (step 3).
-  double max_alignment_yaw_sigma_rad = 0.14;  ///< yaw sigma at the window start (~8 deg)
+  /// Yaw sigma at the window's end (~8 deg; AlignmentResult::yaw_sigma_end_rad):
+  /// the newest state, which the batch hands over. At the window start the
+  /// gyro bias prior dominates it (10-11 deg at 1 Hz ranging where the end
+  /// has 6-8), so a start gate never opened within max_window_s at 1 Hz.
+  double max_alignment_yaw_sigma_rad = 0.14;
   double min_yaw_cost_gap = 8.0;              ///< a distinct yaw within this cost is still plausible
   double max_alignment_cost_per_range = 3.0;  ///< per measurement; else they disagree with the IMU (wrong fix, bad data)
 
@@ -149,6 +158,12 @@ struct InitializerParams {
   /// accelerometer bias that NLOS ranges would otherwise bend into a height
   /// drift. +inf disables.
   double zero_velocity_sigma_m_s = 0.05;
+
+  /// The hand-over (handOver): the tracker's start priors are the newest
+  /// batch state's marginals (pose, velocity, bias), conditioned by this
+  /// (start_covariance.h); off, the graph's loose first-state priors.
+  bool hand_over_covariance = true;
+  StartCovarianceConditioning hand_over_conditioning;
 
   double max_range_m = 500.0;  ///< ranges (two-way, ultrasonic) or |TDoA| beyond this (or negative ranges) are dropped as garbage (m)
   bool keep_window = true;     ///< keep the solved window in the result
@@ -194,6 +209,10 @@ struct InitWindow {
 struct InitResult {
   StateEstimate state;              ///< the window's newest state (index within the window graph)
   CovarianceBlock pose_covariance;  ///< marginal of state.T_w_b, tangent [rot; trans] (rad, m)
+  /// The tracker's start priors (InitializerParams::hand_over_covariance):
+  /// the marginals of state's pose, velocity and bias, conditioned; nullopt
+  /// when off or a marginal was unavailable (then the graph's defaults).
+  std::optional<StartCovariance> start_covariance;
   std::int64_t data_start_ns = 0;   ///< first accepted sample
   std::int64_t window_start_ns = 0; ///< first state of the window
   double time_to_init_s = 0.0;      ///< data time from data_start_ns to the successful attempt (s)
@@ -300,7 +319,8 @@ class Initializer {
 };
 
 /// Hands an initialized Initializer over to an estimator that was not
-/// started: starts it at the result's state (time, pose, velocity) and
+/// started: starts it at the result's state (time, pose, velocity, bias;
+/// priors of the result's start_covariance when it has one) and
 /// replays every buffered sample from that time on (IMU from the sample in
 /// effect at it; measurements at or after it), in time order, then lets it
 /// process. Afterwards feed new samples to the estimator. Returns the number

@@ -11,8 +11,8 @@ RangeImuEstimator::RangeImuEstimator(std::vector<Vec3> p_w_anchors, const RangeI
 }
 
 UpdateStats RangeImuEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
-                                     const ImuBias& bias0_guess) {
-  return absorb(stream_.start(t0_ns, T_w_b0_guess, v_w0_guess, bias0_guess));
+                                     const ImuBias& bias0_guess, const std::optional<StartCovariance>& covariance) {
+  return absorb(stream_.start(t0_ns, T_w_b0_guess, v_w0_guess, bias0_guess, covariance));
 }
 
 int RangeImuEstimator::process(std::vector<UpdateStats>* stats) {

@@ -20,9 +20,11 @@ class RangeImuEstimator final : public TrackingEstimator {
   RangeImuEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphParams& graph_params,
                     std::unique_ptr<Smoother> smoother, RangeImuStreamOptions stream_options = {});
 
-  /// Opens state 0 at t0_ns around the given guess and absorbs its priors.
-  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
-                    const ImuBias& bias0_guess) override;
+  using TrackingEstimator::start;
+  /// Opens state 0 at t0_ns around the given guess and absorbs its priors
+  /// (RangeImuGraphStream::start).
+  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess, const ImuBias& bias0_guess,
+                    const std::optional<StartCovariance>& covariance) override;
   UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess) {
     return start(t0_ns, T_w_b0_guess, v_w0_guess, ImuBias());
   }

@@ -101,17 +101,28 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
 }
 
 GraphIncrement RangeImuGraphStream::start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
-                                          const ImuBias& bias0_guess) {
+                                          const ImuBias& bias0_guess,
+                                          const std::optional<StartCovariance>& covariance) {
   if (started_) throw std::logic_error("RangeImuGraphStream::start: already started");
   if (!allFinite(T_w_b0_guess) || !v_w0_guess.allFinite()) {
     throw std::invalid_argument("RangeImuGraphStream::start: T_w_b0_guess and v_w0_guess must be finite");
   }
   GraphIncrement inc;
-  inc.factors.emplace<PriorPose3Factor>(sym::X(0), T_w_b0_guess, params_.first_pose_sigmas);
-  inc.factors.emplace<PriorVec3Factor>(sym::V(0), v_w0_guess, Vec3(Vec3::Constant(params_.first_velocity_sigma_m_s)));
-  Vec6 bias_sigmas;
-  bias_sigmas << Vec3::Constant(params_.first_accel_bias_sigma), Vec3::Constant(params_.first_gyro_bias_sigma);
-  inc.factors.emplace<PriorBiasFactor>(sym::B(0), bias0_guess, bias_sigmas);
+  if (covariance) {
+    // The factors check the blocks (symmetric, positive definite) and name them.
+    inc.factors.add(std::make_shared<PriorPose3Factor>(
+        sym::X(0), T_w_b0_guess, SqrtInformation<6>::fromCovariance(covariance->pose, "start covariance.pose")));
+    inc.factors.add(std::make_shared<PriorVec3Factor>(
+        sym::V(0), v_w0_guess, SqrtInformation<3>::fromCovariance(covariance->velocity, "start covariance.velocity")));
+    inc.factors.add(std::make_shared<PriorBiasFactor>(
+        sym::B(0), bias0_guess, SqrtInformation<6>::fromCovariance(covariance->bias, "start covariance.bias")));
+  } else {
+    inc.factors.emplace<PriorPose3Factor>(sym::X(0), T_w_b0_guess, params_.first_pose_sigmas);
+    inc.factors.emplace<PriorVec3Factor>(sym::V(0), v_w0_guess, Vec3(Vec3::Constant(params_.first_velocity_sigma_m_s)));
+    Vec6 bias_sigmas;
+    bias_sigmas << Vec3::Constant(params_.first_accel_bias_sigma), Vec3::Constant(params_.first_gyro_bias_sigma);
+    inc.factors.emplace<PriorBiasFactor>(sym::B(0), bias0_guess, bias_sigmas);
+  }
   addMotionPriors(0, inc);
   inc.values.insert(sym::X(0), T_w_b0_guess);
   inc.values.insert(sym::V(0), v_w0_guess);

@@ -53,6 +53,7 @@
 #include "estimation/pipeline/measurement.h"
 #include "estimation/pipeline/measurement_noise.h"
 #include "estimation/pipeline/range_imu_graph.h"
+#include "estimation/pipeline/start_covariance.h"
 #include "hal/samples.h"
 
 namespace rilo {
@@ -162,12 +163,16 @@ class RangeImuGraphStream {
                       RangeImuStreamOptions options = RangeImuStreamOptions());
 
   /// Opens state 0 at t0_ns and returns its increment: the priors on X0, V0, B0
-  /// around the guess (zero bias) and those values. Samples added before are
-  /// kept from t0 on (ranges before t0 are dropped, see droppedRanges()).
-  /// Throws std::logic_error if already started, std::invalid_argument on a
-  /// non-finite guess.
+  /// around the guess (zero bias) and those values. The priors' covariances
+  /// are `covariance`'s blocks when given (the initializer's batch
+  /// marginals, start_covariance.h), else RangeImuGraphParams::first_*.
+  /// Samples added before are kept from t0 on (ranges before t0 are dropped,
+  /// see droppedRanges()). Throws std::logic_error if already started,
+  /// std::invalid_argument on a non-finite guess or a covariance block that
+  /// is not positive definite.
   GraphIncrement start(std::int64_t t0_ns, const Pose3& T_w_b0_guess, const Vec3& v_w0_guess,
-                       const ImuBias& bias0_guess = ImuBias());
+                       const ImuBias& bias0_guess = ImuBias(),
+                       const std::optional<StartCovariance>& covariance = std::nullopt);
 
   /// Throws std::invalid_argument if t_ns does not increase or a value is not
   /// finite; std::logic_error after finish().

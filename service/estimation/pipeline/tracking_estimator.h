@@ -11,6 +11,7 @@
 #include "estimation/math/imu_bias.h"
 #include "estimation/math/pose3.h"
 #include "estimation/pipeline/measurement.h"
+#include "estimation/pipeline/start_covariance.h"
 #include "estimation/smoother/smoother.h"
 
 namespace rilo {
@@ -27,8 +28,16 @@ class TrackingEstimator {
  public:
   virtual ~TrackingEstimator() = default;
 
-  /// Starts at t0_ns around the given state (priors of the graph parameters).
-  virtual UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0) = 0;
+  /// Starts at t0_ns around the given state. With `covariance` (the
+  /// initializer's batch marginals, conditioned: start_covariance.h) the
+  /// first-state priors (graph) or initial covariance (EKF) are that;
+  /// without, the graph parameters' first-state priors (a loose guess).
+  /// Throws std::invalid_argument if a covariance block is not positive definite.
+  virtual UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0,
+                            const std::optional<StartCovariance>& covariance) = 0;
+  UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0) {
+    return start(t0_ns, T_w_b0, v_w0, bias0, std::nullopt);
+  }
   virtual bool started() const = 0;
   virtual void addImu(const ImuSample& sample) = 0;
   /// A range, TDoA or ultrasonic range (Measurement::of(sample)).

@@ -1,0 +1,56 @@
+#pragma once
+// Uncertainty of the state a tracking estimator starts from. Without it the
+// estimator puts the graph's loose first-state priors on its guess
+// (RangeImuGraphParams::first_*: ~1 m, 0.5 rad; right for a guess). After
+// initialization the guess is the newest state of a batch solve whose
+// marginal covariance is known: handing that over keeps what the window
+// learnt (at 1 Hz ranging the loose priors let the first seconds of sparse
+// ranges pull a 0.3 m / 3 deg state metres away; issue 4).
+//
+// The marginals are block-diagonal (pose, velocity, bias, each the batch's
+// marginal; the cross-covariances between them are dropped) and conditioned
+// by conditionStartCovariance():
+//  - inflated by a factor: the batch covariance is the inverse Gauss-Newton
+//    Hessian at the solution (robust weights frozen), optimistic once the
+//    tracker relinearizes, and dropping the cross blocks is not conservative
+//    either (for k blocks, k * blockdiag(C) >= C is the conservative bound);
+//  - floored per axis in a whitened sense: each block is scaled by floor
+//    sigmas D, eigenvalues of D^-1 C D^-1 below 1 are raised to 1, and scaled
+//    back, so no direction of the prior is tighter than its floor (a
+//    near-singular marginal cannot make an over-confident prior), whatever
+//    the units mix in the block.
+#include <optional>
+
+#include "estimation/math/types.h"
+
+namespace rilo {
+
+/// Covariances of a start state, in the tangent charts of Values.
+struct StartCovariance {
+  Mat6 pose = Mat6::Identity();      ///< [rot; trans] of Pose3 (right/body chart), rad^2, m^2
+  Mat3 velocity = Mat3::Identity();  ///< world frame, m^2/s^2
+  Mat6 bias = Mat6::Identity();      ///< [accel; gyro], (m/s^2)^2, (rad/s)^2
+};
+
+struct StartCovarianceConditioning {
+  /// Covariance factor (sigma x sqrt). 2: between the batch's own marginals
+  /// and the block-diagonal bound 3 (see the file comment); measured on the
+  /// hall and office replays at 1 and 40 Hz (initializer.h).
+  double inflation = 2.0;
+  /// Smallest sigma per axis, [rot (rad) x3, trans (m) x3].
+  Vec6 pose_floor_sigmas = (Vec6() << 0.005, 0.005, 0.005, 0.02, 0.02, 0.02).finished();
+  double velocity_floor_sigma_m_s = 0.02;
+  /// [accel (m/s^2) x3, gyro (rad/s) x3].
+  Vec6 bias_floor_sigmas = (Vec6() << 0.005, 0.005, 0.005, 2e-4, 2e-4, 2e-4).finished();
+
+  /// Throws std::invalid_argument naming the field (inflation >= 1, floors > 0, all finite).
+  void validate() const;
+};
+
+/// The conditioned start covariance from the marginals of one state, or
+/// nullopt when a marginal is not finite (the caller then starts with the
+/// default priors). Symmetrizes its input.
+std::optional<StartCovariance> conditionStartCovariance(const Mat6& pose, const Mat3& velocity, const Mat6& bias,
+                                                        const StartCovarianceConditioning& params = {});
+
+}  // namespace rilo

@@ -255,8 +255,12 @@ std::vector<ReportRunSpec> planReportRuns(const ReportOptions& o, std::size_t re
   return specs;
 }
 
-void parallelFor(std::size_t n, int jobs, const std::function<void(std::size_t)>& fn) {
+void parallelFor(std::size_t n, int jobs, const std::function<void(std::size_t)>& fn,
+                 const std::function<void(std::size_t done, std::size_t total)>& progress) {
+  if (progress) progress(0, n);
   if (n == 0) return;
+  std::mutex progress_mutex;
+  std::size_t done = 0;
   const std::size_t threads = std::min<std::size_t>(n, static_cast<std::size_t>(std::max(jobs, 1)));
   std::atomic<std::size_t> next{0};
   std::exception_ptr first_error;
@@ -267,6 +271,10 @@ void parallelFor(std::size_t n, int jobs, const std::function<void(std::size_t)>
       if (i >= n) return;
       try {
         fn(i);
+        if (progress) {
+          std::lock_guard<std::mutex> lock(progress_mutex);
+          progress(++done, n);
+        }
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (!first_error) first_error = std::current_exception();
@@ -294,16 +302,11 @@ ReportResults runReport(const std::vector<ReportRecording>& recordings, const Re
   const std::vector<ReportRunSpec> specs = planReportRuns(options, recordings.size());
   results.runs.resize(specs.size());
 
-  std::mutex progress_mutex;
-  std::size_t done = 0;
   const auto start = std::chrono::steady_clock::now();
-  if (options.progress) options.progress(0, specs.size());
-  parallelFor(specs.size(), options.jobs, [&](std::size_t i) {
-    results.runs[i] = runOne(recordings[specs[i].recording].data, specs[i], options);
-    std::lock_guard<std::mutex> lock(progress_mutex);
-    ++done;
-    if (options.progress) options.progress(done, specs.size());
-  });
+  parallelFor(
+      specs.size(), options.jobs,
+      [&](std::size_t i) { results.runs[i] = runOne(recordings[specs[i].recording].data, specs[i], options); },
+      options.progress);
   results.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return results;
 }

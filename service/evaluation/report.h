@@ -136,8 +136,11 @@ std::vector<ReportRunSpec> planReportRuns(const ReportOptions& options, std::siz
 ReportResults runReport(const std::vector<ReportRecording>& recordings, const ReportOptions& options);
 
 /// Runs fn(i) for i in [0, n) on `jobs` threads (each index once; the first
-/// exception is rethrown after all threads stopped taking work).
-void parallelFor(std::size_t n, int jobs, const std::function<void(std::size_t)>& fn);
+/// exception is rethrown after all threads stopped taking work). `progress`,
+/// when set, gets (0, n) first and (done, n) after each fn that returned,
+/// one call at a time.
+void parallelFor(std::size_t n, int jobs, const std::function<void(std::size_t)>& fn,
+                 const std::function<void(std::size_t done, std::size_t total)>& progress = {});
 
 /// Online error over time against the ground truth (nearest truth pose in time
 /// within 50 ms): one entry per matched pose.

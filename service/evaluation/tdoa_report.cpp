@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
-#include <mutex>
 #include <stdexcept>
 
 #include "hal/sim/office_recording.h"
@@ -118,16 +117,11 @@ TdoaReportResults runTdoaReport(const std::vector<ReportRecording>& recordings, 
   results.options.progress = nullptr;
   const std::vector<TdoaRunSpec> specs = planTdoaRuns(options, recordings.size());
   results.runs.resize(specs.size());
-  std::mutex progress_mutex;
-  std::size_t done = 0;
   const auto start = std::chrono::steady_clock::now();
-  if (options.progress) options.progress(0, specs.size());
-  parallelFor(specs.size(), options.jobs, [&](std::size_t i) {
-    results.runs[i] = runOne(recordings[specs[i].recording].data, specs[i], options);
-    std::lock_guard<std::mutex> lock(progress_mutex);
-    ++done;
-    if (options.progress) options.progress(done, specs.size());
-  });
+  parallelFor(
+      specs.size(), options.jobs,
+      [&](std::size_t i) { results.runs[i] = runOne(recordings[specs[i].recording].data, specs[i], options); },
+      options.progress);
   results.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return results;
 }

@@ -482,6 +482,23 @@ TEST(ReportParallel, EveryIndexRunsOnceAndErrorsPropagate) {
   EXPECT_NO_THROW(parallelFor(0, 2, [](std::size_t) { throw std::runtime_error("never"); }));
 }
 
+TEST(ReportParallel, ProgressCountsEachFinishedIndexOnceInOrder) {
+  for (int jobs : {1, 3}) {
+    std::vector<std::pair<std::size_t, std::size_t>> calls;  // no lock: parallelFor serializes progress
+    parallelFor(
+        20, jobs, [](std::size_t) {},
+        [&](std::size_t done, std::size_t total) { calls.emplace_back(done, total); });
+    ASSERT_EQ(calls.size(), 21u);
+    for (std::size_t k = 0; k < calls.size(); ++k) {
+      EXPECT_EQ(calls[k].first, k);
+      EXPECT_EQ(calls[k].second, 20u);
+    }
+  }
+  std::vector<std::size_t> none;
+  parallelFor(0, 2, [](std::size_t) {}, [&](std::size_t done, std::size_t) { none.push_back(done); });
+  EXPECT_EQ(none, std::vector<std::size_t>{0});
+}
+
 TEST(ReportErrorOverTime, PairsPosesWithTheNearestTruth) {
   Recording rec;
   rec.imu.push_back({});

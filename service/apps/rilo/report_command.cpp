@@ -9,7 +9,6 @@
 #include <exception>
 #include <filesystem>
 #include <memory>
-#include <mutex>
 #include <stdexcept>
 #include <string>
 
@@ -139,14 +138,10 @@ int runTdoaReportCommand(const ReportCommandOptions& o) {
       dirs.push_back(out / "recordings" / ("sim-tdoa-" + o.sim_plan + "-seed-" + std::to_string(seed)));
     }
     ProgressBar bar("simulated sessions");
-    std::mutex mutex;
-    std::size_t done = 0;
-    bar(0, dirs.size());
-    parallelFor(dirs.size(), o.jobs, [&](std::size_t i) {
-      simulateTdoaReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i], planKind(o.sim_plan));
-      std::lock_guard<std::mutex> lock(mutex);
-      bar(++done, dirs.size());
-    });
+    parallelFor(
+        dirs.size(), o.jobs,
+        [&](std::size_t i) { simulateTdoaReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i], planKind(o.sim_plan)); },
+        [&bar](std::size_t done, std::size_t total) { bar(done, total); });
     for (const std::filesystem::path& dir : dirs) recordings.push_back(loadReportRecording(dir));
   }
   makeLabelsUnique(recordings);
@@ -201,14 +196,10 @@ int runReportCommand(const ReportCommandOptions& o) {
       for (std::uint64_t seed : o.sim_seeds) dirs.push_back(out / "recordings" / ("sim-seed-" + std::to_string(seed)));
       {
         ProgressBar bar("simulated sessions");
-        std::mutex mutex;
-        std::size_t done = 0;
-        bar(0, dirs.size());
-        parallelFor(dirs.size(), o.jobs, [&](std::size_t i) {
-          simulateReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i], planKind(o.sim_plan));
-          std::lock_guard<std::mutex> lock(mutex);
-          bar(++done, dirs.size());
-        });
+        parallelFor(
+            dirs.size(), o.jobs,
+            [&](std::size_t i) { simulateReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i], planKind(o.sim_plan)); },
+            [&bar](std::size_t done, std::size_t total) { bar(done, total); });
       }
       for (const std::filesystem::path& dir : dirs) recordings.push_back(loadReportRecording(dir));
     }

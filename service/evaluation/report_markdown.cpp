@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
@@ -14,6 +13,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "evaluation/report_text.h"
 #include "evaluation/svg_plot.h"
 
 namespace rilo {
@@ -23,15 +23,6 @@ constexpr double kBestTolerance = 0.05;   // the paper highlights the best "with
 constexpr double kGapS = 1.0;             // trajectory gaps longer than this break the plotted line
 constexpr std::size_t kMaxPlotPoints = 3000;
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-[[gnu::format(printf, 1, 2)]] std::string strf(const char* format, ...) {
-  char buf[1024];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buf, sizeof buf, format, args);
-  va_end(args);
-  return buf;
-}
 
 std::string noiseLabel(const std::string& n) {
   if (n == "asymmetric") return "Asymmetric (proposed)";
@@ -66,36 +57,12 @@ std::string smootherLabel(const std::string& s) {
 
 std::string rateLabel(double hz) { return strf("%g Hz", hz); }
 
-/// Text safe inside a Markdown table cell (one line, no column separators).
-std::string cellText(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '|') {
-      out += "\\|";
-    } else if (c == '\n' || c == '\r') {
-      out += ' ';
-    } else {
-      out += c;
-    }
-  }
-  return out;
-}
-
 /// Appends " text |" (a Markdown table cell). Written out piecewise: GCC 12
 /// reports a false -Wrestrict for "literal" + std::string&& at -O3.
 void appendCell(std::string& out, const std::string& text) {
   out += ' ';
   out += text;
   out += " |";
-}
-
-std::string csvField(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"') out += '"';
-    out += (c == '\n' || c == '\r') ? ' ' : c;
-  }
-  return out + "\"";
 }
 
 std::string joinList(const std::vector<std::string>& items) {

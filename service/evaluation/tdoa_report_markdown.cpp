@@ -1,10 +1,10 @@
 #include "evaluation/tdoa_report_markdown.h"
 
 #include "evaluation/replay_run.h"  // kTdoaVerticalSpeedSigmaMs
+#include "evaluation/report_text.h"
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <fstream>
 #include <limits>
@@ -14,15 +14,6 @@ namespace rilo {
 namespace {
 
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-[[gnu::format(printf, 1, 2)]] std::string strf(const char* format, ...) {
-  char buf[1024];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buf, sizeof buf, format, args);
-  va_end(args);
-  return buf;
-}
 
 /// Appends the parts to out. (Not "literal" + std::string&&: GCC 12 reports a
 /// false -Wrestrict for it at -O3.)
@@ -35,28 +26,6 @@ template <class... Parts>
 std::string cat(const Parts&... parts) {
   std::string out;
   add(out, parts...);
-  return out;
-}
-
-std::string cellText(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '|') {
-      out += "\\|";
-    } else {
-      out += (c == '\n' || c == '\r') ? ' ' : c;
-    }
-  }
-  return out;
-}
-
-std::string csvField(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"') out += '"';
-    out += (c == '\n' || c == '\r') ? ' ' : c;
-  }
-  out += '"';
   return out;
 }
 

@@ -10,6 +10,8 @@
 #include <variant>
 #include <vector>
 
+#include "service/support/vector_source.h"
+
 namespace rilo {
 namespace {
 
@@ -44,21 +46,7 @@ std::vector<Sample> stream(double seconds) {
   return out;
 }
 
-class VectorSource final : public SampleSource {
- public:
-  explicit VectorSource(std::vector<Sample> samples) : samples_(std::move(samples)) {}
-  SourceEnd run(SampleSink& sink, const std::atomic<bool>& stop) override {
-    for (const Sample& s : samples_) {
-      if (stop.load()) return SourceEnd::kStopped;
-      sink.push(s);
-    }
-    return SourceEnd::kEndOfData;
-  }
-  std::string describe() const override { return "vector"; }
-
- private:
-  std::vector<Sample> samples_;
-};
+using testing::VectorSource;
 
 class CollectingSink final : public SampleSink {
  public:

@@ -21,28 +21,14 @@
 #include "hal/source.h"
 #include "rilod/service.h"
 #include "service_test_support.h"
+#include "service/support/vector_source.h"
 
 namespace rilo {
 namespace {
 
 using namespace std::chrono_literals;
 
-/// Pushes a fixed, time-ordered list of samples as fast as the service takes them.
-class VectorSource final : public SampleSource {
- public:
-  explicit VectorSource(std::vector<Sample> samples) : samples_(std::move(samples)) {}
-  SourceEnd run(SampleSink& sink, const std::atomic<bool>& stop) override {
-    for (const Sample& s : samples_) {
-      if (stop.load()) return SourceEnd::kStopped;
-      sink.push(s);
-    }
-    return SourceEnd::kEndOfData;
-  }
-  std::string describe() const override { return "test vector"; }
-
- private:
-  std::vector<Sample> samples_;
-};
+using testing::VectorSource;
 
 std::int64_t timeOf(const Sample& s) {
   return std::visit([](const auto& v) { return v.t_ns; }, s);

@@ -443,7 +443,10 @@ void Service::publisherLoop() {
         // A newer smoothed state first: the odometry of this sample starts from it.
         if (smoothed_.readIfNewer(smoothed, smoothed_version)) predictor_.onSmoothed(smoothed);
         const NavigationState& out = predictor_.onImu(item.sample);
-        if (out.valid && publisher_.publishOdometry(out).ok()) {
+        // Only an output at this sample's time: when the smoothed state is
+        // ahead of this lane, the output stays at the smoothed time, and
+        // publishing it once per waiting sample repeated that stamp.
+        if (out.valid && out.t_ns == item.sample.t_ns && publisher_.publishOdometry(out).ok()) {
           counters_.published_odometry.add();
           atomicMax(odometry_latency_max_ns_, hal::monotonicNowNs() - item.arrival_ns);
         }

@@ -53,7 +53,10 @@ class OutputPredictor {
   explicit OutputPredictor(const OutputPredictorParams& params = {});
 
   /// Buffers the sample and, once a valid smoothed state is known, integrates
-  /// to its time and returns the state there. A sample not newer than the
+  /// to its time and returns the state there. A sample not after the output
+  /// time (the smoothed state is ahead of the IMU stream) only waits in the
+  /// ring: the state returned is then still at the smoothed time, so a caller
+  /// publishing per sample checks t_ns == sample.t_ns. A sample not newer than the
   /// previous one is rejected (counted, not buffered) and the state returned
   /// unchanged; so is the state while no valid smoothed state is known
   /// (valid == false). A full ring drops its oldest sample (counted).

@@ -220,14 +220,7 @@ EkfUpdateResult ErrorStateEkf::update(const EkfPrediction<M>& pred, const Eigen:
   P_.noalias() -= XHt * K.transpose();
   P_.noalias() += K * R_w.asDiagonal() * K.transpose();
 
-  // Injection and reset: dtheta' = Jr(dtheta_hat) (dtheta - dtheta_hat).
-  x_ = x_.retract(dx);
-  const Mat3 G = so3::rightJacobian(dx.segment<3>(kTheta));
-  const Eigen::Matrix<double, 3, 15> top = G * P_.topRows<3>();
-  P_.topRows<3>() = top;
-  const Eigen::Matrix<double, 15, 3> left = P_.leftCols<3>() * G.transpose();
-  P_.leftCols<3>() = left;
-  symmetrize(P_);
+  injectAndReset(dx);
 
   ++counts.accepted;
   result.status = UpdateStatus::kAccepted;
@@ -293,13 +286,7 @@ void ErrorStateEkf::applyVerticalSpeedPrior(double sigma_m_s) {
   P_ = X;
   P_.noalias() -= XHt * K.transpose();
   P_.noalias() += r * K * K.transpose();
-  x_ = x_.retract(dx);
-  const Mat3 G = so3::rightJacobian(dx.segment<3>(kTheta));
-  const Eigen::Matrix<double, 3, 15> top = G * P_.topRows<3>();
-  P_.topRows<3>() = top;
-  const Eigen::Matrix<double, 15, 3> left = P_.leftCols<3>() * G.transpose();
-  P_.leftCols<3>() = left;
-  symmetrize(P_);
+  injectAndReset(dx);
   ++counters_.vertical_speed.accepted;
 }
 
@@ -324,6 +311,17 @@ EkfUpdateResult ErrorStateEkf::updateUltrasonic(const Vec3& p_w_anchor, const Ve
   const Eigen::Vector2d z(range_m, elevation->delta_h_m);
   const Eigen::Vector2d sigma(sigma_m, elevation->sigma_h_m);
   return update<2>(pred, z, sigma, loss, params_.gate_chi2_2dof, counters_.ultrasonic);
+}
+
+void ErrorStateEkf::injectAndReset(const Vec15& dx) {
+  // dtheta' = Jr(dtheta_hat) (dtheta - dtheta_hat): the covariance's rotation rows and columns.
+  x_ = x_.retract(dx);
+  const Mat3 G = so3::rightJacobian(dx.segment<3>(kTheta));
+  const Eigen::Matrix<double, 3, 15> top = G * P_.topRows<3>();
+  P_.topRows<3>() = top;
+  const Eigen::Matrix<double, 15, 3> left = P_.leftCols<3>() * G.transpose();
+  P_.leftCols<3>() = left;
+  symmetrize(P_);
 }
 
 }  // namespace rilo

@@ -135,6 +135,9 @@ class ErrorStateEkf {
                          EkfUpdateCounts& counts);
   void requireInitialized(const char* what) const;
   void addProcessNoise(double dt_s);
+  /// Injects the error estimate dx into the nominal state and resets the
+  /// covariance to the new error's chart (rotation block through Jr(dtheta)).
+  void injectAndReset(const Vec15& dx);
 
   EkfParams params_;
   Vec3 g_w_;

@@ -34,9 +34,12 @@ inline constexpr RegAddr kTxTime{0x00, 0x74};     ///< 5 bytes
 inline constexpr RegAddr kTxAntd{0x01, 0x04};     ///< 2 bytes, TX antenna delay (device units)
 inline constexpr RegAddr kAckResp{0x01, 0x08};    ///< W4R_TIM bits 19:0 (RX-after-TX delay, UWB microseconds)
 inline constexpr RegAddr kChanCtrl{0x01, 0x14};   ///< RF_CHAN b0, SFD_TYPE b2:1, TX_PCODE b7:3, RX_PCODE b12:8
+inline constexpr RegAddr kDgcCfg{0x03, 0x18};    ///< RX_TUNE_EN b0: DGC on (Qorvo driver)
+inline constexpr RegAddr kDgcDbg{0x03, 0x60};    ///< DGC_DECISION bits 30:28 (Qorvo driver, C0 parts)
 inline constexpr RegAddr kDrxDiag3{0x06, 0x29};   ///< carrier integrator, 21-bit signed (3 bytes read)
 inline constexpr RegAddr kXtalTrim{0x09, 0x14};
 inline constexpr RegAddr kCiaDiag0{0x0C, 0x20};   ///< clock offset bits 12:0 signed, ratio = value / 2^26
+inline constexpr RegAddr kIpDiag1{0x0C, 0x2C};    ///< C (CIR power); IP_DIAG_2..4 (F1..F3) follow, IP_DIAG_12 (N) at 0x58 (Qorvo driver)
 inline constexpr RegAddr kCiaConf{0x0E, 0x00};    ///< RX antenna delay bits 15:0
 inline constexpr RegAddr kSysState{0x0F, 0x30};
 inline constexpr RegAddr kSoftRst{0x11, 0x00};

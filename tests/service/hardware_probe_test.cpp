@@ -90,7 +90,13 @@ TEST_F(HardwareProbeTest, ReportsBringUpRangesAndTheImuAtRest) {
     EXPECT_TRUE(a.errors.empty());
     // Positive when our clock (0 ppm) is slower than the responder's.
     EXPECT_NEAR(a.clock_offset_ppm.mean, truth_.responders[a.id].clock_ppm, 0.5);
-    EXPECT_EQ(a.rssi_dbm.count, 0u);  // the emulator has no CIA diagnostics
+    // RX level and first-path power from the emulated channel's diagnostics.
+    const emu::Dw3000ResponderModel channel;  // the board's responders keep the defaults
+    const double rx_level_dbm = channel.rx_level_at_1m_dbm - 20.0 * std::log10(truth_.responders[a.id].distance_m);
+    EXPECT_EQ(a.rssi_dbm.count, a.ranges());
+    EXPECT_EQ(a.fp_power_dbm.count, a.ranges());
+    EXPECT_NEAR(a.rssi_dbm.mean, rx_level_dbm, 0.1);
+    EXPECT_NEAR(a.rssi_dbm.mean - a.fp_power_dbm.mean, channel.nlos_gap_db(0), 0.1);
   }
   const AnchorProbe& off = u.anchors[3];
   EXPECT_GE(off.attempts, 29u);
@@ -145,7 +151,13 @@ TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
   EXPECT_NE(json.find("\"dev_id\": \"0xDECA0302\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"chip_id\": \"0x24\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"internal_status_name\": \"init_ok\""), std::string::npos) << json;
-  EXPECT_NE(json.find("\"mean_rssi_dbm\": null"), std::string::npos) << json;
+  // RX level / first-path power from the diagnostics; null for the silent anchor.
+  const emu::Dw3000ResponderModel channel;
+  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_rssi_dbm"}),
+              channel.rx_level_at_1m_dbm - 20.0 * std::log10(2.5), 0.1);
+  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_fp_power_dbm"}),
+              channel.rx_level_at_1m_dbm - 20.0 * std::log10(2.5) - channel.nlos_gap_db(0), 0.1);
+  EXPECT_NE(anchorLine(json, "0x0004").find("\"mean_rssi_dbm\": null"), std::string::npos) << json;
   EXPECT_EQ(jsonNumberAt(json, {"exit_code"}), 0.0);
   EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_range_m"}), 2.5, 0.01);
   EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0002"), {"mean_range_m"}), 4.0, 0.01);

@@ -24,10 +24,16 @@ constexpr std::uint8_t kFileGen2 = 0x01;
 constexpr std::size_t kTxAntd = 0x04;
 constexpr std::size_t kAckResp = 0x08;
 constexpr std::size_t kChanCtrl = 0x14;
+constexpr std::uint8_t kFileDgc = 0x03;
+constexpr std::size_t kDgcCfg = 0x18;          // RX_TUNE_EN b0
+constexpr std::size_t kDgcDbg = 0x60;          // DGC_DECISION bits 30:28
 constexpr std::uint8_t kFileDrx = 0x06;
 constexpr std::size_t kDrxDiag3 = 0x29;
 constexpr std::uint8_t kFileCia = 0x0C;
 constexpr std::size_t kCiaDiag0 = 0x20;
+constexpr std::size_t kIpDiag1 = 0x2C;         // C, bits 16:0
+constexpr std::size_t kIpDiag2 = 0x30;         // F1..F3 at 0x30/0x34/0x38, bits 21:0, 2 fractional bits
+constexpr std::size_t kIpDiag12 = 0x58;        // N, bits 11:0
 constexpr std::uint8_t kFileCiaConf = 0x0E;
 constexpr std::uint8_t kFileRst = 0x11;
 constexpr std::uint8_t kFileRxBuf = 0x12;
@@ -60,6 +66,31 @@ std::uint8_t crc8(std::span<const std::uint8_t> bytes, std::uint8_t crc) {
     for (int i = 0; i < 8; ++i) crc = static_cast<std::uint8_t>((crc & 0x80u) ? (crc << 1) ^ 0x07u : crc << 1);
   }
   return crc;
+}
+
+/// Register values that make the user manual's formulas (sections 4.7.1 and
+/// 4.7.2) give back `rx_level_dbm` and `fp_power_dbm` (to the registers'
+/// rounding), with `dgc_decision` steps of 6 dB taken off by the receiver.
+struct CiaDiagnostics {
+  std::uint32_t c = 0;
+  std::array<std::uint32_t, 3> f{};
+};
+CiaDiagnostics diagnosticsFor(double rx_level_dbm, double fp_power_dbm, std::uint32_t n, int dgc_decision,
+                              bool prf64) {
+  const double a_db = prf64 ? 121.7 : 113.8;
+  const double n2 = static_cast<double>(n) * static_cast<double>(n);
+  const double gain_db = a_db - 6.0 * dgc_decision;
+  CiaDiagnostics d;
+  const double c = std::pow(10.0, (rx_level_dbm + gain_db) / 10.0) * n2 / 2097152.0;
+  d.c = static_cast<std::uint32_t>(std::clamp<double>(std::round(c), 0.0, 0x1FFFF));
+  // The first-path energy spread over the three amplitudes around the edge.
+  const double energy = std::pow(10.0, (fp_power_dbm + gain_db) / 10.0) * n2;
+  constexpr std::array<double, 3> kShare{0.5, 0.3, 0.2};
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double f = 4.0 * std::sqrt(kShare[i] * energy);  // 2 fractional bits
+    d.f[i] = static_cast<std::uint32_t>(std::clamp<double>(std::round(f), 0.0, 0x3FFFFF));
+  }
+  return d;
 }
 
 std::uint64_t le(std::span<const std::uint8_t> bytes) {
@@ -267,6 +298,17 @@ std::error_code Dw3000Emulator::transfer(std::span<const hal::SpiTransfer> trans
   if (fail_count_ > 0) {
     --fail_count_;
     return fail_error_;
+  }
+  if (read_fail_count_ > 0 && !transfers.empty() && transfers[0].tx != nullptr && transfers[0].len >= 1) {
+    const std::uint8_t b0 = transfers[0].tx[0];
+    const bool extended = (b0 & 0x40u) != 0;
+    const bool is_read = (b0 & 0x80u) == 0 && (extended || (b0 & 0x01u) == 0);
+    std::size_t offset = 0;
+    if (extended && transfers[0].len >= 2) offset = static_cast<std::size_t>(((b0 & 0x01u) << 6) | (transfers[0].tx[1] >> 2));
+    if (is_read && ((b0 >> 1) & 0x1Fu) == read_fail_file_ && offset == read_fail_offset_) {
+      --read_fail_count_;
+      return read_fail_error_;
+    }
   }
   // Split into chip-select frames (cs_change ends one) and run each.
   std::vector<std::uint8_t> tx;
@@ -553,8 +595,17 @@ void Dw3000Emulator::startExchange() {
   truth.distance_m = 0.5 * (d1 + d2);
   truth.reply_s = static_cast<double>(resp_tx - poll_rx) / (kClockHz * (1.0 + r.clock_ppm * 1e-6));
   truth.clock_offset_ratio = ratio;
+
+  // The response's channel, as its CIA diagnostics.
+  truth.rx_level_dbm = r.rx_level_at_1m_dbm - 20.0 * std::log10(std::max(d2, 0.1));
+  truth.fp_power_dbm = truth.rx_level_dbm - r.nlos_gap_db(static_cast<std::int64_t>(t_arrival));
+  const bool dgc_on = (reg32(kFileDgc, kDgcCfg) & 1u) != 0;
+  truth.dgc_decision = dgc_on ? static_cast<std::uint8_t>(std::min<int>(r.dgc_decision, 7)) : 0;
+  const CiaDiagnostics diag = diagnosticsFor(truth.rx_level_dbm, truth.fp_power_dbm,
+                                             params_.preamble_accumulation_count & 0xFFFu, truth.dgc_decision,
+                                             rx_code >= 9);
   clock_.schedule(static_cast<std::int64_t>(std::ceil(t_frame_end)),
-                  [this, alive, frame, rx_time, cia_raw, carrier_raw, error_bits, truth]() mutable {
+                  [this, alive, frame, rx_time, cia_raw, carrier_raw, error_bits, truth, diag]() mutable {
                     if (!alive()) return;
                     if (error_bits != 0) {
                       setStatusBits(kRxPrd | kRxSfdd | error_bits);
@@ -565,6 +616,13 @@ void Dw3000Emulator::startExchange() {
                     put(kGen, kRxTime, rx_time, 5);
                     put(kFileCia, kCiaDiag0, cia_raw, 4);
                     put(kFileDrx, kDrxDiag3, carrier_raw, 4);
+                    // Reserved bits set above every field, and the diagnostics
+                    // between F3 and N filled, so unmasked or misaligned reads fail.
+                    put(kFileCia, kIpDiag1, diag.c | (0xA5u << 24), 4);
+                    for (std::size_t i = 0; i < 3; ++i) put(kFileCia, kIpDiag2 + 4 * i, diag.f[i] | (0x2Du << 24), 4);
+                    for (std::size_t at = kIpDiag2 + 12; at < kIpDiag12; ++at) files_[kFileCia][at] = 0x5A;
+                    put(kFileCia, kIpDiag12, (params_.preamble_accumulation_count & 0xFFFu) | (0x3Cu << 16), 4);
+                    put(kFileDgc, kDgcDbg, (std::uint32_t{truth.dgc_decision} << 28) | 0x8123'4567u, 4);
                     truth.rx_good_ns = clock_.nowNs();
                     truth_ = truth;
                     ++counters_.responses_delivered;

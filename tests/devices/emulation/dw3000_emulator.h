@@ -20,6 +20,11 @@
 //    own clock offset and antenna delays, quantized like DX_TIME (low 9 bits
 //    zero); RX_TIME / TX_TIME / RX buffer / RX_FINFO / CIA_DIAG_0 /
 //    DRX_DIAG3 are filled and RXFCG raised at the frame end;
+//  - the response's channel: RX level falling 20 log10(d) from the
+//    responder's level at 1 m, first-path power below it by the responder's
+//    (time-varying) NLOS gap; served as the CIA diagnostics the user manual's
+//    formulas read back (IP_DIAG_1..4 and 12, DGC_DBG's decision when the
+//    driver set DGC_CFG RX_TUNE_EN), quantized like the chip's registers;
 //  - injected faults: RX errors, lost responses, SPI CRC errors on writes or
 //    reads, PLL lock failure or loss, a stuck IRQ line, failing transfers,
 //    no boot, wrong DEV_ID.
@@ -55,6 +60,15 @@ struct Dw3000ResponderModel {
   std::uint16_t rx_antenna_delay = 16385;
   double reply_delay_us = 500.0;  ///< its firmware's poll-RX to response-TX delay
   double processing_us = 150.0;   ///< firmware needs this long to schedule the response
+  /// RX level of its response at 1 m (dBm); falls 20 log10(d) (free space).
+  /// -63 dBm: -14.3 dBm EIRP (-41.3 dBm/MHz over 500 MHz) minus 48.7 dB at 6.5 GHz.
+  double rx_level_at_1m_dbm = -63.0;
+  /// RX level minus first-path power (dB) at virtual time t_ns: small in line
+  /// of sight, above ~6 dB when the direct path is blocked (APS006).
+  std::function<double(std::int64_t t_ns)> nlos_gap_db = [](std::int64_t) { return 2.0; };
+  /// DGC_DECISION (0..7) reported while the driver has the DGC on: the chip
+  /// lowered its gain by 6 dB per step, the registers read that much less.
+  std::uint8_t dgc_decision = 2;
 };
 
 struct Dw3000EmulatorParams {
@@ -72,6 +86,7 @@ struct Dw3000EmulatorParams {
   double ns_per_byte = 1'350.0;       ///< payload at 6.8 Mb/s with Reed-Solomon parity
   std::uint32_t max_slow_spi_hz = 7'000'000;  ///< until IDLE_RC
   std::uint32_t max_spi_hz = 20'000'000;      ///< afterwards (UNVERIFIED on hardware)
+  std::uint32_t preamble_accumulation_count = 119;  ///< IP_DIAG_12 (N) of every response
 };
 
 /// How an injected stuck IRQ is released.
@@ -104,6 +119,9 @@ struct Dw3000ExchangeTruth {
   double reply_s = 0.0;            ///< the responder's reply time, in true seconds
   double clock_offset_ratio = 0.0; ///< 1 - (1 + e_ours) / (1 + e_responder)
   std::int64_t rx_good_ns = 0;     ///< virtual time RXFCG was raised
+  double rx_level_dbm = 0.0;       ///< the response's RX level (before register quantization)
+  double fp_power_dbm = 0.0;       ///< its first-path power
+  std::uint8_t dgc_decision = 0;   ///< DGC_DECISION served (0 with the DGC off)
 };
 
 class Dw3000Emulator final : public hal::SpiDevice {
@@ -139,6 +157,13 @@ class Dw3000Emulator final : public hal::SpiDevice {
   /// until released as `mode` says.
   void injectStuckIrq(StuckIrq mode) { stuck_armed_ = true; stuck_mode_ = mode; }
   void failNextTransfers(int count, std::error_code error) { fail_count_ = count; fail_error_ = error; }
+  /// The next `count` SPI messages that read register (file, offset) fail with `error`.
+  void failReadsOf(std::uint8_t file, std::uint8_t offset, int count, std::error_code error) {
+    read_fail_file_ = file;
+    read_fail_offset_ = offset;
+    read_fail_count_ = count;
+    read_fail_error_ = error;
+  }
   void setNeverBoots(bool never) { never_boots_ = never; }
   void setDevId(std::uint32_t dev_id) { params_.dev_id = dev_id; }
 
@@ -198,6 +223,10 @@ class Dw3000Emulator final : public hal::SpiDevice {
   StuckIrq stuck_mode_ = StuckIrq::kUntilFullClear;
   int fail_count_ = 0;
   std::error_code fail_error_;
+  std::uint8_t read_fail_file_ = 0;
+  std::uint8_t read_fail_offset_ = 0;
+  int read_fail_count_ = 0;
+  std::error_code read_fail_error_;
   bool never_boots_ = false;
   bool soft_reset_held_ = false;
   std::size_t corrupt_index_ = 0;

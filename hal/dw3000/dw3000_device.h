@@ -11,7 +11,10 @@
 // range(): one poll/response exchange (TX_W4R: the chip opens its receiver
 // itself, so Linux latency never enters the ranging timing), never throws,
 // never allocates; every status bit it can leave behind is cleared and the
-// IRQ line is checked low afterwards.
+// IRQ line is checked low afterwards. A good exchange also reads the CIA
+// diagnostics of the response (one burst, plus DGC_DBG when the DGC is on)
+// for its RX level and first-path power (rx_power.h); a failed diagnostics
+// read keeps the range and leaves the powers NaN.
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -25,6 +28,7 @@
 #include "hal/bus/gpio_line.h"
 #include "hal/bus/spi_device.h"
 #include "hal/dw3000/dw3000_config.h"
+#include "hal/dw3000/rx_power.h"
 #include "hal/dw3000/spi_framing.h"
 #include "hal/dw3000/ss_twr.h"
 #include "hal/dw3000/twr_frame.h"
@@ -86,6 +90,10 @@ struct ExchangeResult {
   TwrResult twr;
   FrameError frame_error = FrameError::kOk;
   std::error_code error;         ///< SPI / IRQ back-end error
+  /// RX level and first-path power of the response (kOk only; NaN if unread).
+  RxPower rx_power;
+  /// The diagnostics read of a good exchange failed: the range stands, rx_power is NaN.
+  std::error_code diagnostics_error;
 };
 
 class Dw3000Device {
@@ -102,6 +110,8 @@ class Dw3000Device {
   std::uint32_t devId() const noexcept { return dev_id_; }
   std::uint32_t irqMask() const noexcept { return irq_mask_; }
   bool spiCrcEnabled() const noexcept { return crc_enabled_; }
+  /// DGC_CFG RX_TUNE_EN read at bring-up: the DGC decision enters the RX power.
+  bool dgcEnabled() const noexcept { return dgc_enabled_; }
   const std::string& path() const noexcept { return spi_.path(); }
   const Dw3000Config& config() const noexcept { return config_; }
   /// Host-side wait budget of one exchange (ns).
@@ -127,6 +137,7 @@ class Dw3000Device {
   IrqCheck clearAndCheckIrq(std::uint32_t seen_status) noexcept;
   void abortExchange(ExchangeResult& r, std::uint32_t seen_status) noexcept;
   void readResponse(const AnchorConfig& anchor, std::uint8_t sequence, ExchangeResult& r) noexcept;
+  void readRxPower(ExchangeResult& r) noexcept;
 
   Dw3000Config config_;
   hal::SpiDevice& spi_;
@@ -134,6 +145,8 @@ class Dw3000Device {
   hal::OutputLine* reset_;
   hal::Clock& clock_;
   bool crc_enabled_ = false;
+  bool dgc_enabled_ = false;
+  bool prf64_ = true;
   std::uint32_t dev_id_ = 0;
   std::uint32_t irq_mask_ = 0;
   std::uint8_t sequence_ = 0;

@@ -226,6 +226,9 @@ SourceEnd Dw3000Source::run(SampleSink& sink, const std::atomic<bool>& stop) {
       sample.anchor_id = config_.anchors[pick.index].id;
       sample.tag_id = config_.tag_id;
       sample.range_m = r.range_m;
+      sample.rssi_dbm = r.rx_power.rssi_dbm;
+      sample.fp_power_dbm = r.rx_power.fp_power_dbm;
+      if (r.diagnostics_error) Dw3000Stats::add(stats_.diagnostics_read_failures);  // range kept, powers NaN
       sink.push(sample);
       Dw3000Stats::add(stats_.ranges);
       scheduler_.reportSuccess(pick.index, clock_.nowNs(), AnchorScheduler::strengthFromRangeDb(r.range_m));

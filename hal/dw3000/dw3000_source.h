@@ -2,7 +2,8 @@
 // The DWM3000 as a rilo::SampleSource: brings the chip up, then ranges the
 // configured anchors with the strongest-N scheduler, pushing one RangeSample
 // per good exchange (t_ns = kernel CLOCK_MONOTONIC time of the RX-good IRQ
-// edge). Faults are counted (stats()), retried with back-off on hal::Clock
+// edge; rssi_dbm / fp_power_dbm from the response's CIA diagnostics, NaN and
+// counted in stats().diagnostics_read_failures when that read failed). Faults are counted (stats()), retried with back-off on hal::Clock
 // and reported through SampleSink::fault(); they never escape as exceptions.
 //
 // Fault policy (docs/uwb-protocol.md, "Faults"):

@@ -10,6 +10,7 @@ struct Dw3000Stats {
   using Counter = std::atomic<std::uint64_t>;
   Counter exchanges{0};           ///< polls sent (or attempted)
   Counter ranges{0};              ///< RangeSamples pushed
+  Counter diagnostics_read_failures{0};  ///< ranges pushed without RX / first-path power (read failed)
   Counter discovery_polls{0};     ///< polls of anchors outside the active set
   // Link faults
   Counter rx_timeouts{0};

@@ -57,13 +57,18 @@ TEST(Dw3000Source, RangesTheStrongestFourAtTenHertzAndRediscoversTheOthers) {
     last = r.t_ns;
     EXPECT_EQ(r.tag_id, 0u);
     EXPECT_NEAR(r.range_m, truth[r.anchor_id - 10], 0.01);
-    EXPECT_TRUE(std::isnan(r.rssi_dbm));
-    EXPECT_TRUE(std::isnan(r.fp_power_dbm));
-    EXPECT_EQ(r.los, -1);
+    // RX level and first-path power of the emulated channel (default model:
+    // -63 dBm at 1 m, 2 dB below it in the first path); C is a few counts at
+    // 30 m, so its rounding allows ~0.4 dB there.
+    const double rx_level_dbm = -63.0 - 20.0 * std::log10(truth[r.anchor_id - 10]);
+    EXPECT_NEAR(r.rssi_dbm, rx_level_dbm, 0.5);
+    EXPECT_NEAR(r.fp_power_dbm, rx_level_dbm - 2.0, 0.01);
+    EXPECT_EQ(r.los, -1);  // ground truth only simulators know
   }
   const auto& stats = source.stats();
   EXPECT_EQ(Dw3000Stats::get(stats.ranges), sink.ranges.size());
   EXPECT_EQ(Dw3000Stats::get(stats.exchanges), sink.ranges.size());
+  EXPECT_EQ(Dw3000Stats::get(stats.diagnostics_read_failures), 0u);
   EXPECT_EQ(Dw3000Stats::get(stats.bringups), 1u);
   EXPECT_GE(Dw3000Stats::get(stats.discovery_polls), 6u + 10u);
   EXPECT_EQ(rig.chip.counters().speed_violations, 0u);

@@ -20,19 +20,7 @@
 namespace rilo {
 namespace {
 
-// CIA diagnostics of the last reception (file 0x0C), read after a good
-// exchange. Offsets from Qorvo's register map; not in the hardware notes.
-constexpr dw3000::RegAddr kIpDiag1{0x0C, 0x2C};   // C: CIR power, bits 16:0; IP_DIAG_2..4 follow at 0x30/0x34/0x38
-constexpr dw3000::RegAddr kIpDiag12{0x0C, 0x58};  // N: preamble accumulation count, bits 11:0
-constexpr std::uint32_t kCirPowerMask = 0x1FFFF;
-constexpr std::uint32_t kFirstPathMask = 0x3FFFFF;
-constexpr std::uint32_t kAccumulationMask = 0xFFF;
 constexpr std::size_t kMaxFaultMessages = 8;
-
-std::uint32_t le32(const std::uint8_t* p) {
-  return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
-         (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
-}
 
 std::int64_t secondsToNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
 
@@ -60,16 +48,6 @@ std::string hex(std::uint32_t v, int digits) {
 }
 
 std::string i2cName(const ImuHardwareConfig& config) { return config.i2c_device + "@" + hex(config.i2c_address, 2); }
-
-/// RSSI and first-path power of the last good reception (NaN if unreadable).
-RxPower readRxPower(dw3000::Dw3000Device& device, bool prf64) {
-  std::array<std::uint8_t, 16> diag{};  // IP_DIAG_1..4
-  std::uint32_t n = 0;
-  if (device.read(kIpDiag1, diag) || device.read32(kIpDiag12, n)) return {};
-  return rxPowerFromDiagnostics(le32(diag.data()) & kCirPowerMask, le32(diag.data() + 4) & kFirstPathMask,
-                                le32(diag.data() + 8) & kFirstPathMask, le32(diag.data() + 12) & kFirstPathMask,
-                                n & kAccumulationMask, prf64);
-}
 
 bool interrupted(const std::atomic<bool>* interrupt) {
   return interrupt != nullptr && interrupt->load(std::memory_order_relaxed);
@@ -126,7 +104,6 @@ bool bringUpUwb(dw3000::Dw3000Device& device, UwbProbe& out, const char* what) {
 /// to see every anchor, weak ones included.
 void measureUwb(dw3000::Dw3000Device& device, const dw3000::Dw3000Config& config, hal::Clock& clock, double seconds,
                 const std::atomic<bool>* interrupt, UwbProbe& out) {
-  const bool prf64 = config.preamble_code >= 9;
   const std::int64_t period_ns = std::max<std::int64_t>(1, secondsToNs(1.0 / config.scheduler.range_rate_hz));
   const std::int64_t start_ns = clock.nowNs();
   const std::int64_t end_ns = start_ns + secondsToNs(seconds);
@@ -142,9 +119,10 @@ void measureUwb(dw3000::Dw3000Device& device, const dw3000::Dw3000Config& config
         device_faults_in_row = 0;
         anchor.range_m.add(r.range_m);
         anchor.clock_offset_ppm.add(r.clock_offset_ratio * 1e6);
-        const RxPower power = readRxPower(device, prf64);
-        if (std::isfinite(power.rssi_dbm)) anchor.rssi_dbm.add(power.rssi_dbm);
-        if (std::isfinite(power.fp_power_dbm)) anchor.fp_power_dbm.add(power.fp_power_dbm);
+        // RX level and first-path power: range() read them with the response.
+        if (r.diagnostics_error) ++out.device_faults["RX diagnostics read failed (range kept)"];
+        if (std::isfinite(r.rx_power.rssi_dbm)) anchor.rssi_dbm.add(r.rx_power.rssi_dbm);
+        if (std::isfinite(r.rx_power.fp_power_dbm)) anchor.fp_power_dbm.add(r.rx_power.fp_power_dbm);
       } else if (dw3000::isDeviceFault(r.status)) {
         ++out.device_faults[dw3000::toString(r.status)];
         ++device_faults_in_row;
@@ -410,20 +388,6 @@ std::string jsonVec(const std::array<double, 3>& v) {
 }
 
 }  // namespace
-
-RxPower rxPowerFromDiagnostics(std::uint32_t c_power, std::uint32_t f1, std::uint32_t f2, std::uint32_t f3,
-                               std::uint32_t accumulation_count, bool prf64) {
-  RxPower p;
-  if (accumulation_count == 0) return p;
-  const double a_db = prf64 ? 121.7 : 113.8;
-  const double n2 = static_cast<double>(accumulation_count) * static_cast<double>(accumulation_count);
-  if (c_power > 0) p.rssi_dbm = 10.0 * std::log10(static_cast<double>(c_power) * 2097152.0 / n2) - a_db;
-  // F1..F3 carry 2 fractional bits.
-  const double a1 = f1 / 4.0, a2 = f2 / 4.0, a3 = f3 / 4.0;
-  const double fp = a1 * a1 + a2 * a2 + a3 * a3;
-  if (fp > 0.0) p.fp_power_dbm = 10.0 * std::log10(fp / n2) - a_db;
-  return p;
-}
 
 void RunningStats::add(double x) noexcept {
   ++count;

@@ -28,22 +28,6 @@ struct ProbeOptions {
   double seconds = 3.0;  ///< measurement time per device (s), > 0
 };
 
-/// RX level and first-path power from the CIA diagnostics (DW3000 user
-/// manual, "Estimating the receive signal power"): with C the channel impulse
-/// response power (IP_DIAG_1), F1..F3 the first-path amplitudes (IP_DIAG_2..4,
-/// 2 fractional bits), N the preamble accumulation count (IP_DIAG_12) and
-/// A = 121.7 dB at 64 MHz PRF (113.8 at 16 MHz):
-///   RX level = 10 log10(C 2^21 / N^2) - A,  FP = 10 log10((F1^2+F2^2+F3^2) / N^2) - A.
-/// The DGC gain term (6 dB per DGC_DECISION step) is not included
-/// (UNVERIFIED on the board: check against a known link budget).
-struct RxPower {
-  double rssi_dbm = std::numeric_limits<double>::quiet_NaN();
-  double fp_power_dbm = std::numeric_limits<double>::quiet_NaN();
-};
-/// NaN fields when N or C (or the F terms) are zero: no diagnostics.
-RxPower rxPowerFromDiagnostics(std::uint32_t c_power, std::uint32_t f1, std::uint32_t f2, std::uint32_t f3,
-                               std::uint32_t accumulation_count, bool prf64 = true);
-
 /// Running mean / standard deviation (Welford).
 struct RunningStats {
   std::uint64_t count = 0;

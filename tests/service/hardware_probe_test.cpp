@@ -251,20 +251,6 @@ TEST_F(HardwareProbeTest, RejectsABadMeasurementTime) {
                std::invalid_argument);
 }
 
-TEST(RxPowerFromDiagnostics, FollowsTheUserManualFormula) {
-  // C = 2^15, N = 128: 10 log10(2^15 * 2^21 / 2^14) - 121.7 = 10 log10(2^22) - 121.7.
-  const RxPower p = rxPowerFromDiagnostics(1u << 15, 4000, 4000, 4000, 128);
-  EXPECT_NEAR(p.rssi_dbm, 10.0 * std::log10(4194304.0) - 121.7, 1e-9);
-  // F carry 2 fractional bits: 1000 each, 3e6 / 16384.
-  EXPECT_NEAR(p.fp_power_dbm, 10.0 * std::log10(3e6 / 16384.0) - 121.7, 1e-9);
-  const RxPower prf16 = rxPowerFromDiagnostics(1u << 15, 4000, 4000, 4000, 128, false);
-  EXPECT_NEAR(prf16.rssi_dbm - p.rssi_dbm, 121.7 - 113.8, 1e-9);
-  // No diagnostics: NaN, not -inf.
-  EXPECT_TRUE(std::isnan(rxPowerFromDiagnostics(1000, 1, 1, 1, 0).rssi_dbm));
-  EXPECT_TRUE(std::isnan(rxPowerFromDiagnostics(0, 0, 0, 0, 128).rssi_dbm));
-  EXPECT_TRUE(std::isnan(rxPowerFromDiagnostics(0, 0, 0, 0, 128).fp_power_dbm));
-}
-
 TEST(RunningStats, MeanAndSampleStandardDeviation) {
   RunningStats s;
   EXPECT_EQ(s.stddev(), 0.0);

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <string>
+#include <system_error>
 
 #include "evaluation/eval_test_support.h"
 #include "rilod/config.h"
@@ -167,6 +168,27 @@ TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
   EXPECT_NEAR(jsonNumberAt(json, {"imu", "rate_hz"}), 800.0, 1.0);
   EXPECT_NEAR(jsonNumberAt(json, {"imu", "mean_accel_norm_m_s2"}), kGravity, 0.01);
   EXPECT_NEAR(jsonNumberAt(json, {"imu", "odr_hz"}), 800.0, 1e-9);
+}
+
+TEST_F(HardwareProbeTest, AFailedDiagnosticsReadKeepsTheRangeAndIsListed) {
+  const ServiceConfig cfg = config();
+  EmulatedBoard board(cfg.sources.hardware, truth_);
+  board.dw3000().failReadsOf(0x0C, 0x2C, 2, std::make_error_code(std::errc::io_error));  // IP_DIAG_1 burst
+  const ProbeReport report = probe(cfg, board, 1.0);
+  ASSERT_TRUE(report.uwb.up) << report.uwb.error;
+  std::uint64_t ranges = 0;
+  std::uint64_t with_power = 0;
+  for (const AnchorProbe& a : report.uwb.anchors) {
+    ranges += a.ranges();
+    with_power += a.rssi_dbm.count;
+    if (a.id != 3) EXPECT_EQ(a.ranges(), a.attempts) << a.id;  // every answer counted (3 is switched off)
+  }
+  EXPECT_EQ(with_power + 2, ranges);
+  ASSERT_EQ(report.uwb.device_faults.size(), 1u);
+  EXPECT_EQ(report.uwb.device_faults.begin()->first, "RX diagnostics read failed (range kept)");
+  EXPECT_EQ(report.uwb.device_faults.begin()->second, 2u);
+  EXPECT_EQ(report.uwb.reinitializations, 0u);
+  EXPECT_EQ(report.exitCode(), 0);
 }
 
 TEST_F(HardwareProbeTest, WrongDevIdFailsTheUwbNamingTheDeviceAndStillProbesTheImu) {

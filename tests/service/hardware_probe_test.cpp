@@ -181,7 +181,9 @@ TEST_F(HardwareProbeTest, AFailedDiagnosticsReadKeepsTheRangeAndIsListed) {
   for (const AnchorProbe& a : report.uwb.anchors) {
     ranges += a.ranges();
     with_power += a.rssi_dbm.count;
-    if (a.id != 3) EXPECT_EQ(a.ranges(), a.attempts) << a.id;  // every answer counted (3 is switched off)
+    if (a.id != 3) {  // switched off
+      EXPECT_EQ(a.ranges(), a.attempts) << a.id;  // every answer counted
+    }
   }
   EXPECT_EQ(with_power + 2, ranges);
   ASSERT_EQ(report.uwb.device_faults.size(), 1u);

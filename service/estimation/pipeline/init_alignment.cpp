@@ -187,9 +187,15 @@ using ObsEvals = std::vector<ObsEval>;
 bool onBand(const Obs& o) { return o.kind != Measurement::Kind::kUltrasonic; }
 
 /// The cost at s; every measurement's evaluation into *evals (resized).
-Costs costOf(const Problem& pr, const State& s, ObsEvals* evals) {
+/// Every term is >= 0 (robust_loss.h: rho(0) = 0, non-decreasing in |r|), so
+/// once the partial sum passes `reject_above` the total will too (rounding is
+/// monotone): a step's rejection is then certain, and the rest of the sum
+/// is skipped (+inf returned, *evals incomplete).
+Costs costOf(const Problem& pr, const State& s, ObsEvals* evals,
+             double reject_above = std::numeric_limits<double>::infinity()) {
   const AlignmentParams& P = *pr.params;
   Costs c;
+  constexpr std::size_t kCheckEvery = 64;
   evals->resize(pr.obs.size(), ObsEval{TagEval{Vec3::Zero(), Vec3::Zero(), SmallRotation(Vec3::Zero())},
                                        Eigen::RowVector3d::Zero(), 0.0});
   for (std::size_t j = 0; j < pr.obs.size(); ++j) {
@@ -199,9 +205,14 @@ Costs costOf(const Problem& pr, const State& s, ObsEvals* evals) {
     const Vec3& tag = ev.e.tag;
     ev.r = (o.value_m - o.predict(tag, &ev.grad)) * o.inv_sigma;
     c.measurements += rhoOf(pr, o, ev.r);
-    if (!onBand(o)) continue;
-    const double rb = P.band.residual(tag.z());
-    c.total += 0.5 * rb * rb;
+    if (onBand(o)) {
+      const double rb = P.band.residual(tag.z());
+      c.total += 0.5 * rb * rb;
+    }
+    if ((j + 1) % kCheckEvery == 0 && c.total + c.measurements > reject_above) {
+      const double inf = std::numeric_limits<double>::infinity();
+      return Costs{inf, inf};
+    }
   }
   c.total += c.measurements;
   c.total += 0.5 * (s.b.accel / P.accel_bias_sigma).squaredNorm();
@@ -217,9 +228,14 @@ Costs costOf(const Problem& pr, const State& s, ObsEvals* evals) {
 /// H += w J^T J on the lower triangle only (linearize mirrors it once at the
 /// end; the LDLT and the eigensolver read the lower triangle): Eigen's outer
 /// product there, H(r, c) += (w J(r)) J(c), bit for bit, at half the work.
-void addOuterLower(Mat15d& H, const Eigen::Matrix<double, 1, 15>& J, double w) {
-  const Eigen::Matrix<double, 15, 1> wJ = w * J.transpose();
-  for (int c = 0; c < 15; ++c) H.col(c).tail(15 - c) += wJ.tail(15 - c) * J(c);
+inline void addOuterLower(Mat15d& H, const Eigen::Matrix<double, 1, 15>& J, double w) {
+  double wJ[15];
+  for (int r = 0; r < 15; ++r) wJ[r] = w * J(r);
+  double* h = H.data();  // column-major: column c starts at h + 15 c
+  for (int c = 0; c < 15; ++c) {
+    const double jc = J(c);
+    for (int r = c; r < 15; ++r) h[15 * c + r] += wJ[r] * jc;
+  }
 }
 
 /// Normal equations at s, from the measurements' evaluations there (costOf's).
@@ -300,7 +316,7 @@ Fit solve(const Problem& pr, const State& s0, ObsEvals& evals, ObsEvals& candida
         continue;
       }
       const State s1 = retract(f.s, dx);
-      const Costs c1 = costOf(pr, s1, &candidate);
+      const Costs c1 = costOf(pr, s1, &candidate, f.cost.total);
       if (c1.total <= f.cost.total) {
         evals.swap(candidate);
         converged = dx.cwiseAbs().maxCoeff() < 1e-6 || f.cost.total - c1.total < 1e-9 * (1.0 + f.cost.total);

@@ -4,8 +4,17 @@
 // whole solves, the parts of one LM iteration: linearization into the normal
 // equations, the numeric factorization, the nonlinear error, and the
 // marginal covariance of the newest pose the Initializer asks for; the
-// Initializer's gate probe (that marginal at the starting values) and its
-// range-inertial yaw alignment, which every attempt runs.
+// Initializer's gate probe (that marginal at the starting values), the probe
+// followed by the solve with and without sharing the solver
+// (BatchLevenbergMarquardt::covarianceAt), and its range-inertial yaw
+// alignment, which every attempt runs.
+//
+// Measured (process CPU time, shared 2-core machine under load ~4-7, so a few
+// percent of noise): BM_InitAlignment 10 s / 20 s 22.5 / 46 ms before the
+// alignment's evaluation reuse, lower-triangle sums, series sin/cos and early
+// cost exit, 16.0 / 32.3 ms after; BM_InitWindowGateThenSolve 10 s
+// 38.5 ms (separate probe solver) -> 34.7 ms (shared, covarianceAt), 20 s
+// 128 -> 121 ms.
 #include <benchmark/benchmark.h>
 
 #include <string>
@@ -135,6 +144,43 @@ void BM_InitWindowGateProbe(benchmark::State& state) {
   state.counters["states"] = static_cast<double>(wp.graph.state_t_ns.size());
 }
 BENCHMARK(BM_InitWindowGateProbe)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+/// The gate probe followed by the solve and the newest pose's marginal, as
+/// Initializer::solveBatch runs them when the gate lets the solve through.
+/// Second argument 0: a separate zero-iteration probe solver and a fresh
+/// solver for the solve (before covarianceAt); 1: one solver,
+/// covarianceAt() then optimize(), which reuses the probe's ordering,
+/// symbolic analysis and first linearization.
+void BM_InitWindowGateThenSolve(benchmark::State& state) {
+  const WindowProblem wp = makeWindow(static_cast<double>(state.range(0)));
+  const Key x_last = sym::X(wp.graph.state_t_ns.size() - 1);
+  const bool shared = state.range(1) != 0;
+  LmParams probe_params = InitializerParams::defaultLmParams();
+  probe_params.max_iterations = 0;
+  LmResult last;
+  for (auto _ : state) {
+    BatchLevenbergMarquardt lm(InitializerParams::defaultLmParams());
+    if (shared) {
+      benchmark::DoNotOptimize(lm.covarianceAt(wp.graph.graph, wp.initial, x_last));
+    } else {
+      BatchLevenbergMarquardt probe(probe_params);
+      benchmark::DoNotOptimize(probe.optimize(wp.graph.graph, wp.initial).result.initial_error);
+      benchmark::DoNotOptimize(probe.marginalCovariance(x_last));
+    }
+    const auto out = lm.optimize(wp.graph.graph, wp.initial);
+    benchmark::DoNotOptimize(lm.marginalCovariance(x_last));
+    last = out.result;
+  }
+  setCounters(state, wp, last);
+}
+BENCHMARK(BM_InitWindowGateThenSolve)
+    ->ArgNames({"window_s", "shared"})
+    ->Args({10, 0})
+    ->Args({10, 1})
+    ->Args({20, 0})
+    ->Args({20, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(2.0);
 
 /// The range-inertial yaw alignment every attempt runs (8 yaw hypotheses, 15
 /// unknowns, every measurement of the window) from the window start.

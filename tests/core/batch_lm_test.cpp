@@ -626,6 +626,69 @@ TEST(BatchLm, ReusesStructureAndHandlesANewOne) {
   EXPECT_EQ(other.result.final_error, reference.result.final_error);
 }
 
+TEST(BatchLm, CovarianceAtEqualsAZeroIterationProbeAndTheSolveAfterItAFreshOne) {
+  const Problem p = trilaterationChain(15, 0.1, 0.3, 43);
+  const Key x_last = sym::X(14);
+  LmParams probe_params;
+  probe_params.max_iterations = 0;
+  BatchLevenbergMarquardt probe(probe_params);
+  (void)probe.optimize(p.graph, p.initial);
+  const auto expected_last = probe.marginalCovariance(x_last);
+  const auto expected_first = probe.marginalCovariance(sym::X(0));
+  ASSERT_TRUE(expected_last && expected_first);
+
+  BatchLevenbergMarquardt lm;
+  std::string why;
+  const auto cov = lm.covarianceAt(p.graph, p.initial, x_last, &why);
+  ASSERT_TRUE(cov.has_value()) << why;
+  EXPECT_EQ(Eigen::MatrixXd(*cov), Eigen::MatrixXd(*expected_last));  // the same system, bit for bit
+  const auto cov_first = lm.marginalCovariance(sym::X(0));
+  ASSERT_TRUE(cov_first.has_value());
+  EXPECT_EQ(Eigen::MatrixXd(*cov_first), Eigen::MatrixXd(*expected_first));
+
+  // The solve from the same values reuses the probe's structure and first
+  // linearization and ends exactly where a fresh solver does.
+  BatchLevenbergMarquardt fresh;
+  const auto reference = fresh.optimize(p.graph, p.initial);
+  const auto solved = lm.optimize(p.graph, p.initial);
+  ASSERT_TRUE(reference.result.converged()) << reference.result.message;
+  EXPECT_EQ(solved.result.status, reference.result.status);
+  EXPECT_EQ(solved.result.iterations, reference.result.iterations);
+  EXPECT_EQ(solved.result.initial_error, reference.result.initial_error);
+  EXPECT_EQ(solved.result.final_error, reference.result.final_error);
+  EXPECT_EQ(maxTangentDistance(solved.values, reference.values, sortedGraphKeys(p.graph)), 0.0);
+  const auto cov_solved = lm.marginalCovariance(x_last);
+  const auto cov_reference = fresh.marginalCovariance(x_last);
+  ASSERT_TRUE(cov_solved && cov_reference);
+  EXPECT_EQ(Eigen::MatrixXd(*cov_solved), Eigen::MatrixXd(*cov_reference));
+
+  // From other values the probe's linearization must not be used.
+  BatchLevenbergMarquardt other;
+  ASSERT_TRUE(other.covarianceAt(p.graph, p.initial, x_last).has_value());
+  Values moved = p.initial;
+  moved.update(sym::L(0), Vec3(p.initial.vec3(sym::L(0)) + Vec3(0.3, -0.2, 0.1)));
+  const auto from_moved = other.optimize(p.graph, moved);
+  const auto reference_moved = BatchLevenbergMarquardt().optimize(p.graph, moved);
+  EXPECT_EQ(from_moved.result.initial_error, reference_moved.result.initial_error);
+  EXPECT_EQ(from_moved.result.final_error, reference_moved.result.final_error);
+  EXPECT_EQ(maxTangentDistance(from_moved.values, reference_moved.values, sortedGraphKeys(p.graph)), 0.0);
+}
+
+TEST(BatchLm, CovarianceAtReportsWhatAZeroIterationProbeWould) {
+  const Problem p = trilaterationChain(10, 0.3, 1.0, 47);
+  Values bad = p.initial;
+  bad.update(sym::L(0), Vec3(std::nan(""), 0.0, 0.0));
+  BatchLevenbergMarquardt lm;
+  std::string why;
+  EXPECT_FALSE(lm.covarianceAt(p.graph, bad, sym::X(0), &why).has_value());
+  EXPECT_NE(why.find("not finite"), std::string::npos) << why;
+  EXPECT_EQ(lm.optimize(p.graph, bad).result.status, LmStatus::kNonFiniteError);
+  Values missing = p.initial;
+  missing.erase(sym::L(0));
+  EXPECT_THROW((void)lm.covarianceAt(p.graph, missing, sym::X(0)), std::invalid_argument);
+  EXPECT_THROW((void)lm.covarianceAt(p.graph, p.initial, sym::X(99)), std::out_of_range);
+}
+
 TEST(BatchLm, TerminationStatusesWithoutExceptions) {
   const Problem p = trilaterationChain(10, 0.3, 1.0, 41);
   {

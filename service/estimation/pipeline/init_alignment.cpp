@@ -105,6 +105,16 @@ struct SmallRotation {
       const double t2 = theta2, t4 = t2 * t2;
       a = 1.0 - t2 / 6.0 + t4 / 120.0 - t4 * t2 / 5040.0 + t4 * t4 / 362880.0;
       b = 0.5 - t2 / 24.0 + t4 / 720.0 - t4 * t2 / 40320.0 + t4 * t4 / 3628800.0;
+    } else if (theta2 < 0.25) {
+      // theta < 0.5 rad (the gyro-bias prior's sigma over a window of tens of
+      // seconds): the same series to theta^16, in Horner form; the next terms
+      // are < 4e-23, so this is sin and cos to rounding, at a fraction of the
+      // two library calls (they were ~5 % of a replay's CPU).
+      const double t = theta2;
+      a = 1.0 + t * (-1.0 / 6.0 + t * (1.0 / 120.0 + t * (-1.0 / 5040.0 + t * (1.0 / 362880.0 + t * (-1.0 / 39916800.0 +
+          t * (1.0 / 6227020800.0 + t * (-1.0 / 1307674368000.0 + t * (1.0 / 355687428096000.0))))))));
+      b = 0.5 + t * (-1.0 / 24.0 + t * (1.0 / 720.0 + t * (-1.0 / 40320.0 + t * (1.0 / 3628800.0 + t * (-1.0 / 479001600.0 +
+          t * (1.0 / 87178291200.0 + t * (-1.0 / 20922789888000.0 + t * (1.0 / 6402373705728000.0))))))));
     } else {
       const double theta = std::sqrt(theta2);
       const double s_half = std::sin(0.5 * theta);
@@ -163,18 +173,46 @@ struct Costs {
   double measurements = 0.0;
 };
 
+/// One measurement evaluated at a state: what the cost needs and what the
+/// linearization at the same state reuses (the cost of an accepted step is
+/// evaluated at the state the next iteration linearizes at).
+struct ObsEval {
+  TagEval e;
+  Eigen::RowVector3d grad;  ///< of the predicted value w.r.t. the sensor position
+  double r;                 ///< whitened residual
+};
+using ObsEvals = std::vector<ObsEval>;
+
 /// The height band's residual applies to the UWB antenna only.
 bool onBand(const Obs& o) { return o.kind != Measurement::Kind::kUltrasonic; }
 
-Costs costOf(const Problem& pr, const State& s) {
+/// The cost at s; every measurement's evaluation into *evals (resized).
+/// Every term is >= 0 (robust_loss.h: rho(0) = 0, non-decreasing in |r|), so
+/// once the partial sum passes `reject_above` the total will too (rounding is
+/// monotone): a step's rejection is then certain, and the rest of the sum
+/// is skipped (+inf returned, *evals incomplete).
+Costs costOf(const Problem& pr, const State& s, ObsEvals* evals,
+             double reject_above = std::numeric_limits<double>::infinity()) {
   const AlignmentParams& P = *pr.params;
   Costs c;
-  for (const Obs& o : pr.obs) {
-    const Vec3 tag = tagAt(pr, s, o).tag;
-    c.measurements += rhoOf(pr, o, (o.value_m - o.predict(tag, nullptr)) * o.inv_sigma);
-    if (!onBand(o)) continue;
-    const double rb = P.band.residual(tag.z());
-    c.total += 0.5 * rb * rb;
+  constexpr std::size_t kCheckEvery = 64;
+  evals->resize(pr.obs.size(), ObsEval{TagEval{Vec3::Zero(), Vec3::Zero(), SmallRotation(Vec3::Zero())},
+                                       Eigen::RowVector3d::Zero(), 0.0});
+  for (std::size_t j = 0; j < pr.obs.size(); ++j) {
+    const Obs& o = pr.obs[j];
+    ObsEval& ev = (*evals)[j];
+    ev.e = tagAt(pr, s, o);
+    const Vec3& tag = ev.e.tag;
+    ev.r = (o.value_m - o.predict(tag, &ev.grad)) * o.inv_sigma;
+    c.measurements += rhoOf(pr, o, ev.r);
+    if (onBand(o)) {
+      const double rb = P.band.residual(tag.z());
+      c.total += 0.5 * rb * rb;
+    }
+    if ((j + 1) % kCheckEvery == 0 && c.total + c.measurements > reject_above) {
+      const double inf = std::numeric_limits<double>::infinity();
+      return Costs{inf, inf};
+    }
   }
   c.total += c.measurements;
   c.total += 0.5 * (s.b.accel / P.accel_bias_sigma).squaredNorm();
@@ -187,26 +225,41 @@ Costs costOf(const Problem& pr, const State& s) {
   return c;
 }
 
-void linearize(const Problem& pr, const State& s, Mat15d& H, Vec15d& g) {
+/// H += w J^T J on the lower triangle only (linearize mirrors it once at the
+/// end; the LDLT and the eigensolver read the lower triangle): Eigen's outer
+/// product there, H(r, c) += (w J(r)) J(c), bit for bit, at half the work.
+inline void addOuterLower(Mat15d& H, const Eigen::Matrix<double, 1, 15>& J, double w) {
+  double wJ[15];
+  for (int r = 0; r < 15; ++r) wJ[r] = w * J(r);
+  double* h = H.data();  // column-major: column c starts at h + 15 c
+  for (int c = 0; c < 15; ++c) {
+    const double jc = J(c);
+    for (int r = c; r < 15; ++r) h[15 * c + r] += wJ[r] * jc;
+  }
+}
+
+/// Normal equations at s, from the measurements' evaluations there (costOf's).
+void linearize(const Problem& pr, const State& s, const ObsEvals& evals, Mat15d& H, Vec15d& g) {
   const AlignmentParams& P = *pr.params;
   H.setZero();
   g.setZero();
-  for (const Obs& o : pr.obs) {
-    const TagEval e = tagAt(pr, s, o);
-    Eigen::RowVector3d grad;
-    const double r = (o.value_m - o.predict(e.tag, &grad)) * o.inv_sigma;
-    const Eigen::Matrix<double, 1, 15> Jr = rowJacobian(s, o, e, -o.inv_sigma * grad.transpose());
+  for (std::size_t j = 0; j < pr.obs.size(); ++j) {
+    const Obs& o = pr.obs[j];
+    const TagEval& e = evals[j].e;
+    const double r = evals[j].r;
+    const Eigen::Matrix<double, 1, 15> Jr = rowJacobian(s, o, e, -o.inv_sigma * evals[j].grad.transpose());
     const double w = weightOf(pr, o, r);
-    H.noalias() += w * Jr.transpose() * Jr;
+    addOuterLower(H, Jr, w);
     g.noalias() += w * Jr.transpose() * r;
     if (!onBand(o)) continue;
     const double jb = P.band.derivative(e.tag.z());
     if (jb != 0.0) {
       const Eigen::Matrix<double, 1, 15> Jb = rowJacobian(s, o, e, jb * Vec3::UnitZ());
-      H.noalias() += Jb.transpose() * Jb;
+      addOuterLower(H, Jb, 1.0);
       g.noalias() += Jb.transpose() * P.band.residual(e.tag.z());
     }
   }
+  H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
   // Bias priors.
   const double ia = 1.0 / P.accel_bias_sigma, ig = 1.0 / P.gyro_bias_sigma;
   for (int k = 0; k < 3; ++k) {
@@ -244,14 +297,15 @@ struct Fit {
   Mat15d H = Mat15d::Zero();
 };
 
-Fit solve(const Problem& pr, const State& s0) {
+/// `evals` and `candidate`: scratch buffers, reused across hypotheses.
+Fit solve(const Problem& pr, const State& s0, ObsEvals& evals, ObsEvals& candidate) {
   Fit f;
   f.s = s0;
-  f.cost = costOf(pr, f.s);
+  f.cost = costOf(pr, f.s, &evals);
   double lambda = 1e-4;
   Vec15d g;
   for (int it = 0; it < pr.params->max_iterations; ++it) {
-    linearize(pr, f.s, f.H, g);
+    linearize(pr, f.s, evals, f.H, g);
     bool accepted = false, converged = false;
     for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
       Mat15d A = f.H;
@@ -262,8 +316,9 @@ Fit solve(const Problem& pr, const State& s0) {
         continue;
       }
       const State s1 = retract(f.s, dx);
-      const Costs c1 = costOf(pr, s1);
+      const Costs c1 = costOf(pr, s1, &candidate, f.cost.total);
       if (c1.total <= f.cost.total) {
+        evals.swap(candidate);
         converged = dx.cwiseAbs().maxCoeff() < 1e-6 || f.cost.total - c1.total < 1e-9 * (1.0 + f.cost.total);
         f.s = s1;
         f.cost = c1;
@@ -280,9 +335,10 @@ Fit solve(const Problem& pr, const State& s0) {
   return f;
 }
 
-void finishFit(const Problem& pr, Fit& f) {
+void finishFit(const Problem& pr, Fit& f, ObsEvals& evals) {
   Vec15d g;
-  linearize(pr, f.s, f.H, g);
+  (void)costOf(pr, f.s, &evals);
+  linearize(pr, f.s, evals, f.H, g);
 }
 
 double wrapAngle(double a) { return std::remainder(a, 2.0 * M_PI); }
@@ -372,19 +428,20 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
   out.measurements = static_cast<int>(pr.obs.size());
 
   std::vector<Fit> fits;
+  ObsEvals evals, candidate;
   for (int k = 0; k < params.yaw_hypotheses; ++k) {
     State s0;
     s0.R = yawRotation(2.0 * M_PI * k / params.yaw_hypotheses) * gravity.R_w_b;
     s0.p = p_w_tag_guess - s0.R * params.p_b_tag;
     s0.v = v_w_guess;
-    fits.push_back(solve(pr, s0));
+    fits.push_back(solve(pr, s0, evals, candidate));
     out.hypothesis_costs.push_back(fits.back().cost.total);
   }
   std::size_t best = 0;
   for (std::size_t k = 1; k < fits.size(); ++k) {
     if (fits[k].cost.total < fits[best].cost.total) best = k;
   }
-  finishFit(pr, fits[best]);
+  finishFit(pr, fits[best], evals);
   const Fit& f = fits[best];
   if (!std::isfinite(f.cost.total) || !f.s.R.allFinite() || !f.s.p.allFinite() || !f.s.v.allFinite()) {
     out.message = "alignment diverged";

@@ -510,12 +510,11 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     batch_stage_reached_ = true;
     last_batch_ns_ = t_now;
   }
+  // One solver for the probe and the solve: the solve reuses the probe's
+  // ordering, symbolic factorization and linearization at the start.
+  BatchLevenbergMarquardt lm(P.lm);
   if (std::isfinite(P.batch_gate_sigma_factor) && t_now - last_batch_ns_ < toNs(P.batch_gate_max_s)) {
-    LmParams probe_params = P.lm;
-    probe_params.max_iterations = 0;
-    BatchLevenbergMarquardt probe(probe_params);
-    probe.optimize(win.graph.graph, initial);
-    const std::optional<CovarianceBlock> cov0 = probe.marginalCovariance(x_last);
+    const std::optional<CovarianceBlock> cov0 = lm.covarianceAt(win.graph.graph, initial, x_last);
     if (cov0 && cov0->rows() == 6) {
       const Pose3& T0 = initial.pose(x_last);
       const double pos0 = std::sqrt(std::max(0.0, cov0->bottomRightCorner<3, 3>().trace()));
@@ -533,7 +532,6 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   }
   ++status_.batch_solves;
   last_batch_ns_ = t_now;
-  BatchLevenbergMarquardt lm(P.lm);
   BatchLevenbergMarquardt::Output out = lm.optimize(win.graph.graph, initial);
   // Factor layout of buildRangeImuGraph: 3 first-state priors, the IMU factors, the measurement factors, anchor
   // priors, motion priors.

@@ -97,19 +97,89 @@ bool BatchLevenbergMarquardt::increaseLambda(double& lambda, double& nu) const {
   return true;
 }
 
-BatchLevenbergMarquardt::Output BatchLevenbergMarquardt::optimize(const FactorGraph& graph, const Values& initial) {
-  const auto t0 = std::chrono::steady_clock::now();
-  have_solution_ = false;
-  linearized_at_solution_ = false;
-  covariance_factorized_ = false;
+void BatchLevenbergMarquardt::checkKeys(const FactorGraph& graph, const Values& values) const {
   for (std::size_t f = 0; f < graph.size(); ++f) {
     for (Key k : graph[f]->keys()) {
-      if (!initial.exists(k)) {
+      if (!values.exists(k)) {
         throw std::invalid_argument("BatchLevenbergMarquardt::optimize: key " + keyString(k) + " of factor " +
                                     std::to_string(f) + " has no initial value");
       }
     }
   }
+}
+
+namespace {
+/// Bitwise-equal contents (same alternative, same doubles): only then is a
+/// linearization at `a` the one at `b`.
+bool sameVariable(const Variable& a, const Variable& b) {
+  if (a.index() != b.index()) return false;
+  if (const auto* pa = std::get_if<Pose3>(&a)) {
+    const Pose3& pb = std::get<Pose3>(b);
+    return pa->R == pb.R && pa->p == pb.p;
+  }
+  if (const auto* va = std::get_if<Vec3>(&a)) return *va == std::get<Vec3>(b);
+  const ImuBias& ba = std::get<ImuBias>(a);
+  const ImuBias& bb = std::get<ImuBias>(b);
+  return ba.accel == bb.accel && ba.gyro == bb.gyro;
+}
+}  // namespace
+
+bool BatchLevenbergMarquardt::holdsLinearizationAt(const FactorGraph& graph, const Values& values) const {
+  if (!start_linearized_ || !structureMatches(graph, values)) return false;
+  // The same factor objects (structureMatches compares keys only) ...
+  if (graph.size() != solution_graph_.size()) return false;
+  for (std::size_t f = 0; f < graph.size(); ++f) {
+    if (graph[f].get() != solution_graph_[f].get()) return false;
+  }
+  // ... at the same values of every optimized variable.
+  for (Key k : normal_.ordering()) {
+    if (!sameVariable(values.at(k), solution_values_.at(k))) return false;
+  }
+  return true;
+}
+
+std::optional<BatchLevenbergMarquardt::CovarianceBlock> BatchLevenbergMarquardt::covarianceAt(
+    const FactorGraph& graph, const Values& values, Key key, std::string* failure) {
+  have_solution_ = false;
+  linearized_at_solution_ = false;
+  covariance_factorized_ = false;
+  start_linearized_ = false;
+  checkKeys(graph, values);
+  solution_graph_ = graph;
+  solution_values_ = values;
+  have_solution_ = true;
+  // What optimize() with no iterations leaves: no system on a non-finite
+  // error, a failed analysis or no variables.
+  auto noCovariance = [&](const std::string& message) {
+    covariance_factorized_ = true;
+    covariance_status_ = {CholmodStatus::kInvalidInput, "optimize() stopped before linearizing: " + message, -1};
+    if (failure) *failure = "J^T J at the solution: " + covariance_status_.message;
+    return std::nullopt;
+  };
+  const double error = graph.error(values);
+  if (!std::isfinite(error)) return noCovariance("initial error is not finite");
+  if (!structureMatches(graph, values)) {
+    LmResult res;
+    buildStructure(graph, values, res);
+    if (!structure_valid_) return noCovariance(res.message);
+  }
+  if (normal_.dim() == 0) return noCovariance("no variables to optimize");
+  // marginalCovariance() linearizes at solution_values_ (undamped) and factorizes.
+  std::optional<CovarianceBlock> cov = marginalCovariance(key, failure);
+  start_linearized_ = true;
+  start_error_ = error;
+  return cov;
+}
+
+BatchLevenbergMarquardt::Output BatchLevenbergMarquardt::optimize(const FactorGraph& graph, const Values& initial) {
+  const auto t0 = std::chrono::steady_clock::now();
+  // The probe's linearization and error at these values, if covarianceAt() left them.
+  const bool reuse_start = holdsLinearizationAt(graph, initial);
+  start_linearized_ = false;
+  have_solution_ = false;
+  linearized_at_solution_ = false;
+  covariance_factorized_ = false;
+  checkKeys(graph, initial);
 
   Output out{initial, {}};
   Values& x = out.values;
@@ -128,7 +198,7 @@ BatchLevenbergMarquardt::Output BatchLevenbergMarquardt::optimize(const FactorGr
     covariance_status_ = {CholmodStatus::kInvalidInput, "optimize() stopped before linearizing: " + res.message, -1};
   };
 
-  double error = graph.error(x);
+  double error = reuse_start ? start_error_ : graph.error(x);
   res.initial_error = error;
   if (!std::isfinite(error)) {
     finish(LmStatus::kNonFiniteError, "initial error is not finite", error, params_.lambda_initial);
@@ -157,7 +227,7 @@ BatchLevenbergMarquardt::Output BatchLevenbergMarquardt::optimize(const FactorGr
   std::string indeterminate_message;
   if (params_.record_trace) res.trace.reserve(static_cast<std::size_t>(params_.max_iterations));
   for (int iter = 0; iter < params_.max_iterations && !done; ++iter) {
-    normal_.linearize(graph, x);
+    if (iter > 0 || !reuse_start) normal_.linearize(graph, x);
     linearized_at_solution_ = true;
     const std::span<const double> h = normal_.hessianValues();
     const auto& diag = normal_.diagonalIndex();

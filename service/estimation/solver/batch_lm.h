@@ -55,7 +55,23 @@ class BatchLevenbergMarquardt {
   /// key that was not optimized.
   std::optional<CovarianceBlock> marginalCovariance(Key key, std::string* failure = nullptr);
 
+  /// Marginal covariance of `key` at `values` without optimizing: one
+  /// linearization and factorization of J^T J there (the Initializer's gate
+  /// probe). The same as optimize() with max_iterations 0 followed by
+  /// marginalCovariance(key), and afterwards marginalCovariance() answers for
+  /// other keys at `values` the same way. What it builds serves the next
+  /// optimize(): the ordering, the Hessian pattern and CHOLMOD's symbolic
+  /// analysis (reused as for any graph of the same structure) and, when that
+  /// optimize() starts from the same values, the linearization and the error
+  /// at the start (its first iteration's). Throws as optimize() and
+  /// marginalCovariance() do.
+  std::optional<CovarianceBlock> covarianceAt(const FactorGraph& graph, const Values& values, Key key,
+                                              std::string* failure = nullptr);
+
  private:
+  void checkKeys(const FactorGraph& graph, const Values& values) const;
+  /// normal_ holds the undamped linearization at `values` (left by covarianceAt).
+  bool holdsLinearizationAt(const FactorGraph& graph, const Values& values) const;
   bool structureMatches(const FactorGraph& graph, const Values& values) const;
   void buildStructure(const FactorGraph& graph, const Values& values, LmResult& result);
   void setDampedDiagonal(double lambda);
@@ -82,6 +98,10 @@ class BatchLevenbergMarquardt {
   bool have_solution_ = false;
   bool linearized_at_solution_ = false;  // normal_ holds J^T J at the solution (diagonal possibly damped)
   bool covariance_factorized_ = false;
+  // covarianceAt() left normal_ linearized (undamped) at solution_values_
+  // with this error there; cleared by anything that changes normal_.
+  bool start_linearized_ = false;
+  double start_error_ = 0.0;
   CholmodResult covariance_status_;
   FactorGraph solution_graph_;
   Values solution_values_;

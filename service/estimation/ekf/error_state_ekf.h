@@ -58,6 +58,19 @@
 // simulation (tests/core/ekf_tracking_test.cpp) the mean NEES is 17-19.5 for
 // 15 dof, the theta and gyro-bias blocks slightly overconfident (3.4-4.2 for
 // 3): the usual EKF linearization optimism, no stabilising noise is added.
+// On the office TDoA sims (NLOS excess persistent over seconds, treated as
+// white) the position sigma stays 5-15 cm against 0.2-1 m errors; and a
+// start whose velocity is metres per second off with a tight covariance
+// (office sims 4 and 6, where D-iSAM2 runs away too and the sliding window
+// does not) slides along a TDoA hyperbola the few audible anchors cannot
+// pin, with small innovations, until the Localizer's rejection share
+// re-initializes it.
+//
+// TDoA groups (updateTdoaGroup) exist because, on the office sims, one-by-one
+// scalar updates of a group's rows with a 1-dof gate each were both more
+// erratic (online RMSE 48 / 80 / 37 cm on seeds 1-3 against 52 / 47 / 30 cm
+// grouped, same per-link sigmas) and wrong in principle: rows of one TDMA
+// round share anchors, so their errors are correlated.
 #include <cstdint>
 #include <optional>
 

@@ -34,7 +34,7 @@ struct TdoaReportOptions {
   MeasurementKinds measurements{false, true, true};  ///< seed 002: TDoA and ultrasonic
   std::uint64_t reception_seed = 1;
   double lag_s = 5.0;                        ///< smoother lag / sliding window (s)
-  std::optional<bool> dynamic_covariance;    ///< ReplaySettings::dynamic_covariance (unset: graph on, EKF off)
+  std::optional<bool> dynamic_covariance;    ///< ReplaySettings::dynamic_covariance (unset: on when TDoA is used)
   std::string proposed = "sliding-window";   ///< the improvement row: proposed vs baseline
   std::string baseline = "ekf";
   double fail_mean_m = 10.0;                 ///< mean online APE above this: "Fail" (diverged)

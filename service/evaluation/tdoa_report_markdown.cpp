@@ -212,7 +212,7 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
              "%.2f m/s on every estimator's states (replay's default with TDoA); other parameters: the "
              "library defaults and each recording's meta.yaml\n",
              o.lag_s,
-             !o.dynamic_covariance ? "on for the graph estimators when TDoA is used, off for the EKF (default)"
+             !o.dynamic_covariance ? "on for every estimator when TDoA is used (default)"
              : *o.dynamic_covariance ? "on for every estimator"
                                      : "off",
              kTdoaVerticalSpeedSigmaMs);

@@ -15,7 +15,7 @@
 // largest. A failed run (TdoaRun::failed: threw, never tracked, or diverged)
 // shows "Fail" and is left out of the pooled figures, which then say so.
 // results.csv's dynamic_covariance: 1 on for every estimator, 0 off, auto
-// the default (graph estimators on when TDoA is used, EKF off).
+// the default (every estimator on when TDoA is used).
 #include <filesystem>
 #include <string>
 #include <vector>

@@ -141,5 +141,58 @@ TEST(EkfEstimator, VerticalSpeedPriorPullsOnlyTheVerticalVelocity) {
   EXPECT_THROW(ekf.applyVerticalSpeedPrior(0.0), std::invalid_argument);
 }
 
+// TDoA rows within same_state_window_ns are one joint update when the group
+// closes (EkfParams::tdoa_group_update), as the graph puts them on one state;
+// off, each row updates on arrival.
+TEST(EkfEstimator, TdoaRowsOfAGroupAreOneJointUpdateAtItsClose) {
+  const std::vector<Vec3> anchors = {Vec3(0, 0, 2.5), Vec3(10, 0, 2.4), Vec3(10, 8, 2.6), Vec3(0, 8, 2.5),
+                                     Vec3(5, 0, 0.5)};
+  RangeImuGraphParams gp;
+  gp.same_state_window_ns = 25'000'000;
+  const Vec3 p_w_b(4.0, 3.0, 1.2);
+  auto diff = [&](std::uint32_t a, std::uint32_t b) {
+    return (p_w_b - anchors[b]).norm() - (p_w_b - anchors[a]).norm();
+  };
+  auto imuAt = [](std::int64_t t_ns) {
+    ImuSample s;
+    s.t_ns = t_ns;
+    s.gyro_rad_s = Vec3::Zero();
+    s.accel_m_s2 = Vec3(0.0, 0.0, 9.81);
+    return s;
+  };
+  for (const bool grouped : {true, false}) {
+    EkfParams ep;
+    ep.tdoa_group_update = grouped;
+    EkfEstimator ekf(anchors, gp, ep);
+    ekf.start(0, Pose3(Mat3::Identity(), p_w_b), Vec3::Zero(), ImuBias());
+    std::int64_t t = 0;
+    for (; t <= 100'000'000; t += 5'000'000) ekf.addImu(imuAt(t));
+    // Four chained rows within 20 ms, then IMU past the window.
+    const std::uint32_t chain[5] = {0, 1, 2, 3, 4};
+    for (int k = 0; k < 4; ++k) {
+      TdoaSample row;
+      row.t_ns = t + k * 5'000'000;
+      row.anchor_a = chain[k];
+      row.anchor_b = chain[k + 1];
+      row.diff_m = diff(chain[k], chain[k + 1]);
+      ekf.addTdoa(row);
+    }
+    ekf.addImu(imuAt(t + 20'000'000));  // rows applied (their times passed), group still open
+    EXPECT_EQ(ekf.filter().counters().tdoa.attempted(), grouped ? 0u : 4u) << grouped;
+    std::vector<UpdateStats> stats;
+    EXPECT_EQ(ekf.process(&stats), 0) << grouped;
+    ekf.addImu(imuAt(t + 60'000'000));  // past the window: the group closes
+    EXPECT_EQ(ekf.filter().counters().tdoa.accepted, 4u) << grouped;
+    ASSERT_EQ(ekf.process(&stats), 1) << grouped;
+    EXPECT_EQ(stats[0].factors_added, 4) << grouped;
+    EXPECT_TRUE(stats[0].step_accepted) << grouped;
+    // Grouped: the state when the group closed (the filter had moved on to the
+    // IMU sample at +20 ms, inside the window: the graph's one state per group
+    // smears its rows over the window the same way); sequential: the newest row's.
+    EXPECT_EQ(ekf.latest().t_ns, t + (grouped ? 20'000'000 : 15'000'000)) << grouped;
+    EXPECT_LT((ekf.latest().T_w_b.p - p_w_b).norm(), 1e-3) << grouped;  // exact rows, standing still
+  }
+}
+
 }  // namespace
 }  // namespace rilo

@@ -189,7 +189,7 @@ void addReplayCommand(CLI::App& app) {
       ->check(CLI::IsMember(rangeLossNames()));
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
                   "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on for the graph "
-                  "estimators when TDoA rows are used, off for the EKF)");
+                  "estimators and the EKF when TDoA rows are used)");
   cmd->callback([options] {
     int code = 1;
     try {

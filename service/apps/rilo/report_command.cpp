@@ -289,8 +289,8 @@ void addReportCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--reception-seed", o->reception_seed, "--system tdoa: seed of the dropped packets")->capture_default_str();
   cmd->add_option("--dynamic-covariance", o->dynamic_covariance,
-                  "--system tdoa: per-link TDoA/ultrasonic sigmas from their residuals: auto (graph estimators on, "
-                  "the EKF baseline off), on (every estimator) or off")
+                  "--system tdoa: per-link TDoA/ultrasonic sigmas from their residuals: auto (on for every estimator "
+                  "when TDoA is used), on (every estimator) or off")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "on", "off"}));
   cmd->callback([o, rates, smoothers] {

@@ -19,6 +19,9 @@ void EkfParams::validate() const {
   if (!(std::isfinite(max_imu_dt_s) && max_imu_dt_s > 0.0)) fail("max_imu_dt_s", "finite and > 0", max_imu_dt_s);
   if (!(gate_chi2_1dof > 0.0)) fail("gate_chi2_1dof", "> 0 (+inf: no gate)", gate_chi2_1dof);
   if (!(gate_chi2_2dof > 0.0)) fail("gate_chi2_2dof", "> 0 (+inf: no gate)", gate_chi2_2dof);
+  if (!(tdoa_path_share >= 0.0 && tdoa_path_share < 1.0)) fail("tdoa_path_share", "in [0, 1)", tdoa_path_share);
+  if (!(gate_group_scale > 0.0)) fail("gate_group_scale", "> 0 (+inf: no gate)", gate_group_scale);
+  if (group_iterations < 1) fail("group_iterations", ">= 1", group_iterations);
   if (robust_iterations < 1) fail("robust_iterations", ">= 1", robust_iterations);
   if (!(min_robust_weight >= 0.0 && min_robust_weight < 1.0)) {
     fail("min_robust_weight", "in [0, 1)", min_robust_weight);

@@ -11,7 +11,12 @@ struct EkfParams {
 
   /// IMU intervals longer than this are refused (PropagateStatus::kGapTooLarge):
   /// a lost stretch of samples, not something to integrate across (s, > 0).
-  double max_imu_dt_s = 0.1;
+  /// Shorter intervals above ImuParams::gap_threshold_s are bridged with the
+  /// held sample and the gap's input variance (as preintegration does). The
+  /// default is the Localizer's max_imu_gap_s: up to it the graph bridges a
+  /// gap too (with 0.1 s a 0.2 s gap left the filter refusing every later
+  /// sample, its time stuck before the gap).
+  double max_imu_dt_s = 1.0;
 
   /// Chi-square gates on the Mahalanobis distance y^T S^-1 y of the innovation
   /// (prior S, before robust re-weighting), by number of rows. Defaults: the
@@ -27,6 +32,26 @@ struct EkfParams {
   /// outlier outright, e.g. a flat NLOS branch) skips the update
   /// (UpdateStatus::kZeroWeight) instead of dividing by ~0. In [0, 1).
   double min_robust_weight = 1e-6;
+
+  /// TDoA rows of one update group (EkfEstimator: the rows the graph puts on
+  /// one state) as ONE update (ErrorStateEkf::updateTdoaGroup) instead of one
+  /// by one: a chi-square gate on the whole group, iterated robust
+  /// re-weighting with relinearization at the current state, and the
+  /// correlation of rows that share an anchor. false: sequential scalar updates.
+  bool tdoa_group_update = true;
+  /// Share of a TDoA row's error variance that belongs to its two paths (half
+  /// each: the NLOS excess and antenna delay of anchor a's and b's path), the
+  /// rest row-specific noise. Rows of a group sharing an anchor are
+  /// correlated through it: +-share/2 (same side: +, a and b swapped: -). In [0, 1).
+  double tdoa_path_share = 0.8;
+  /// Gate of a group: the 99.9 % chi-square quantile of its row count times
+  /// this factor (> 0; +inf: no gate). A group above it loses its row of the
+  /// largest normalized innovation until the rest passes.
+  double gate_group_scale = 1.0;
+  /// Iterations of the group update (>= 1): each re-weights the rows at the
+  /// residuals of the current iterate and relinearizes there (an iterated
+  /// EKF: Gauss-Newton on prior + robust likelihood, the prior fixed).
+  int group_iterations = 3;
 
   /// EkfEstimator: per-link measurement sigmas from DynamicCovariance, fed
   /// with each update's innovation and its predicted variance H P H^T

@@ -36,6 +36,23 @@ struct EkfUpdateResult {
   bool accepted() const { return status == UpdateStatus::kAccepted; }
 };
 
+/// Most rows one group update takes (ErrorStateEkf::updateTdoaGroup): fixed
+/// capacity, no allocation. A TDoA group of 25 ms at 160 packets/s has 4.
+inline constexpr int kEkfMaxGroupRows = 16;
+
+/// Outcome of ErrorStateEkf::updateTdoaGroup(), per row in the caller's order.
+struct EkfGroupResult {
+  int rows = 0;
+  int accepted = 0, gated = 0, zero_weight = 0;
+  int iterations = 0;             ///< iterations run (<= EkfParams::group_iterations)
+  double mahalanobis_sq = 0.0;    ///< y^T S^-1 y of the rows that passed the gate (prior S, correlated R)
+  /// Per row: status, innovation y = z - h(x_prior) (m), H P H^T (m^2), final weight.
+  UpdateStatus status[kEkfMaxGroupRows] = {};
+  double innovation[kEkfMaxGroupRows] = {};
+  double predicted_variance_m2[kEkfMaxGroupRows] = {};
+  double weight[kEkfMaxGroupRows] = {};
+};
+
 /// Per measurement kind.
 struct EkfUpdateCounts {
   std::uint64_t accepted = 0;

@@ -38,7 +38,45 @@ void requireSigma(double v, const char* where, const char* name) {
 
 void symmetrize(Mat15& P) { P = 0.5 * (P + P.transpose()).eval(); }
 
+using GroupMat6 = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kEkfMaxGroupRows, 6>;
+using Group15 = Eigen::Matrix<double, 15, Eigen::Dynamic, 0, 15, kEkfMaxGroupRows>;
+
 }  // namespace
+
+double chiSquare999(int dof) {
+  // 99.9 % quantiles of chi-square(dof), dof = 1..16.
+  static constexpr double kQuantile[kEkfMaxGroupRows] = {10.828, 13.816, 16.266, 18.467, 20.515, 22.458,
+                                                          24.322, 26.124, 27.877, 29.588, 31.264, 32.909,
+                                                          34.528, 36.123, 37.697, 39.252};
+  if (dof < 1 || dof > kEkfMaxGroupRows) {
+    throw std::invalid_argument("chiSquare999: dof must be in [1, " + std::to_string(kEkfMaxGroupRows) + "], got " +
+                                std::to_string(dof));
+  }
+  return kQuantile[dof - 1];
+}
+
+EkfGroupMat tdoaGroupCovariance(const EkfTdoaRow* rows, int n, double share) {
+  if (n < 0 || n > kEkfMaxGroupRows || (n > 0 && rows == nullptr)) {
+    throw std::invalid_argument("tdoaGroupCovariance: n must be in [0, " + std::to_string(kEkfMaxGroupRows) +
+                                "] with rows given, got " + std::to_string(n));
+  }
+  EkfGroupMat R(n, n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      // C_ij = 1/2 sum over common anchors of the sign products (+1 anchor b, -1 anchor a).
+      const EkfTdoaRow& ri = rows[i];
+      const EkfTdoaRow& rj = rows[j];
+      double c = 0.0;
+      if (ri.anchor_b == rj.anchor_b) c += 1.0;
+      if (ri.anchor_a == rj.anchor_a) c += 1.0;
+      if (ri.anchor_b == rj.anchor_a) c -= 1.0;
+      if (ri.anchor_a == rj.anchor_b) c -= 1.0;
+      const double corr = share * 0.5 * c + (i == j ? 1.0 - share : 0.0);
+      R(i, j) = ri.sigma_m * rj.sigma_m * corr;
+    }
+  }
+  return R;
+}
 
 ErrorStateEkf::ErrorStateEkf(const EkfParams& params) : params_(params) {
   params_.validate();
@@ -150,6 +188,18 @@ void ErrorStateEkf::addProcessNoise(double dt_s) {
     P_(kAccelBias + i, kAccelBias + i) += bias_q_(i);
     P_(kGyroBias + i, kGyroBias + i) += bias_q_(3 + i);
   }
+  if (dt_s > imu.gap_threshold_s) {  // dropped samples: the held sample stands for unmeasured motion
+    const double ga2 = imu.gap_accel_sigma_m_s2 * imu.gap_accel_sigma_m_s2;
+    const double gg2 = imu.gap_gyro_sigma_rad_s * imu.gap_gyro_sigma_rad_s;
+    const double gap_pv = 0.5 * ga2 * dt2 * dt_s;
+    for (int i = 0; i < 3; ++i) {
+      P_(kTheta + i, kTheta + i) += gg2 * dt2;
+      P_(kPos + i, kPos + i) += 0.25 * ga2 * dt2 * dt2;
+      P_(kVel + i, kVel + i) += ga2 * dt2;
+      P_(kPos + i, kVel + i) += gap_pv;
+      P_(kVel + i, kPos + i) += gap_pv;
+    }
+  }
 }
 
 template <int M>
@@ -251,6 +301,154 @@ EkfUpdateResult ErrorStateEkf::updateTdoa(const Vec3& p_w_anchor_a, const Vec3& 
   const Eigen::Matrix<double, 1, 1> z(diff_m), sigma(sigma_m);
   return update<1>(predictTdoa(x_, p_w_anchor_a, p_w_anchor_b, p_b_tag), z, sigma, loss, params_.gate_chi2_1dof,
                    counters_.tdoa);
+}
+
+EkfGroupResult ErrorStateEkf::updateTdoaGroup(const EkfTdoaRow* rows, int n, const Vec3& p_b_tag,
+                                             const RobustLoss* loss) {
+  requireInitialized("updateTdoaGroup");
+  if (n < 0 || n > kEkfMaxGroupRows || (n > 0 && rows == nullptr)) {
+    throw std::invalid_argument("ErrorStateEkf::updateTdoaGroup: n must be in [0, " +
+                                std::to_string(kEkfMaxGroupRows) + "] with rows given, got " + std::to_string(n));
+  }
+  requireFinite(p_b_tag, "updateTdoaGroup", "p_b_tag");
+  for (int i = 0; i < n; ++i) {
+    requireFinite(rows[i].p_w_anchor_a, "updateTdoaGroup", "rows[i].p_w_anchor_a");
+    requireFinite(rows[i].p_w_anchor_b, "updateTdoaGroup", "rows[i].p_w_anchor_b");
+    requireFinite(rows[i].diff_m, "updateTdoaGroup", "rows[i].diff_m");
+    requireSigma(rows[i].sigma_m, "updateTdoaGroup", "rows[i].sigma_m");
+    if (rows[i].p_w_anchor_a == rows[i].p_w_anchor_b || rows[i].anchor_a == rows[i].anchor_b) {
+      invalid("updateTdoaGroup", "rows[i] anchors a and b", "different");
+    }
+  }
+  EkfGroupResult res;
+  res.rows = n;
+  if (n == 0) return res;
+
+  // 1. Prior innovations and their covariance.
+  EkfGroupVec y(n);
+  GroupMat6 H(n, 6);
+  for (int i = 0; i < n; ++i) {
+    const EkfPrediction<1> pred = predictTdoa(x_, rows[i].p_w_anchor_a, rows[i].p_w_anchor_b, p_b_tag);
+    y(i) = rows[i].diff_m - pred.h(0);
+    H.row(i) = pred.H;
+  }
+  const EkfGroupMat R = tdoaGroupCovariance(rows, n, params_.tdoa_path_share);
+  const Mat6 P66 = P_.topLeftCorner<6, 6>();
+  const EkfGroupMat S_all = H * P66 * H.transpose() + R;
+  for (int i = 0; i < n; ++i) {
+    res.status[i] = UpdateStatus::kAccepted;
+    res.innovation[i] = y(i);
+    res.predicted_variance_m2[i] = S_all(i, i) - R(i, i);
+    res.weight[i] = 1.0;
+  }
+
+  // 2. Gate on the whole group; drop the worst row until the rest passes.
+  int idx[kEkfMaxGroupRows];
+  int m = n;
+  for (int i = 0; i < n; ++i) idx[i] = i;
+  while (m > 0) {
+    EkfGroupMat S(m, m);
+    EkfGroupVec ya(m);
+    for (int a = 0; a < m; ++a) {
+      ya(a) = y(idx[a]);
+      for (int b = 0; b < m; ++b) S(a, b) = S_all(idx[a], idx[b]);
+    }
+    const Eigen::LLT<EkfGroupMat> llt(S);
+    const double nis = llt.info() == Eigen::Success ? ya.dot(llt.solve(ya)) : std::numeric_limits<double>::quiet_NaN();
+    if (nis <= chiSquare999(m) * params_.gate_group_scale) {  // NaN fails
+      res.mahalanobis_sq = nis;
+      break;
+    }
+    int worst = 0;
+    double worst_z = -1.0;
+    for (int a = 0; a < m; ++a) {
+      const double z = std::abs(ya(a)) / std::sqrt(S(a, a));
+      if (!(z <= worst_z)) {  // NaN counts as worst
+        worst_z = z;
+        worst = a;
+      }
+    }
+    res.status[idx[worst]] = UpdateStatus::kGated;
+    for (int a = worst; a + 1 < m; ++a) idx[a] = idx[a + 1];
+    --m;
+  }
+  res.gated = n - m;
+  counters_.tdoa.gated += static_cast<std::uint64_t>(n - m);
+  if (m == 0) return res;
+
+  // 3. Iterated, re-weighted update over the m rows that passed.
+  EkfGroupMat Ra(m, m);
+  for (int a = 0; a < m; ++a) {
+    for (int b = 0; b < m; ++b) Ra(a, b) = R(idx[a], idx[b]);
+  }
+  Vec15 d = Vec15::Zero();
+  Group15 K;
+  GroupMat6 Hu;
+  EkfGroupMat Rw;
+  int used[kEkfMaxGroupRows];
+  int u = 0;
+  for (int it = 0; it < params_.group_iterations; ++it) {
+    const EkfState xj = it == 0 ? x_ : x_.retract(d);
+    EkfGroupVec r(m);
+    GroupMat6 Hj(m, 6);
+    double w[kEkfMaxGroupRows];
+    u = 0;
+    for (int a = 0; a < m; ++a) {
+      const EkfTdoaRow& row = rows[idx[a]];
+      const EkfPrediction<1> pred = predictTdoa(xj, row.p_w_anchor_a, row.p_w_anchor_b, p_b_tag);
+      r(a) = row.diff_m - pred.h(0);
+      Hj.row(a) = pred.H;
+      w[a] = loss != nullptr ? loss->weight(r(a) / row.sigma_m) : 1.0;
+      res.weight[idx[a]] = w[a];
+      if (w[a] >= params_.min_robust_weight && w[a] > 0.0) used[u++] = a;
+    }
+    if (u == 0) break;
+    EkfGroupVec ru(u);
+    Hu.resize(u, 6);
+    Rw.resize(u, u);
+    for (int a = 0; a < u; ++a) {
+      ru(a) = r(used[a]) + Hj.row(used[a]).dot(d.head<6>());
+      Hu.row(a) = Hj.row(used[a]);
+      for (int b = 0; b < u; ++b) Rw(a, b) = Ra(used[a], used[b]) / std::sqrt(w[used[a]] * w[used[b]]);
+    }
+    const Group15 PHt = P_.leftCols<6>() * Hu.transpose();
+    const EkfGroupMat S = Hu * PHt.topRows<6>() + Rw;
+    const Eigen::LLT<EkfGroupMat> llt(S);
+    K = llt.solve(PHt.transpose()).transpose();
+    const Vec15 d_next = K * ru;
+    const double step = (d_next - d).norm();
+    d = d_next;
+    res.iterations = it + 1;
+    if (step < 1e-9) break;
+  }
+  if (u == 0) {
+    for (int a = 0; a < m; ++a) res.status[idx[a]] = UpdateStatus::kZeroWeight;
+    res.zero_weight = m;
+    counters_.tdoa.zero_weight += static_cast<std::uint64_t>(m);
+    return res;
+  }
+  for (int a = 0; a < m; ++a) {
+    bool in_use = false;
+    for (int b = 0; b < u; ++b) in_use = in_use || used[b] == a;
+    if (!in_use) {
+      res.status[idx[a]] = UpdateStatus::kZeroWeight;
+      ++res.zero_weight;
+    }
+  }
+  res.accepted = u;
+  counters_.tdoa.zero_weight += static_cast<std::uint64_t>(m - u);
+  counters_.tdoa.accepted += static_cast<std::uint64_t>(u);
+
+  // 4. Joseph form with the last gain (as update<M>), then injection and reset.
+  const Group15 PHt = P_.leftCols<6>() * Hu.transpose();
+  Mat15 X = P_;
+  X.noalias() -= K * PHt.transpose();
+  const Group15 XHt = X.leftCols<6>() * Hu.transpose();
+  P_ = X;
+  P_.noalias() -= XHt * K.transpose();
+  P_.noalias() += K * Rw * K.transpose();
+  injectAndReset(d);
+  return res;
 }
 
 bool ErrorStateEkf::applyHeightBand(double z_min_m, double z_max_m, double sigma_m) {

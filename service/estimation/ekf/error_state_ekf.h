@@ -12,6 +12,10 @@
 // gyro, accel and integration densities):
 //   Q_theta = sg^2 dt I,  Q_v = sa^2 dt I,  Q_pv = sa^2 dt^2/2 I,
 //   Q_p = (sa^2 dt^3/4 + si^2 dt) I,  Q_bias = ImuParams::biasDiscreteVariance(dt)
+// and, for an interval longer than ImuParams::gap_threshold_s (dropped
+// samples), the gap's unmeasured motion as a constant input error of std-dev
+// ga (accel) and gg (gyro) over dt, as preintegration adds it:
+//   Q_theta += gg^2 dt^2 I,  Q_v += ga^2 dt^2 I,  Q_pv += ga^2 dt^3/2 I,  Q_p += ga^2 dt^4/4 I
 // and the nominal bias decaying with the Gauss-Markov transition. The first
 // sample after initialize() at the filter's time only opens the interval; a
 // first sample after it is held over [t_state, t_sample] (Euler).
@@ -54,6 +58,19 @@
 // simulation (tests/core/ekf_tracking_test.cpp) the mean NEES is 17-19.5 for
 // 15 dof, the theta and gyro-bias blocks slightly overconfident (3.4-4.2 for
 // 3): the usual EKF linearization optimism, no stabilising noise is added.
+// On the office TDoA sims (NLOS excess persistent over seconds, treated as
+// white) the position sigma stays 5-15 cm against 0.2-1 m errors; and a
+// start whose velocity is metres per second off with a tight covariance
+// (office sims 4 and 6, where D-iSAM2 runs away too and the sliding window
+// does not) slides along a TDoA hyperbola the few audible anchors cannot
+// pin, with small innovations, until the Localizer's rejection share
+// re-initializes it.
+//
+// TDoA groups (updateTdoaGroup) exist because, on the office sims, one-by-one
+// scalar updates of a group's rows with a 1-dof gate each were both more
+// erratic (online RMSE 48 / 80 / 37 cm on seeds 1-3 against 52 / 47 / 30 cm
+// grouped, same per-link sigmas) and wrong in principle: rows of one TDMA
+// round share anchors, so their errors are correlated.
 #include <cstdint>
 #include <optional>
 
@@ -68,6 +85,32 @@
 namespace rilo {
 
 struct StateEstimate;  // estimation/pipeline/range_imu_graph_stream.h
+
+/// One TDoA row of a group update: diff_m = |tag - B| - |tag - A| (m) with
+/// std-dev sigma_m; the anchor ids say which rows share a path (correlation).
+struct EkfTdoaRow {
+  Vec3 p_w_anchor_a = Vec3::Zero();
+  Vec3 p_w_anchor_b = Vec3::Zero();
+  std::uint32_t anchor_a = 0;
+  std::uint32_t anchor_b = 0;
+  double diff_m = 0.0;
+  double sigma_m = 0.0;
+};
+
+/// Fixed-capacity (kEkfMaxGroupRows) dynamic sizes of a group update: no heap.
+using EkfGroupVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kEkfMaxGroupRows, 1>;
+using EkfGroupMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kEkfMaxGroupRows, kEkfMaxGroupRows>;
+
+/// Measurement covariance of n TDoA rows (n <= kEkfMaxGroupRows):
+///   R_ij = sigma_i sigma_j (share C_ij + (1 - share) delta_ij),
+///   C_ij = 1/2 sum_c D_ic D_jc,  D_ic = +1 if c is row i's anchor b, -1 if its anchor a,
+/// i.e. each row's error is e_b - e_a + noise with the path errors e_c of
+/// variance share sigma^2 / 2 each (C_ii = 1): rows with a common anchor
+/// correlate by +-share/2, a chain a->b, b->c by -share/2. Positive definite
+/// for share < 1. Throws std::invalid_argument for n out of range.
+EkfGroupMat tdoaGroupCovariance(const EkfTdoaRow* rows, int n, double share);
+/// 99.9 % quantile of the chi-square distribution with dof degrees of freedom, 1 <= dof <= kEkfMaxGroupRows.
+double chiSquare999(int dof);
 
 class ErrorStateEkf {
  public:
@@ -105,6 +148,22 @@ class ErrorStateEkf {
                                    const std::optional<UltrasonicElevation>& elevation = std::nullopt,
                                    const RobustLoss* loss = nullptr);
 
+  /// The n TDoA rows of one update group (n <= kEkfMaxGroupRows) as one
+  /// update, all at the filter's time (tag antenna at p_b_tag):
+  ///   1. Prior innovations y, S = H P H^T + R, R = tdoaGroupCovariance(share).
+  ///   2. Gate: while y^T S^-1 y > chiSquare999(m) gate_group_scale over the m
+  ///      remaining rows, the row of the largest |y_i| / sqrt(S_ii) is gated.
+  ///   3. Iterated update (EkfParams::group_iterations): at the iterate
+  ///      x_j = x (+) d_j, rows re-weighted by the loss at their whitened
+  ///      residual (z - h(x_j)) / sigma (R_w = W^-1/2 R W^-1/2; a weight below
+  ///      min_robust_weight drops the row from that iteration), relinearized
+  ///      there, and d_{j+1} = K_j (z - h(x_j) + H_j d_j) (Gauss-Newton on the
+  ///      fixed prior and the re-weighted likelihood: the iterated EKF).
+  ///   4. Joseph covariance with the last K, H, R_w; injection of d and reset.
+  /// Rows are counted in counters().tdoa. Throws std::invalid_argument for a
+  /// bad n, non-finite rows, sigma <= 0 or equal anchors in a row.
+  EkfGroupResult updateTdoaGroup(const EkfTdoaRow* rows, int n, const Vec3& p_b_tag, const RobustLoss* loss = nullptr);
+
   /// Soft height band on the body origin (HeightBandFactor's model): when
   /// p_w_b.z is outside [z_min_m, z_max_m], an update towards the nearer bound
   /// with std-dev sigma_m; inside, nothing. Never gated (it is a prior, not a
@@ -134,6 +193,7 @@ class ErrorStateEkf {
                          const Eigen::Matrix<double, M, 1>& sigma, const RobustLoss* loss, double gate_chi2,
                          EkfUpdateCounts& counts);
   void requireInitialized(const char* what) const;
+  /// White-noise Q of ImuParams over dt, plus the gap input variance when dt > gap_threshold_s.
   void addProcessNoise(double dt_s);
   /// Injects the error estimate dx into the nominal state and resets the
   /// covariance to the new error's chart (rotation block through Jr(dtheta)).

@@ -123,6 +123,15 @@ void EkfEstimator::apply(const Measurement& m) {
       break;
     case Measurement::Kind::kTdoa:
       if (m.anchor >= p_w_anchors_.size() || m.anchor_b >= p_w_anchors_.size() || m.anchor == m.anchor_b) return;
+      if (ekf_.params().tdoa_group_update) {
+        if (!group_open_) openGroup(m.t_ns);
+        if (tdoa_n_ == kEkfMaxGroupRows) flushTdoaGroup();
+        tdoa_rows_[tdoa_n_] = {p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], m.anchor, m.anchor_b, m.value_m, sigma_m};
+        tdoa_meas_[tdoa_n_++] = m;
+        ++group_size_;
+        group_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        return;
+      }
       r = ekf_.updateTdoa(p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], graph_.p_b_tag, m.value_m, sigma_m,
                           tdoa_loss_.get());
       break;
@@ -133,29 +142,51 @@ void EkfEstimator::apply(const Measurement& m) {
       break;
   }
   noise_.noteInnovation(m, r.innovation, r.predicted_variance_m2);
-  if (!group_open_) {
-    group_open_ = true;
-    group_t0_ns_ = m.t_ns;
-    group_size_ = group_accepted_ = 0;
-    group_time_s_ = 0.0;
-    // One group is one state of the graph, which gets the vertical speed
-    // prior once (RangeImuGraphParams::vertical_speed_sigma_m_s): the same
-    // motion knowledge for the baseline.
-    if (graph_.vertical_speed_sigma_m_s > 0.0) ekf_.applyVerticalSpeedPrior(graph_.vertical_speed_sigma_m_s);
-  }
-  // The graph holds every state in the tag height band (HeightBandFactor on
-  // the body height); the filter applies the same band after each update.
-  // Without it, NLOS-long ranges from anchors above pulled the filtered
-  // height 2 m down within 10 s and the filter diverged.
-  const HeightBand& band = graph_.height_band;
-  if (band.enabled) ekf_.applyHeightBand(band.minZ() - graph_.p_b_tag.z(), band.maxZ() - graph_.p_b_tag.z(), band.sigma_m);
+  if (!group_open_) openGroup(m.t_ns);
+  applyHeightBand();
   ++group_size_;
   group_accepted_ += r.status == UpdateStatus::kAccepted;
   group_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   group_state_ = ekf_.estimate();
 }
 
+void EkfEstimator::openGroup(std::int64_t t_ns) {
+  group_open_ = true;
+  group_t0_ns_ = t_ns;
+  group_size_ = group_accepted_ = 0;
+  group_time_s_ = 0.0;
+  // One group is one state of the graph, which gets the vertical speed
+  // prior once (RangeImuGraphParams::vertical_speed_sigma_m_s): the same
+  // motion knowledge for the baseline.
+  if (graph_.vertical_speed_sigma_m_s > 0.0) ekf_.applyVerticalSpeedPrior(graph_.vertical_speed_sigma_m_s);
+  group_state_ = ekf_.estimate();
+}
+
+void EkfEstimator::applyHeightBand() {
+  // The graph holds every state in the tag height band (HeightBandFactor on
+  // the body height); the filter applies the same band after each update.
+  // Without it, NLOS-long ranges from anchors above pulled the filtered
+  // height 2 m down within 10 s and the filter diverged.
+  const HeightBand& band = graph_.height_band;
+  if (band.enabled) ekf_.applyHeightBand(band.minZ() - graph_.p_b_tag.z(), band.maxZ() - graph_.p_b_tag.z(), band.sigma_m);
+}
+
+void EkfEstimator::flushTdoaGroup() {
+  if (tdoa_n_ == 0) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  const EkfGroupResult r = ekf_.updateTdoaGroup(tdoa_rows_, tdoa_n_, graph_.p_b_tag, tdoa_loss_.get());
+  for (int i = 0; i < tdoa_n_; ++i) {
+    noise_.noteInnovation(tdoa_meas_[i], r.innovation[i], r.predicted_variance_m2[i]);
+  }
+  tdoa_n_ = 0;
+  applyHeightBand();
+  group_accepted_ += r.accepted;
+  group_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  group_state_ = ekf_.estimate();
+}
+
 void EkfEstimator::closeGroup() {
+  flushTdoaGroup();
   group_open_ = false;
   latest_ = group_state_;
   latest_.index = ++updates_;

@@ -7,7 +7,7 @@ namespace rilo {
 
 NlosClassification classifyRanges(const std::vector<RangeSample>& ranges,
                                   const std::vector<RangeImuEstimator::TimedPose>& trajectory,
-                                  const std::vector<Vec3>& p_w_anchors, const Vec3& p_b_tag, const RobustLoss& loss,
+                                  const std::vector<Vec3>& p_w_anchors, const Vec3& p_b_tag, const RangeModel& model,
                                   double sigma_m, const NlosClassificationOptions& options) {
   NlosClassification out;
   if (trajectory.empty()) return out;
@@ -20,7 +20,9 @@ NlosClassification classifyRanges(const std::vector<RangeSample>& ranges,
     if (std::llabs(trajectory[best].t_ns - r.t_ns) > options.max_dt_ns) continue;
     const Pose3& T = trajectory[best].T_w_b;
     const double predicted_m = (T.R * p_b_tag + T.p - p_w_anchors[r.anchor_id]).norm();
-    const bool down = loss.weight((r.range_m - predicted_m) / sigma_m) < options.weight_threshold;
+    const RangeTerm term = model.term(Measurement::of(r), sigma_m);
+    const bool down =
+        term.flagged_nlos || term.loss->weight((term.range_m - predicted_m) / term.sigma_m) < options.weight_threshold;
     ++out.ranges;
     out.downweighted += down;
     if (r.los == 0) {

@@ -9,7 +9,7 @@
 #include <optional>
 #include <vector>
 
-#include "estimation/noise/robust_loss.h"
+#include "estimation/pipeline/range_model.h"
 #include "estimation/pipeline/range_imu_estimator.h"
 #include "hal/samples.h"
 
@@ -36,12 +36,15 @@ struct NlosClassificationOptions {
 };
 
 /// Classifies `ranges` (time order) against `trajectory` (time order; the
-/// nearest pose in time is used, states sit at ranging times): residual
-/// (range - |R p_b_tag + p - anchor|) / sigma_m weighted by `loss`. Ranges to
-/// anchor ids outside `p_w_anchors` are skipped.
+/// nearest pose in time is used, states sit at ranging times): the range as
+/// `model` makes it a term at sigma_m (range_model.h), its residual (range -
+/// |R p_b_tag + p - anchor|) / sigma weighted by the term's loss. A range the
+/// receiver flagged as NLOS (the model's indicator) counts as down-weighted:
+/// the estimator treated it as NLOS whatever its residual. Ranges to anchor
+/// ids outside `p_w_anchors` are skipped.
 NlosClassification classifyRanges(const std::vector<RangeSample>& ranges,
                                   const std::vector<RangeImuEstimator::TimedPose>& trajectory,
-                                  const std::vector<Vec3>& p_w_anchors, const Vec3& p_b_tag, const RobustLoss& loss,
+                                  const std::vector<Vec3>& p_w_anchors, const Vec3& p_b_tag, const RangeModel& model,
                                   double sigma_m, const NlosClassificationOptions& options = {});
 
 }  // namespace rilo

@@ -77,6 +77,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.range_sigma_m) lp.graph.range_noise.sigma_m = *s.range_sigma_m;
   if (s.nlos_scale_m) lp.graph.range_noise.nlos_scale_m = *s.nlos_scale_m;
   if (s.nlos_weight) lp.graph.range_noise.nlos_weight = *s.nlos_weight;
+  if (s.nlos_power_gap_db) lp.graph.range_noise.nlos_power_gap_db = *s.nlos_power_gap_db;
   if (s.height_band) lp.track_height_band = *s.height_band;
   if (s.floor_z_m) lp.height_band.floor_z_m = *s.floor_z_m;
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;
@@ -222,8 +223,8 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.init_attempts = localizer.initStatus().attempts;
   out.height_band_note = localizer.heightBandNote();
   out.height_band_in_use = localizer.params().graph.height_band.enabled;
-  const RobustLossPtr loss = makeRangeLoss(params.graph.range_loss, params.graph.range_noise);
-  out.nlos = classifyRanges(ranges, out.smoothed, uwbAnchorsById(rec.anchors), params.graph.p_b_tag, *loss,
+  const RangeModel range_model(params.graph.range_loss, params.graph.range_noise);
+  out.nlos = classifyRanges(ranges, out.smoothed, uwbAnchorsById(rec.anchors), params.graph.p_b_tag, range_model,
                             params.graph.range_noise.sigma_m);
   if (!rec.groundtruth.empty()) {
     out.ape_online = positionErrorAgainst(out.online, rec.groundtruth);

@@ -225,7 +225,7 @@ void readTrustRegion(const ConfigField& field, SmootherParams& s) {
 
 void readRange(const ConfigField& field, EstimatorConfig& e) {
   const ConfigMap m = field.map({"noise_model", "sigma_m", "huber_k", "cauchy_c", "nlos_scale_m", "nlos_weight",
-                                 "lever_arm_m", "same_state_window_s", "max_state_interval_s", "max_wait_s"});
+                                 "nlos_power_gap_db", "lever_arm_m", "same_state_window_s", "max_state_interval_s", "max_wait_s"});
   RangeImuGraphParams& g = e.graph;
   if (auto f = m.get("noise_model")) {
     const std::string name = f->string();
@@ -242,6 +242,8 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
   m.read("cauchy_c", g.range_noise.cauchy_c, [](const ConfigField& f) { return f.positive(100.0); });
   if (auto f = m.get("nlos_scale_m")) g.range_noise.nlos_scale_m = f->positive(100.0);
   m.read("nlos_weight", g.range_noise.nlos_weight, [](const ConfigField& f) { return f.number(0.0, 0.5); });
+  m.read("nlos_power_gap_db", g.range_noise.nlos_power_gap_db,
+         [](const ConfigField& f) { return f.number(0.0, std::numeric_limits<double>::infinity(), true); });
   m.read("lever_arm_m", g.p_b_tag, [](const ConfigField& f) {
     const Vec3 v = f.vec3();
     if (v.norm() > 5.0) f.fail("expected a lever arm of at most 5 m, got " + std::to_string(v.norm()) + " m");

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "estimation/noise/noise_model_factory.h"
 
 namespace rilo {
@@ -15,7 +17,7 @@ TEST(NlosClassification, LongRangesAreDownWeightedAndScoredAgainstTheLabels) {
 
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;
-  const RobustLossPtr loss = makeRangeLoss("asymmetric", noise);
+  const RangeModel model("asymmetric", noise);
   std::vector<RangeSample> ranges;
   auto add = [&](std::int64_t t_ns, std::uint32_t id, double excess_m, int los) {
     const Pose3& T = trajectory[static_cast<std::size_t>((t_ns + 50'000'000) / 100'000'000)].T_w_b;
@@ -39,7 +41,7 @@ TEST(NlosClassification, LongRangesAreDownWeightedAndScoredAgainstTheLabels) {
   unknown.anchor_id = 7;     // not an anchor: skipped
   ranges.push_back(unknown);
 
-  const NlosClassification c = classifyRanges(ranges, trajectory, anchors, p_b_tag, *loss, noise.sigma_m);
+  const NlosClassification c = classifyRanges(ranges, trajectory, anchors, p_b_tag, model, noise.sigma_m);
   EXPECT_EQ(c.ranges, 5u);
   EXPECT_EQ(c.downweighted, 2u);
   EXPECT_EQ(c.labelled_nlos, 2u);
@@ -55,12 +57,32 @@ TEST(NlosClassification, ShortRangesStayOnTheGaussianSideOfTheAsymmetricModel) {
   const std::vector<Vec3> anchors = {Vec3(0, 0, 2)};
   const std::vector<RangeImuEstimator::TimedPose> trajectory = {{0, Pose3(Mat3::Identity(), Vec3(3, 4, 2))}};
   RangeNoiseParams noise;
-  const RobustLossPtr asymmetric = makeRangeLoss("asymmetric", noise);
+  const RangeModel asymmetric("asymmetric", noise);
   RangeSample r;
   r.anchor_id = 0;
   r.range_m = 5.0 - 0.15;  // one sigma short
-  EXPECT_EQ(classifyRanges({r}, trajectory, anchors, Vec3::Zero(), *asymmetric, noise.sigma_m).downweighted, 0u);
-  EXPECT_EQ(classifyRanges({r}, {}, anchors, Vec3::Zero(), *asymmetric, noise.sigma_m).ranges, 0u) << "no trajectory";
+  EXPECT_EQ(classifyRanges({r}, trajectory, anchors, Vec3::Zero(), asymmetric, noise.sigma_m).downweighted, 0u);
+  EXPECT_EQ(classifyRanges({r}, {}, anchors, Vec3::Zero(), asymmetric, noise.sigma_m).ranges, 0u) << "no trajectory";
+}
+
+TEST(NlosClassification, RangesTheReceiverFlagsCountAsTreatedAsNlos) {
+  // A range with a tiny excess the mixture keeps as LOS; the receiver's
+  // power gap says NLOS, so the estimator used the NLOS component for it.
+  const std::vector<Vec3> anchors = {Vec3(0, 0, 2)};
+  const std::vector<RangeImuEstimator::TimedPose> trajectory = {{0, Pose3(Mat3::Identity(), Vec3(3, 4, 2))}};
+  RangeNoiseParams noise;
+  RangeSample r;
+  r.anchor_id = 0;
+  r.range_m = 5.05;
+  r.rssi_dbm = -80.0;
+  r.fp_power_dbm = -92.0;  // 12 dB gap: NLOS by the 6 dB rule
+  EXPECT_EQ(classifyRanges({r}, trajectory, anchors, Vec3::Zero(), RangeModel("asymmetric", noise), noise.sigma_m)
+                .downweighted,
+            1u);
+  noise.nlos_power_gap_db = std::numeric_limits<double>::infinity();  // indicator off: the mixture's verdict
+  EXPECT_EQ(classifyRanges({r}, trajectory, anchors, Vec3::Zero(), RangeModel("asymmetric", noise), noise.sigma_m)
+                .downweighted,
+            0u);
 }
 
 }  // namespace

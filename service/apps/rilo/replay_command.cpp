@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <stdexcept>
 #include <vector>
@@ -155,6 +156,10 @@ void addReplayCommand(CLI::App& app) {
       ->check(CLI::Range(0.001, 100.0));
   cmd->add_option("--nlos-weight", options->settings.nlos_weight, "Prior NLOS probability (asymmetric model)")
       ->check(CLI::Range(0.001, 0.499));
+  cmd->add_option("--nlos-gap-db", options->settings.nlos_power_gap_db,
+                  "The receiver's NLOS indicator: ranges whose RX level exceeds the first-path power by more than "
+                  "this get the asymmetric model's NLOS component (dB; default 6, Decawave APS006; inf: off)")
+      ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   cmd->add_option("--height-band", options->settings.height_band, "Soft tag height band on tracked states (true/false)");
   cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");

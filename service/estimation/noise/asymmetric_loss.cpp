@@ -278,6 +278,19 @@ double AsymmetricLoss::weight(double r) const {
 
 double AsymmetricLoss::nlosLoss(double r) const { return negLogDensity(r, nullptr) + nlos_offset_; }
 
+double AsymmetricLoss::nlosNegLogDensity(double eps, double* d_deps) const {
+  if (component_ == Component::kHalfCauchy || eps >= kTableMinEps) return negLogDensity(eps, d_deps);
+  // Far on the short side g is the Gaussian's tail times a slowly varying
+  // factor: -log g ~ eps^2 / 2 + a log(-eps) + b, with a and b matching the
+  // table's value and slope at its end (a -> 1 for the exact asymptote).
+  double d0 = 0.0;
+  const double f0 = negLogDensity(kTableMinEps, &d0);
+  const double e0 = kTableMinEps;
+  const double a = e0 * (d0 - e0);
+  if (d_deps != nullptr) *d_deps = eps + a / eps;
+  return f0 + 0.5 * (eps * eps - e0 * e0) + a * std::log(eps / e0);
+}
+
 double AsymmetricLoss::nlosDensity(double eps) const { return std::exp(-negLogDensity(eps, nullptr)); }
 
 double AsymmetricLoss::negLogDensity(double eps, double* d_deps) const {

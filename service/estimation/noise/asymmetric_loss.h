@@ -79,6 +79,12 @@ class AsymmetricLoss final : public RobustLoss {
   /// NLOS density g(eps) as used by the loss (table / asymptote / analytic).
   double nlosDensity(double eps) const;
 
+  /// -log g(eps) and d/deps of it for every eps, without allocating: below
+  /// kTableMinEps it follows the Gaussian tail's form eps^2/2 + a log(-eps) + b,
+  /// matched to the table's end (within 0.1 % of the quadrature down to
+  /// -2000). For nlos_component_loss.h.
+  double nlosNegLogDensity(double eps, double* d_deps) const;
+
   /// Reference value of the convolved density by adaptive quadrature in theta
   /// (slow, allocates; for construction and tests).
   static double convolvedDensityByQuadrature(double gamma, double eps);

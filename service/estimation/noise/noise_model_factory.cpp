@@ -11,6 +11,7 @@
 #include "estimation/noise/cauchy_loss.h"
 #include "estimation/noise/gaussian_loss.h"
 #include "estimation/noise/huber_loss.h"
+#include "estimation/noise/nlos_component_loss.h"
 
 namespace rilo {
 namespace {
@@ -29,7 +30,31 @@ RobustLossPtr sharedAsymmetricLoss(double gamma_over_sigma, double nlos_weight, 
   return loss;
 }
 
+/// gamma in LOS sigmas after validating sigma_m and nlos_scale_m.
+double asymmetricGammaOverSigma(const RangeNoiseParams& params, const char* who) {
+  if (!std::isfinite(params.sigma_m) || params.sigma_m <= 0.0) {
+    throw std::invalid_argument(std::string(who) + ": sigma_m must be finite and > 0 (got " +
+                                std::to_string(params.sigma_m) + ")");
+  }
+  const double gamma_m = params.nlosScaleM();
+  if (!std::isfinite(gamma_m) || gamma_m <= 0.0) {
+    throw std::invalid_argument(std::string(who) + ": nlos_scale_m must be finite and > 0 (got " +
+                                std::to_string(gamma_m) + ")");
+  }
+  return gamma_m / params.sigma_m;
+}
+
 }  // namespace
+
+std::shared_ptr<const NlosComponentLoss> makeNlosComponentLoss(const RangeNoiseParams& params) {
+  const double gamma = asymmetricGammaOverSigma(params, "makeNlosComponentLoss");
+  static std::mutex mutex;
+  static std::map<double, std::shared_ptr<const NlosComponentLoss>> cache;
+  const std::lock_guard<std::mutex> lock(mutex);
+  std::shared_ptr<const NlosComponentLoss>& loss = cache[gamma];
+  if (!loss) loss = std::make_shared<NlosComponentLoss>(gamma);
+  return loss;
+}
 
 const std::vector<std::string>& rangeLossNames() {
   static const std::vector<std::string> kNames = {"gaussian", "huber", "cauchy", "asymmetric",
@@ -42,18 +67,10 @@ RobustLossPtr makeRangeLoss(const std::string& name, const RangeNoiseParams& par
   if (name == "huber") return std::make_shared<HuberLoss>(params.huber_k);
   if (name == "cauchy") return std::make_shared<CauchyLoss>(params.cauchy_c);
   if (name == "asymmetric" || name == "asymmetric-half-cauchy") {
-    if (!std::isfinite(params.sigma_m) || params.sigma_m <= 0.0) {
-      throw std::invalid_argument("makeRangeLoss: sigma_m must be finite and > 0 (got " +
-                                  std::to_string(params.sigma_m) + ")");
-    }
-    const double gamma_m = params.nlosScaleM();
-    if (!std::isfinite(gamma_m) || gamma_m <= 0.0) {
-      throw std::invalid_argument("makeRangeLoss: nlos_scale_m must be finite and > 0 (got " +
-                                  std::to_string(gamma_m) + ")");
-    }
+    const double gamma = asymmetricGammaOverSigma(params, "makeRangeLoss");
     const auto component = name == "asymmetric" ? AsymmetricLoss::Component::kConvolved
                                                 : AsymmetricLoss::Component::kHalfCauchy;
-    return sharedAsymmetricLoss(gamma_m / params.sigma_m, params.nlos_weight, component);
+    return sharedAsymmetricLoss(gamma, params.nlos_weight, component);
   }
   std::string valid;
   for (const std::string& n : rangeLossNames()) valid += (valid.empty() ? "" : ", ") + n;

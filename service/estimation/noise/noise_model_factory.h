@@ -2,10 +2,12 @@
 // Builds the robust loss of range-like factors from a configuration name.
 // The losses act on the whitened residual r = (measured - predicted) / sigma_m,
 // so every parameter below is given in sigmas except the metric NLOS scale.
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "estimation/noise/nlos_component_loss.h"
 #include "estimation/noise/robust_loss.h"
 
 namespace rilo {
@@ -22,10 +24,21 @@ struct RangeNoiseParams {
   /// kGaussianIqrPerSigma * sigma_m (about 0.20 m for sigma_m = 0.15 m).
   std::optional<double> nlos_scale_m;
   double nlos_weight = 0.2;   ///< prior NLOS probability w, in (0, 0.5)
+  /// The receiver's NLOS indicator (DW1000/DW3000: RX level minus first-path
+  /// power; Decawave APS006 takes > 6 dB as NLOS): a two-way range whose gap
+  /// exceeds this (dB) gets the asymmetric model's NLOS component alone
+  /// (nlos_component_loss.h) instead of the mixture. Only with the
+  /// "asymmetric" model and ranges that carry both powers; +inf disables.
+  double nlos_power_gap_db = 6.0;
 
   /// gamma in metres after applying the default.
   double nlosScaleM() const { return nlos_scale_m.value_or(kGaussianIqrPerSigma * sigma_m); }
 };
+
+/// The NLOS component alone (nlos_component_loss.h) at params' sigma_m and
+/// nlos_scale_m, shared like the asymmetric losses. Throws
+/// std::invalid_argument naming a bad parameter.
+std::shared_ptr<const NlosComponentLoss> makeNlosComponentLoss(const RangeNoiseParams& params);
 
 /// Names accepted by makeRangeLoss, in documentation order.
 const std::vector<std::string>& rangeLossNames();

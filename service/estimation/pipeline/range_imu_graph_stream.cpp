@@ -55,7 +55,7 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
     : p_w_anchors_(std::move(p_w_anchors)),
       params_(std::move(params)),
       options_(options),
-      range_loss_(makeRangeLoss(params_.range_loss, params_.range_noise)),
+      range_model_(params_.range_loss, params_.range_noise),
       tdoa_loss_(makeRangeLoss(params_.tdoa_loss, withSigma(params_.range_noise, params_.tdoa_sigma_m))),
       ultrasonic_loss_(makeRangeLoss(params_.ultrasonic_loss, withSigma(params_.range_noise, params_.ultrasonic_sigma_m))),
       pim_(params_.imu, ImuBias(), PreintegratedImu::CovarianceMode::kCombined),
@@ -340,15 +340,16 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
     const Measurement& m = ranges_[k];
     const double sigma_m = noise_.sigma(m);
     switch (m.kind) {
-      case Measurement::Kind::kRange:
+      case Measurement::Kind::kRange: {
+        const RangeTerm t = range_model_.term(m, sigma_m);
         if (vars) {
-          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), m.value_m, sigma_m, params_.p_b_tag,
-                                           range_loss_);
+          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m, params_.p_b_tag,
+                                           t.loss);
         } else {
-          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], m.value_m, sigma_m, params_.p_b_tag,
-                                           range_loss_);
+          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, params_.p_b_tag, t.loss);
         }
         break;
+      }
       case Measurement::Kind::kTdoa:
         if (vars) {
           const Key a = uwbAnchorKey(m.anchor, inc);

@@ -51,6 +51,7 @@
 #include "estimation/graph/factor.h"
 #include "estimation/imu/preintegration.h"
 #include "estimation/pipeline/measurement.h"
+#include "estimation/pipeline/range_model.h"
 #include "estimation/pipeline/measurement_noise.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/start_covariance.h"
@@ -239,7 +240,8 @@ class RangeImuGraphStream {
   std::vector<Vec3> p_w_anchors_;
   RangeImuGraphParams params_;
   RangeImuStreamOptions options_;
-  RobustLossPtr range_loss_, tdoa_loss_, ultrasonic_loss_;
+  RangeModel range_model_;  ///< two-way ranges: the configured loss, or the NLOS component when flagged
+  RobustLossPtr tdoa_loss_, ultrasonic_loss_;
   PreintegratedImu pim_;  ///< scratch, reset per state
   MeasurementNoise noise_;
 

@@ -1,0 +1,24 @@
+#include "estimation/pipeline/range_model.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace rilo {
+
+RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noise)
+    : loss_(makeRangeLoss(loss_name, noise)), gap_db_(noise.nlos_power_gap_db) {
+  if (std::isnan(noise.nlos_power_gap_db)) {
+    throw std::invalid_argument("range_noise.nlos_power_gap_db must be a number (dB) or +inf to disable, got NaN");
+  }
+  // Only the convolved asymmetric model has an NLOS component with a Gaussian
+  // core (the half-Cauchy variant's is 0 below zero excess); the symmetric
+  // models have none, so the indicator leaves them as configured.
+  if (loss_name == "asymmetric" && std::isfinite(gap_db_)) nlos_ = makeNlosComponentLoss(noise);
+}
+
+RangeTerm RangeModel::term(const Measurement& m, double sigma_m) const {
+  if (!flagsNlos(m)) return {m.value_m, sigma_m, loss_, false};
+  return {m.value_m - nlos_->modeSigmas() * sigma_m, sigma_m * nlos_->sigmaScale(), nlos_, true};
+}
+
+}  // namespace rilo

@@ -1,0 +1,47 @@
+#pragma once
+// How a two-way range enters an estimator (graph stream, batch, EKF): with
+// the configured robust loss, or, when the receiver flags it as NLOS
+// (RangeNoiseParams::nlos_power_gap_db, the DW1000/DW3000 RX-level-minus-
+// first-path-power indicator) and the model is "asymmetric", with the
+// model's NLOS component alone: the range shifted by that component's most
+// likely excess and its sigma widened to the component's curvature
+// (nlos_component_loss.h). Ranges without the powers (NaN) keep the mixture.
+#include <string>
+
+#include "estimation/noise/noise_model_factory.h"
+#include "estimation/pipeline/measurement.h"
+
+namespace rilo {
+
+/// One range as the factor or the EKF update takes it.
+struct RangeTerm {
+  double range_m;      ///< measured range, less the expected NLOS excess when flagged (m)
+  double sigma_m;      ///< std-dev the residual is whitened with (m)
+  RobustLossPtr loss;  ///< never null
+  bool flagged_nlos;   ///< the receiver's indicator said NLOS and the NLOS component is used
+};
+
+class RangeModel {
+ public:
+  /// loss_name: a makeRangeLoss name. Throws std::invalid_argument for a bad
+  /// name or parameter (naming it), and for a NaN nlos_power_gap_db.
+  RangeModel(const std::string& loss_name, const RangeNoiseParams& noise);
+
+  /// Whether m (a two-way range) is flagged as NLOS and gets the NLOS component.
+  bool flagsNlos(const Measurement& m) const {
+    return nlos_ != nullptr && m.kind == Measurement::Kind::kRange && m.power_gap_db > gap_db_;
+  }
+  /// m as a range term at the LOS std-dev sigma_m (MeasurementNoise::sigma).
+  RangeTerm term(const Measurement& m, double sigma_m) const;
+  /// The configured loss (the mixture for "asymmetric").
+  const RobustLossPtr& loss() const { return loss_; }
+  /// Whether the indicator is in use (asymmetric model, finite threshold).
+  bool usesIndicator() const { return nlos_ != nullptr; }
+
+ private:
+  RobustLossPtr loss_;
+  std::shared_ptr<const NlosComponentLoss> nlos_;  ///< null: indicator off
+  double gap_db_;
+};
+
+}  // namespace rilo

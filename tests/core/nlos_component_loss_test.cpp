@@ -157,9 +157,31 @@ Measurement rangeWithGap(double gap_db) {
   return Measurement::of(s);
 }
 
-TEST(RangeModel, FlaggedRangesGetTheNlosComponentShiftedAndWidened) {
+TEST(RangeModel, FlaggedRangesGetTheMixtureWithTheLargerNlosPriorByDefault) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;
+  const RangeModel model("asymmetric", noise);
+  ASSERT_TRUE(model.usesIndicator());
+  const RangeTerm flagged = model.term(rangeWithGap(9.0), 0.1);
+  EXPECT_TRUE(flagged.flagged_nlos);
+  const auto* mixture = dynamic_cast<const AsymmetricLoss*>(flagged.loss.get());
+  ASSERT_NE(mixture, nullptr);
+  EXPECT_DOUBLE_EQ(mixture->nlosWeight(), noise.flagged_nlos_weight);
+  EXPECT_EQ(flagged.range_m, 7.0);
+  EXPECT_EQ(flagged.sigma_m, 0.1);
+  // Its decision point is lower: a flagged range leaves the Gaussian core sooner.
+  const auto* plain = dynamic_cast<const AsymmetricLoss*>(model.loss().get());
+  ASSERT_NE(plain, nullptr);
+  EXPECT_LT(mixture->decisionPoint(), plain->decisionPoint());
+  EXPECT_FALSE(model.term(rangeWithGap(3.0), 0.1).flagged_nlos);
+  noise.flagged_nlos_weight = 0.6;
+  EXPECT_THROW(RangeModel("asymmetric", noise), std::invalid_argument) << "the mixture needs w < 0.5";
+}
+
+TEST(RangeModel, FlaggedRangesGetTheNlosComponentShiftedAndWidenedOnRequest) {
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.1;
+  noise.flagged_nlos_component = true;
   const RangeModel model("asymmetric", noise);
   ASSERT_TRUE(model.usesIndicator());
   const std::shared_ptr<const NlosComponentLoss> nlos = makeNlosComponentLoss(noise);

@@ -67,7 +67,7 @@ TEST(NlosClassification, ShortRangesStayOnTheGaussianSideOfTheAsymmetricModel) {
 
 TEST(NlosClassification, RangesTheReceiverFlagsCountAsTreatedAsNlos) {
   // A range with a tiny excess the mixture keeps as LOS; the receiver's
-  // power gap says NLOS, so the estimator used the NLOS component for it.
+  // power gap says NLOS, so the estimator used its NLOS model for it.
   const std::vector<Vec3> anchors = {Vec3(0, 0, 2)};
   const std::vector<RangeImuEstimator::TimedPose> trajectory = {{0, Pose3(Mat3::Identity(), Vec3(3, 4, 2))}};
   RangeNoiseParams noise;

@@ -160,6 +160,12 @@ void addReplayCommand(CLI::App& app) {
                   "The receiver's NLOS indicator: ranges whose RX level exceeds the first-path power by more than "
                   "this get the asymmetric model's NLOS component (dB; default 6, Decawave APS006; inf: off)")
       ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
+  cmd->add_option("--flagged-nlos-weight", options->settings.flagged_nlos_weight,
+                  "Prior NLOS probability of a range the receiver flags (--nlos-gap-db; default 0.45)")
+      ->check(CLI::Range(0.001, 0.499));
+  cmd->add_option("--flagged-nlos-component", options->settings.flagged_nlos_component,
+                  "Flagged ranges get the asymmetric model's NLOS component alone instead of the mixture (true/false; "
+                  "default false)");
   cmd->add_option("--height-band", options->settings.height_band, "Soft tag height band on tracked states (true/false)");
   cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");

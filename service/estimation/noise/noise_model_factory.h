@@ -30,6 +30,13 @@ struct RangeNoiseParams {
   /// (nlos_component_loss.h) instead of the mixture. Only with the
   /// "asymmetric" model and ranges that carry both powers; +inf disables.
   double nlos_power_gap_db = 6.0;
+  /// How a flagged range is modelled: the mixture with this larger prior NLOS
+  /// weight (default; a flagged range with a small excess still fits the LOS
+  /// core, as through-wall paths do), or, with flagged_nlos_component, the
+  /// NLOS component alone (nlos_component_loss.h: better under heavy NLOS,
+  /// biased when flagged ranges carry no excess). range_model.h.
+  double flagged_nlos_weight = 0.45;
+  bool flagged_nlos_component = false;
 
   /// gamma in metres after applying the default.
   double nlosScaleM() const { return nlos_scale_m.value_or(kGaussianIqrPerSigma * sigma_m); }

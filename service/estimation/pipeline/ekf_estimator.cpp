@@ -23,7 +23,7 @@ EkfEstimator::EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphPar
     : p_w_anchors_(std::move(p_w_anchors)),
       graph_(graph),
       ekf_(withImu(ekf, graph.imu)),
-      range_loss_(makeRangeLoss(graph.range_loss, graph.range_noise)),
+      range_model_(graph.range_loss, graph.range_noise),
       tdoa_loss_(makeRangeLoss(graph.tdoa_loss, withSigma(graph.range_noise, graph.tdoa_sigma_m))),
       ultrasonic_loss_(makeRangeLoss(graph.ultrasonic_loss, withSigma(graph.range_noise, graph.ultrasonic_sigma_m))),
       noise_(p_w_anchors_, graph_, ekf.dynamic_covariance) {
@@ -117,10 +117,13 @@ void EkfEstimator::apply(const Measurement& m) {
   EkfUpdateResult r;
   const double sigma_m = noise_.sigma(m);  // the kind's configured sigma unless dynamic covariance is on
   switch (m.kind) {
-    case Measurement::Kind::kRange:
+    case Measurement::Kind::kRange: {
       if (m.anchor >= p_w_anchors_.size()) return;
-      r = ekf_.updateRange(p_w_anchors_[m.anchor], graph_.p_b_tag, m.value_m, sigma_m, range_loss_.get());
+      // The graph's range model: a range the receiver flags as NLOS gets the NLOS component.
+      const RangeTerm t = range_model_.term(m, sigma_m);
+      r = ekf_.updateRange(p_w_anchors_[m.anchor], graph_.p_b_tag, t.range_m, t.sigma_m, t.loss.get());
       break;
+    }
     case Measurement::Kind::kTdoa:
       if (m.anchor >= p_w_anchors_.size() || m.anchor_b >= p_w_anchors_.size() || m.anchor == m.anchor_b) return;
       if (ekf_.params().tdoa_group_update) {

@@ -83,7 +83,8 @@ class EkfEstimator final : public TrackingEstimator {
   std::vector<Vec3> p_w_anchors_;
   RangeImuGraphParams graph_;
   ErrorStateEkf ekf_;
-  RobustLossPtr range_loss_, tdoa_loss_, ultrasonic_loss_;
+  RangeModel range_model_;  ///< two-way ranges (range_model.h)
+  RobustLossPtr tdoa_loss_, ultrasonic_loss_;
   MeasurementNoise noise_;
 
   bool have_imu_ = false;

@@ -13,12 +13,21 @@ RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noi
   // Only the convolved asymmetric model has an NLOS component with a Gaussian
   // core (the half-Cauchy variant's is 0 below zero excess); the symmetric
   // models have none, so the indicator leaves them as configured.
-  if (loss_name == "asymmetric" && std::isfinite(gap_db_)) nlos_ = makeNlosComponentLoss(noise);
+  if (loss_name != "asymmetric" || !std::isfinite(gap_db_)) return;
+  if (noise.flagged_nlos_component) {
+    component_ = makeNlosComponentLoss(noise);
+    flagged_loss_ = component_;
+  } else {
+    RangeNoiseParams flagged = noise;
+    flagged.nlos_weight = noise.flagged_nlos_weight;  // validated by the factory: (0, 0.5)
+    flagged_loss_ = makeRangeLoss(loss_name, flagged);
+  }
 }
 
 RangeTerm RangeModel::term(const Measurement& m, double sigma_m) const {
   if (!flagsNlos(m)) return {m.value_m, sigma_m, loss_, false};
-  return {m.value_m - nlos_->modeSigmas() * sigma_m, sigma_m * nlos_->sigmaScale(), nlos_, true};
+  if (!component_) return {m.value_m, sigma_m, flagged_loss_, true};
+  return {m.value_m - component_->modeSigmas() * sigma_m, sigma_m * component_->sigmaScale(), flagged_loss_, true};
 }
 
 }  // namespace rilo

@@ -3,9 +3,11 @@
 // the configured robust loss, or, when the receiver flags it as NLOS
 // (RangeNoiseParams::nlos_power_gap_db, the DW1000/DW3000 RX-level-minus-
 // first-path-power indicator) and the model is "asymmetric", with the
-// model's NLOS component alone: the range shifted by that component's most
-// likely excess and its sigma widened to the component's curvature
-// (nlos_component_loss.h). Ranges without the powers (NaN) keep the mixture.
+// mixture at the larger prior NLOS weight flagged_nlos_weight, or (option
+// flagged_nlos_component) with the model's NLOS component alone: the range
+// shifted by that component's most likely excess and its sigma widened to
+// the component's curvature (nlos_component_loss.h). Ranges without the
+// powers (NaN) keep the configured mixture.
 #include <string>
 
 #include "estimation/noise/noise_model_factory.h"
@@ -29,18 +31,19 @@ class RangeModel {
 
   /// Whether m (a two-way range) is flagged as NLOS and gets the NLOS component.
   bool flagsNlos(const Measurement& m) const {
-    return nlos_ != nullptr && m.kind == Measurement::Kind::kRange && m.power_gap_db > gap_db_;
+    return flagged_loss_ != nullptr && m.kind == Measurement::Kind::kRange && m.power_gap_db > gap_db_;
   }
   /// m as a range term at the LOS std-dev sigma_m (MeasurementNoise::sigma).
   RangeTerm term(const Measurement& m, double sigma_m) const;
   /// The configured loss (the mixture for "asymmetric").
   const RobustLossPtr& loss() const { return loss_; }
   /// Whether the indicator is in use (asymmetric model, finite threshold).
-  bool usesIndicator() const { return nlos_ != nullptr; }
+  bool usesIndicator() const { return flagged_loss_ != nullptr; }
 
  private:
   RobustLossPtr loss_;
-  std::shared_ptr<const NlosComponentLoss> nlos_;  ///< null: indicator off
+  RobustLossPtr flagged_loss_;                          ///< null: indicator off
+  std::shared_ptr<const NlosComponentLoss> component_;  ///< set when flagged ranges get the NLOS component
   double gap_db_;
 };
 

@@ -13,9 +13,12 @@
 #include <vector>
 
 #include "estimation/noise/dynamic_covariance.h"
+#include "support/expect_throws_naming.h"
 
 namespace rilo {
 namespace {
+
+using rilo::testing::expectThrowsNaming;
 
 DynamicCovarianceParams defaults() { return DynamicCovarianceParams{}; }
 
@@ -244,21 +247,12 @@ TEST(DynamicCovariance, NonFiniteResidualsAreRejected) {
   EXPECT_EQ(dc.samples(key), 50);
 }
 
-void expectThrowNaming(const std::function<void()>& f, const std::string& field) {
-  try {
-    f();
-    ADD_FAILURE() << "no exception; expected one naming " << field;
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
-  }
-}
-
 TEST(DynamicCovariance, InvalidParamsThrowNamingTheField) {
   auto check = [](auto edit, const std::string& field) {
     DynamicCovarianceParams p;
     edit(p);
-    expectThrowNaming([&] { p.validate(); }, "DynamicCovarianceParams." + field);
-    expectThrowNaming([&] { DynamicCovariance dc(p); }, "DynamicCovarianceParams." + field);
+    expectThrowsNaming([&] { p.validate(); }, "DynamicCovarianceParams." + field);
+    expectThrowsNaming([&] { DynamicCovariance dc(p); }, "DynamicCovarianceParams." + field);
   };
   check([](DynamicCovarianceParams& p) { p.max_keys = 0; }, "max_keys");
   check([](DynamicCovarianceParams& p) { p.window_samples = 1.0; }, "window_samples");

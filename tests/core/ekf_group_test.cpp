@@ -11,11 +11,14 @@
 
 #include "estimation/ekf/error_state_ekf.h"
 #include "estimation/noise/huber_loss.h"
+#include "support/expect_throws_naming.h"
 #include "support/new_counter.h"
 #include "support/random_states.h"
 
 namespace rilo {
 namespace {
+
+using rilo::testing::expectThrowsNaming;
 
 using testing::randomRotation;
 using testing::randomVec;
@@ -32,15 +35,6 @@ Mat15 randomCovariance(std::mt19937& rng) {
   for (int r = 0; r < 15; ++r)
     for (int c = 0; c <= r; ++c) L(r, c) = std::normal_distribution<double>(0.0, 0.1)(rng);
   return L * L.transpose() + 1e-3 * Mat15::Identity();
-}
-
-void expectThrowsNaming(const std::function<void()>& fn, const std::string& name) {
-  try {
-    fn();
-    ADD_FAILURE() << "expected std::invalid_argument naming " << name;
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
-  }
 }
 
 // Eight anchors around a 10 x 8 m room (ids 0..7).

@@ -15,10 +15,13 @@
 #include "estimation/noise/huber_loss.h"
 #include "estimation/pipeline/range_imu_graph_stream.h"
 #include "hal/sim/trajectory.h"
+#include "support/expect_throws_naming.h"
 #include "support/random_states.h"
 
 namespace rilo {
 namespace {
+
+using rilo::testing::expectThrowsNaming;
 
 using testing::randomRotation;
 using testing::randomVec;
@@ -67,15 +70,6 @@ Eigen::Matrix<double, M, 15> fullH(const EkfPrediction<M>& p) {
   Eigen::Matrix<double, M, 15> H = Eigen::Matrix<double, M, 15>::Zero();
   H.template leftCols<6>() = p.H;
   return H;
-}
-
-void expectThrowsNaming(const std::function<void()>& fn, const std::string& name) {
-  try {
-    fn();
-    ADD_FAILURE() << "expected std::invalid_argument naming " << name;
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
-  }
 }
 
 TEST(EkfState, LocalIsInverseOfRetract) {

@@ -22,9 +22,12 @@
 #include "hal/sim/office_tdoa.h"
 #include "hal/sim/office_ultrasonic.h"
 #include "hal/sim/range_imu_scenario.h"
+#include "support/expect_throws_naming.h"
 
 namespace rilo {
 namespace {
+
+using rilo::testing::expectThrowsNaming;
 
 // ---------------------------------------------------------------------------
 // Scenarios
@@ -634,15 +637,6 @@ TEST(TdoaFixDegenerate, AbsurdDifferencesGiveAPoorFixNotAThrow) {
 // ---------------------------------------------------------------------------
 // Malformed input
 
-void expectThrowNaming(const std::function<void()>& f, const std::string& field) {
-  try {
-    f();
-    ADD_FAILURE() << "no exception; expected one naming " << field;
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
-  }
-}
-
 TEST(TdoaFixInput, MalformedRowsThrowNamingTheField) {
   std::vector<Vec3> anchors = sim::defaultOfficeAnchors();
   const std::vector<TdoaSample> good = tdoaRows(anchors, Vec3(0, 0, 1.2), 1400, RowOptions{});
@@ -652,30 +646,30 @@ TEST(TdoaFixInput, MalformedRowsThrowNamingTheField) {
     edit(rows);
     return [rows, &anchors, &params] { locateTdoa(rows, {}, 0, anchors, params); };
   };
-  expectThrowNaming(with([](auto& r) { r[2].anchor_b = 99; }), "tdoa[2].anchor_b = 99: unknown anchor id");
-  expectThrowNaming(with([](auto& r) { r[3].anchor_a = 8; }), "tdoa[3].anchor_a");
-  expectThrowNaming(with([](auto& r) { r[4].anchor_a = r[4].anchor_b; }), "tdoa[4]: anchor_a == anchor_b");
-  expectThrowNaming(with([](auto& r) { r[1].diff_m = std::nan(""); }), "tdoa[1].diff_m");
-  expectThrowNaming(with([](auto& r) { r[1].diff_m = INFINITY; }), "tdoa[1].diff_m");
+  expectThrowsNaming(with([](auto& r) { r[2].anchor_b = 99; }), "tdoa[2].anchor_b = 99: unknown anchor id");
+  expectThrowsNaming(with([](auto& r) { r[3].anchor_a = 8; }), "tdoa[3].anchor_a");
+  expectThrowsNaming(with([](auto& r) { r[4].anchor_a = r[4].anchor_b; }), "tdoa[4]: anchor_a == anchor_b");
+  expectThrowsNaming(with([](auto& r) { r[1].diff_m = std::nan(""); }), "tdoa[1].diff_m");
+  expectThrowsNaming(with([](auto& r) { r[1].diff_m = INFINITY; }), "tdoa[1].diff_m");
 
   std::vector<UltrasonicSample> us(2);
   us[0].anchor_id = 1;
   us[0].range_m = 3.0;
   us[1].anchor_id = 42;
-  expectThrowNaming([&] { locateTdoa(good, us, 0, anchors, params); }, "ultrasonic[1].anchor_id");
+  expectThrowsNaming([&] { locateTdoa(good, us, 0, anchors, params); }, "ultrasonic[1].anchor_id");
   us[1].anchor_id = 2;
   us[1].range_m = std::nan("");
-  expectThrowNaming([&] { locateTdoa(good, us, 0, anchors, params); }, "ultrasonic[1].range_m");
+  expectThrowsNaming([&] { locateTdoa(good, us, 0, anchors, params); }, "ultrasonic[1].range_m");
   us[1].range_m = -1.0;
-  expectThrowNaming([&] { locateTdoa(good, us, 0, anchors, params); }, "ultrasonic[1].range_m is negative");
+  expectThrowsNaming([&] { locateTdoa(good, us, 0, anchors, params); }, "ultrasonic[1].range_m is negative");
 
   std::vector<Vec3> bad_anchors = anchors;
   bad_anchors[good[0].anchor_b] = Vec3(NAN, 0, 0);
-  expectThrowNaming([&] { locateTdoa(good, {}, 0, bad_anchors, params); },
+  expectThrowsNaming([&] { locateTdoa(good, {}, 0, bad_anchors, params); },
                     "p_w_anchors[" + std::to_string(good[0].anchor_b) + "]");
   bad_anchors = anchors;
   bad_anchors[good[0].anchor_a] = bad_anchors[good[0].anchor_b];
-  expectThrowNaming([&] { locateTdoa(good, {}, 0, bad_anchors, params); }, "tdoa[0]: anchor_a and anchor_b");
+  expectThrowsNaming([&] { locateTdoa(good, {}, 0, bad_anchors, params); }, "tdoa[0]: anchor_a and anchor_b");
 }
 
 TEST(TdoaFixInput, InvalidParamsThrowNamingTheField) {
@@ -683,8 +677,8 @@ TEST(TdoaFixInput, InvalidParamsThrowNamingTheField) {
   auto check = [&](auto edit, const std::string& field) {
     TdoaFixParams p;
     edit(p);
-    expectThrowNaming([&] { p.validate(); }, "TdoaFixParams." + field);
-    expectThrowNaming([&] { locateTdoa({}, {}, 0, anchors, p); }, "TdoaFixParams." + field);
+    expectThrowsNaming([&] { p.validate(); }, "TdoaFixParams." + field);
+    expectThrowsNaming([&] { locateTdoa({}, {}, 0, anchors, p); }, "TdoaFixParams." + field);
   };
   check([](TdoaFixParams& p) { p.sigma_m = 0.0; }, "sigma_m");
   check([](TdoaFixParams& p) { p.sigma_m = NAN; }, "sigma_m");

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "dds/topics.h"
+#include "estimation/pipeline/range_consistency.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/range_imu_graph_stream.h"
 #include "estimation/smoother/smoother_params.h"
@@ -127,6 +128,8 @@ struct EstimatorConfig {
   /// Start-up: batch solve over this many seconds of data before the
   /// incremental smoother takes over (seed 000: 10 s).
   double init_window_s = 10.0;
+  /// Quantile of the flagged ranges' residuals taken as their excess (FlaggedExcessParams; 0: off).
+  double flagged_excess_quantile = FlaggedExcessParams().quantile;
   /// Tag height band above the floor (a wearable's height; see
   /// estimation/pipeline/init_height_band.h): initialization and every state.
   HeightBand height_band;

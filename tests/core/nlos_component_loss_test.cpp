@@ -174,6 +174,11 @@ TEST(RangeModel, FlaggedRangesGetTheMixtureWithTheLargerNlosPriorByDefault) {
   ASSERT_NE(plain, nullptr);
   EXPECT_LT(mixture->decisionPoint(), plain->decisionPoint());
   EXPECT_FALSE(model.term(rangeWithGap(3.0), 0.1).flagged_nlos);
+  // The site's expected excess (Localizer: FlaggedExcessParams) comes off flagged ranges only.
+  RangeModel shifted("asymmetric", noise);
+  shifted.setFlaggedExcess(0.25);
+  EXPECT_DOUBLE_EQ(shifted.term(rangeWithGap(9.0), 0.1).range_m, 7.0 - 0.25);
+  EXPECT_DOUBLE_EQ(shifted.term(rangeWithGap(3.0), 0.1).range_m, 7.0);
   noise.flagged_nlos_weight = 0.6;
   EXPECT_THROW(RangeModel("asymmetric", noise), std::invalid_argument) << "the mixture needs w < 0.5";
 }

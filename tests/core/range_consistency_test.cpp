@@ -2,7 +2,9 @@
 // flag an inconsistent estimate; long (NLOS) ranges never do.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "estimation/pipeline/range_consistency.h"
 
@@ -134,6 +136,69 @@ TEST(RangeConsistency, BadParamsNameTheField) {
   p.short_floor_m = -1.0;
   EXPECT_NE(message(p).find("short_floor_m"), std::string::npos);
   EXPECT_EQ(message(RangeConsistencyParams{}), "");
+}
+
+TEST(FlaggedExcess, LowQuantileOfTheFlaggedRangesResidualsOnly) {
+  // Flagged ranges (power gap 9 dB > 6) carry excesses 0.00, 0.01, ..., 0.99 m;
+  // unflagged ones (2 dB) are 3 m long and must not count.
+  RangeConsistencyMonitor m(kAnchors, Vec3::Zero(), 0.1, 5'000'000, smallWindow(), 6.0);
+  const Vec3 p(5, 5, 1);
+  EXPECT_TRUE(std::isnan(m.flaggedQuantile(0.35, 1))) << "nothing judged yet";
+  for (int k = 0; k < 100; ++k) {
+    const std::int64_t t = 1'000'000'000LL + k * 25'000'000LL;
+    RangeSample flagged = rangeTo(static_cast<std::uint32_t>(k % 4), t, p, 0.01 * k);
+    flagged.rssi_dbm = -80.0;
+    flagged.fp_power_dbm = -89.0;
+    RangeSample clear = rangeTo(static_cast<std::uint32_t>((k + 1) % 4), t, p, 3.0);
+    clear.rssi_dbm = -80.0;
+    clear.fp_power_dbm = -82.0;
+    RangeSample unknown = rangeTo(static_cast<std::uint32_t>((k + 2) % 4), t, p, 3.0);  // no powers: NaN gap
+    m.onRange(flagged);
+    m.onRange(clear);
+    m.onRange(unknown);
+    m.judge(t, at(p));
+  }
+  EXPECT_NEAR(m.flaggedQuantile(0.35, 50), 0.34, 1e-9);  // element floor(0.35 * 99) = 34 of the sorted 0.00..0.99
+  EXPECT_NEAR(m.flaggedQuantile(0.0, 50), 0.0, 1e-9);
+  EXPECT_NEAR(m.flaggedQuantile(1.0, 50), 0.99, 1e-9);
+  EXPECT_TRUE(std::isnan(m.flaggedQuantile(0.35, 101))) << "too few for the minimum";
+  // A window of the last 200 flagged ranges.
+  for (int k = 0; k < 300; ++k) {
+    const std::int64_t t = 5'000'000'000LL + k * 25'000'000LL;
+    RangeSample flagged = rangeTo(0, t, p, 0.5);
+    flagged.rssi_dbm = -80.0;
+    flagged.fp_power_dbm = -90.0;
+    m.onRange(flagged);
+    m.judge(t, at(p));
+  }
+  EXPECT_NEAR(m.flaggedQuantile(0.0, 50), 0.5, 1e-9);
+  m.reset();
+  EXPECT_TRUE(std::isnan(m.flaggedQuantile(0.35, 1))) << "reset forgets";
+  // Without a flag threshold nothing is collected.
+  RangeConsistencyMonitor none(kAnchors, Vec3::Zero(), 0.1, 5'000'000, smallWindow());
+  RangeSample flagged = rangeTo(0, 1, p, 0.5);
+  flagged.rssi_dbm = -80.0;
+  flagged.fp_power_dbm = -99.0;
+  none.onRange(flagged);
+  none.judge(1, at(p));
+  EXPECT_TRUE(std::isnan(none.flaggedQuantile(0.0, 1)));
+}
+
+TEST(FlaggedExcess, BadParamsNameTheField) {
+  FlaggedExcessParams p;
+  p.quantile = 1.5;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p = FlaggedExcessParams();
+  p.min_ranges = 0;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p = FlaggedExcessParams();
+  p.max_m = -1.0;
+  try {
+    p.validate();
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("max_m"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -84,7 +84,8 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"init_attempts\": " << run.init_attempts << ",\n  \"init_status\": " << jsonString(run.init_status)
           << ",\n  \"last_failure\": " << jsonString(run.last_failure)
           << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")
-          << ",\n  \"height_band_note\": " << jsonString(run.height_band_note);
+          << ",\n  \"height_band_note\": " << jsonString(run.height_band_note)
+          << ",\n  \"flagged_nlos_excess_m\": " << run.flagged_excess_m;
   const NlosClassification& n = run.nlos;
   summary << ",\n  \"nlos\": {\"ranges\": " << n.ranges << ", \"downweighted\": " << n.downweighted
           << ", \"downweighted_fraction\": " << n.downweightedFraction();

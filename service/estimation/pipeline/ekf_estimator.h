@@ -55,6 +55,7 @@ class EkfEstimator final : public TrackingEstimator {
   UpdateStats start(std::int64_t t0_ns, const Pose3& T_w_b0, const Vec3& v_w0, const ImuBias& bias0,
                     const std::optional<StartCovariance>& covariance) override;
   bool started() const override { return ekf_.initialized(); }
+  void setFlaggedExcess(double excess_m) override { range_model_.setFlaggedExcess(excess_m); }
   void addImu(const ImuSample& sample) override;
   void addMeasurement(const Measurement& m) override;
   void finish() override;

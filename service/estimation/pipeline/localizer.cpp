@@ -1,5 +1,6 @@
 #include "estimation/pipeline/localizer.h"
 
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +22,7 @@ void LocalizerParams::validate() const {
   if (!(max_imu_gap_s > 0.0)) fail("max_imu_gap_s", "must be > 0");
   if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
   range_consistency.validate();
+  flagged_excess.validate();
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   height_band.validate("LocalizerParams.height_band");
@@ -96,8 +98,13 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       params_(resolved(std::move(params), p_w_anchors_, height_band_note_)),
       initializer_(p_w_anchors_, params_.init),
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
-                   params_.graph.same_state_window_ns, params_.range_consistency) {
+                   params_.graph.same_state_window_ns, params_.range_consistency,
+                   params_.graph.range_noise.nlos_power_gap_db) {
   params_.validate();
+  // Only the mixture's flagged ranges take a shift (range_model.h).
+  const RangeNoiseParams& n = params_.graph.range_noise;
+  estimate_flagged_excess_ = params_.flagged_excess.quantile > 0.0 && params_.graph.range_loss == "asymmetric" &&
+                             std::isfinite(n.nlos_power_gap_db) && !n.flagged_nlos_component;
   if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
 }
 
@@ -197,6 +204,7 @@ void Localizer::startTracking() {
   if (phase_ != Phase::kTracking) return;
   consecutive_rejections_ = 0;
   consistency_.reset();
+  flagged_excess_m_ = 0.0;  // the new estimator starts without a shift
   if (rejection_window_) rejection_window_->reset();
   ++initializations_;
 }
@@ -232,7 +240,16 @@ void Localizer::checkHealth(const UpdateStats& stats) {
 
 void Localizer::checkConsistency() {
   const StateEstimate& s = estimator_->latest();
-  if (consistency_.judge(s.t_ns, s.T_w_b)) return;
+  const bool consistent = consistency_.judge(s.t_ns, s.T_w_b);
+  if (estimate_flagged_excess_) {
+    const FlaggedExcessParams& fx = params_.flagged_excess;
+    const double e = consistency_.flaggedQuantile(fx.quantile, fx.min_ranges);
+    if (std::isfinite(e)) {
+      flagged_excess_m_ = std::clamp(e, 0.0, fx.max_m);
+      estimator_->setFlaggedExcess(flagged_excess_m_);
+    }
+  }
+  if (consistent) return;
   char why[160];
   std::snprintf(why, sizeof why, "%.0f%% of the last %d ranges much shorter than the estimate predicts at t=%.3f s",
                 100.0 * consistency_.shortShare(), consistency_.judgedInWindow(), static_cast<double>(s.t_ns) * 1e-9);

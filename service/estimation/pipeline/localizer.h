@@ -50,6 +50,9 @@ struct LocalizerParams {
   int max_consecutive_rejections = 40;  ///< D-iSAM2 updates keeping the previous estimate in a row
   /// Too many two-way ranges much shorter than the estimate predicts (see range_consistency.h).
   RangeConsistencyParams range_consistency;
+  /// The typical excess of ranges the receiver flags as NLOS, estimated from
+  /// their residuals at the tracked pose and taken off them (range_model.h).
+  FlaggedExcessParams flagged_excess;
   /// Windowed rejection share (RejectionWindow, see its notes for the
   /// measurements behind the defaults): fail when more than
   /// max_rejection_share of the last rejection_window updates were rejected.
@@ -101,6 +104,8 @@ class Localizer {
   std::optional<CovarianceBlock> latestVelocityCovariance();
   const InitStatus& initStatus() const { return initializer_.status(); }
   const TrackingEstimator* estimator() const { return estimator_.get(); }
+  /// Current estimate of the flagged ranges' excess (m; FlaggedExcessParams), 0 before there is one.
+  double flaggedExcess() const { return flagged_excess_m_; }
   /// The smoothed trajectory so far (see TrackingEstimator::drainSmoothed);
   /// nothing while initializing.
   void drainSmoothed(std::vector<TimedPose>& out, bool all = false) {
@@ -131,6 +136,8 @@ class Localizer {
   Initializer initializer_;
   std::unique_ptr<TrackingEstimator> estimator_;
   RangeConsistencyMonitor consistency_;
+  bool estimate_flagged_excess_ = false;
+  double flagged_excess_m_ = 0.0;
   std::int64_t last_imu_ns_ = 0;
   bool have_imu_ = false;
   int consecutive_rejections_ = 0;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -19,13 +20,24 @@ void RangeConsistencyParams::validate() const {
   if (max_age_ns < 0) fail("max_age_ns", "must be >= 0");
 }
 
+void FlaggedExcessParams::validate() const {
+  auto fail = [](const char* field, const char* rule) {
+    throw std::invalid_argument(std::string("FlaggedExcessParams.") + field + " " + rule);
+  };
+  if (!(quantile >= 0.0 && quantile <= 1.0)) fail("quantile", "must be in [0, 1] (0: off)");
+  if (min_ranges < 1 || min_ranges > RangeConsistencyMonitor::kFlaggedWindow) fail("min_ranges", "must be in [1, 200]");
+  if (!(max_m >= 0.0 && std::isfinite(max_m))) fail("max_m", "must be finite and >= 0");
+}
+
 RangeConsistencyMonitor::RangeConsistencyMonitor(std::vector<Vec3> p_w_anchors, const Vec3& p_b_tag, double sigma_m,
-                                                 std::int64_t same_state_window_ns, RangeConsistencyParams params)
+                                                 std::int64_t same_state_window_ns, RangeConsistencyParams params,
+                                                 double flag_gap_db)
     : p_w_anchors_(std::move(p_w_anchors)),
       p_b_tag_(p_b_tag),
       short_m_(std::max(params.short_sigmas * sigma_m, params.short_floor_m)),
       group_window_ns_(same_state_window_ns),
-      params_(params) {
+      params_(params),
+      flag_gap_db_(flag_gap_db) {
   params_.validate();
   pending_.reserve(kMaxPending);
   window_.assign(static_cast<std::size_t>(params_.window), 0);
@@ -51,7 +63,13 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b) noexc
       continue;
     }
     if (r.t_ns < t_ns - params_.max_age_ns) continue;  // too old to judge at this pose
-    const std::uint8_t is_short = residual(r, T_w_b) < -short_m_ ? 1 : 0;
+    const double res = residual(r, T_w_b);
+    if (r.rssi_dbm - r.fp_power_dbm > flag_gap_db_) {  // as RangeModel::flagsNlos
+      flagged_[static_cast<std::size_t>(flagged_next_)] = res;
+      flagged_next_ = (flagged_next_ + 1) % kFlaggedWindow;
+      if (flagged_filled_ < kFlaggedWindow) ++flagged_filled_;
+    }
+    const std::uint8_t is_short = res < -short_m_ ? 1 : 0;
     auto& slot = window_[static_cast<std::size_t>(next_)];
     if (filled_ == params_.window) short_in_window_ -= slot;
     else ++filled_;
@@ -63,7 +81,17 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b) noexc
   return !(filled_ >= params_.min_judged && shortShare() > params_.max_short_share);
 }
 
+double RangeConsistencyMonitor::flaggedQuantile(double q, int min_count) const noexcept {
+  if (flagged_filled_ < min_count || flagged_filled_ == 0) return std::numeric_limits<double>::quiet_NaN();
+  const auto n = static_cast<std::size_t>(flagged_filled_);
+  std::copy(flagged_.begin(), flagged_.begin() + static_cast<std::ptrdiff_t>(n), scratch_.begin());
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(n - 1));
+  std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(k), scratch_.begin() + static_cast<std::ptrdiff_t>(n));
+  return scratch_[k];
+}
+
 void RangeConsistencyMonitor::reset() noexcept {
+  flagged_next_ = flagged_filled_ = 0;
   pending_.clear();
   std::fill(window_.begin(), window_.end(), std::uint8_t{0});
   next_ = filled_ = short_in_window_ = 0;

@@ -29,6 +29,7 @@ class RangeImuEstimator final : public TrackingEstimator {
     return start(t0_ns, T_w_b0_guess, v_w0_guess, ImuBias());
   }
   bool started() const override { return stream_.started(); }
+  void setFlaggedExcess(double excess_m) override { stream_.rangeModel().setFlaggedExcess(excess_m); }
   void addImu(const ImuSample& sample) override { stream_.addImu(sample); }
   void addMeasurement(const Measurement& m) override { stream_.addMeasurement(m); }
   /// No more samples: lets the last ranging group through.

@@ -215,6 +215,7 @@ class RangeImuGraphStream {
   const RangeImuGraphParams& params() const { return params_; }
   /// The sigmas given to measurement factors (and the dynamic estimate, if on).
   const MeasurementNoise& measurementNoise() const { return noise_; }
+  RangeModel& rangeModel() { return range_model_; }
 
  private:
   struct PlannedState {

@@ -26,7 +26,7 @@ RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noi
 
 RangeTerm RangeModel::term(const Measurement& m, double sigma_m) const {
   if (!flagsNlos(m)) return {m.value_m, sigma_m, loss_, false};
-  if (!component_) return {m.value_m, sigma_m, flagged_loss_, true};
+  if (!component_) return {m.value_m - flagged_excess_m_, sigma_m, flagged_loss_, true};
   return {m.value_m - component_->modeSigmas() * sigma_m, sigma_m * component_->sigmaScale(), flagged_loss_, true};
 }
 

@@ -39,12 +39,16 @@ class RangeModel {
   const RobustLossPtr& loss() const { return loss_; }
   /// Whether the indicator is in use (asymmetric model, finite threshold).
   bool usesIndicator() const { return flagged_loss_ != nullptr; }
+  /// Expected excess of a flagged range (m), taken off it before the mixture (default mode).
+  void setFlaggedExcess(double excess_m) { flagged_excess_m_ = excess_m; }
+  double flaggedExcess() const { return flagged_excess_m_; }
 
  private:
   RobustLossPtr loss_;
   RobustLossPtr flagged_loss_;                          ///< null: indicator off
   std::shared_ptr<const NlosComponentLoss> component_;  ///< set when flagged ranges get the NLOS component
   double gap_db_;
+  double flagged_excess_m_ = 0.0;
 };
 
 }  // namespace rilo

@@ -39,6 +39,8 @@ class TrackingEstimator {
     return start(t0_ns, T_w_b0, v_w0, bias0, std::nullopt);
   }
   virtual bool started() const = 0;
+  /// Expected excess of ranges the receiver flags as NLOS (m; range_model.h); no-op by default.
+  virtual void setFlaggedExcess(double /*excess_m*/) {}
   virtual void addImu(const ImuSample& sample) = 0;
   /// A range, TDoA or ultrasonic range (Measurement::of(sample)).
   virtual void addMeasurement(const Measurement& m) = 0;

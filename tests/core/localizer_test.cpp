@@ -25,6 +25,8 @@ LocalizerParams paramsFor(const sim::Scenario& s) {
 
 struct FeedResult {
   double mean_error_m = 0.0;
+  double mean_height_error_m = 0.0;      ///< signed, estimate - truth
+  double mean_abs_height_error_m = 0.0;
   int tracked_updates = 0;
   std::int64_t first_track_ns = -1;
 };
@@ -33,7 +35,7 @@ struct FeedResult {
 FeedResult feed(const sim::Scenario& s, Localizer& localizer, std::int64_t gap_from_ns = -1, std::int64_t gap_to_ns = -1) {
   FeedResult run;
   std::size_t i = 0, r = 0;
-  double sum = 0.0;
+  double sum = 0.0, sum_dz = 0.0, sum_abs_dz = 0.0;
   while (i < s.imu.size() || r < s.ranges.size()) {
     if (r < s.ranges.size() && (i >= s.imu.size() || s.ranges[r].t_ns <= s.imu[i].t_ns)) {
       localizer.addRange(s.ranges[r++]);
@@ -44,11 +46,18 @@ FeedResult feed(const sim::Scenario& s, Localizer& localizer, std::int64_t gap_f
     }
     if (localizer.process() > 0 && localizer.tracking()) {
       if (run.first_track_ns < 0) run.first_track_ns = localizer.latest().t_ns;
-      sum += (localizer.latest().T_w_b.p - s.truthAt(localizer.latest().t_ns).T_w_b.p).norm();
+      const Vec3 e = localizer.latest().T_w_b.p - s.truthAt(localizer.latest().t_ns).T_w_b.p;
+      sum += e.norm();
+      sum_dz += e.z();
+      sum_abs_dz += std::abs(e.z());
       ++run.tracked_updates;
     }
   }
-  run.mean_error_m = run.tracked_updates > 0 ? sum / run.tracked_updates : 0.0;
+  if (run.tracked_updates > 0) {
+    run.mean_error_m = sum / run.tracked_updates;
+    run.mean_height_error_m = sum_dz / run.tracked_updates;
+    run.mean_abs_height_error_m = sum_abs_dz / run.tracked_updates;
+  }
   return run;
 }
 
@@ -266,22 +275,9 @@ TEST(Localizer, HeightBandHoldsTheTrackedHeightUnderNlos) {
     p.track_height_band = band_on;
     Localizer localizer(s.p_w_anchors, p);
     EXPECT_TRUE(localizer.heightBandNote().empty()) << localizer.heightBandNote();
-    double sum = 0.0;
-    int n = 0;
-    std::size_t i = 0, r = 0;
-    while (i < s.imu.size() || r < s.ranges.size()) {
-      if (r < s.ranges.size() && (i >= s.imu.size() || s.ranges[r].t_ns <= s.imu[i].t_ns)) {
-        localizer.addRange(s.ranges[r++]);
-      } else {
-        localizer.addImu(s.imu[i++]);
-      }
-      if (localizer.process() > 0 && localizer.tracking()) {
-        sum += std::abs(localizer.latest().T_w_b.p.z() - s.truthAt(localizer.latest().t_ns).T_w_b.p.z());
-        ++n;
-      }
-    }
-    EXPECT_GT(n, 100);
-    return n > 0 ? sum / n : 1e9;
+    const FeedResult run = feed(s, localizer);
+    EXPECT_GT(run.tracked_updates, 100);
+    return run.tracked_updates > 0 ? run.mean_abs_height_error_m : 1e9;
   };
   const double with_band = vertical_error(true);
   const double without = vertical_error(false);
@@ -308,26 +304,11 @@ TEST(Localizer, EstimatesTheExcessOfFlaggedRangesAndTakesItOff) {
     LocalizerParams p = paramsFor(s);
     p.flagged_excess.quantile = quantile;
     Localizer localizer(s.p_w_anchors, p);
-    double sum = 0.0;
-    int n = 0;
-    std::size_t i = 0, r = 0;
-    while (i < s.imu.size() || r < s.ranges.size()) {
-      if (r < s.ranges.size() && (i >= s.imu.size() || s.ranges[r].t_ns <= s.imu[i].t_ns)) {
-        localizer.addRange(s.ranges[r++]);
-      } else {
-        localizer.addImu(s.imu[i++]);
-      }
-      if (localizer.process() > 0 && localizer.tracking()) {
-        const Vec3 e = localizer.latest().T_w_b.p - s.truthAt(localizer.latest().t_ns).T_w_b.p;
-        sum += e.norm();
-        *dz_m += e.z();
-        ++n;
-      }
-    }
-    EXPECT_GT(n, 100);
-    if (n > 0) *dz_m /= n;
+    const FeedResult fed = feed(s, localizer);
+    EXPECT_GT(fed.tracked_updates, 100);
+    *dz_m = fed.mean_height_error_m;
     *excess_m = localizer.flaggedExcess();
-    return n > 0 ? sum / n : 1e9;
+    return fed.tracked_updates > 0 ? fed.mean_error_m : 1e9;
   };
   double excess = -1.0, unused = 0.0, dz_with = 0.0, dz_without = 0.0, dz_clear = 0.0;
   const double with = run(1.0, FlaggedExcessParams().quantile, &excess, &dz_with);

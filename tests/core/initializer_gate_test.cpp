@@ -9,25 +9,14 @@
 
 #include "estimation/pipeline/initializer.h"
 #include "hal/sim/range_imu_scenario.h"
+#include "support/initializer_scenarios.h"
 #include "support/online_run.h"
 
 namespace rilo {
 namespace {
 
-sim::Scenario movingScenario(std::uint64_t seed, double duration_s) {
-  sim::ScenarioParams sp;  // 25 % NLOS by default, 40 Hz ranging
-  sp.seed = seed;
-  sp.duration_s = duration_s;
-  return sim::simulateScenario(sp);
-}
-
-InitializerParams paramsFor(const sim::Scenario& s) {
-  InitializerParams p;
-  p.graph = testing::graphParamsFor(s);
-  p.graph.first_accel_bias_sigma = 3.0 * s.params.accel_bias_init_sigma;
-  p.graph.first_gyro_bias_sigma = 3.0 * s.params.gyro_bias_init_sigma;
-  return p;
-}
+using testing::movingScenario;
+InitializerParams paramsFor(const sim::Scenario& s) { return testing::initializerParamsFor(s); }
 
 /// Feeds the scenario in time order, process() after every IMU sample, until
 /// initialized or the data ends; `on_attempt` sees the status after every
@@ -57,7 +46,7 @@ TEST(InitializerBatchGate, AcceptsTheSameSolveAsWithoutTheGate) {
   // sigmas first. The gate skips some of them; the accepted solve is the same.
   int gated = 0;
   for (std::uint64_t seed = 1; seed <= 3; ++seed) {
-    const sim::Scenario s = movingScenario(seed, 35.0);
+    const sim::Scenario s = movingScenario(seed, 40.0, 35.0);
     InitializerParams p_off = paramsFor(s);
     p_off.batch_gate_sigma_factor = std::numeric_limits<double>::infinity();
     Initializer with_gate(s.p_w_anchors, paramsFor(s)), without(s.p_w_anchors, p_off);
@@ -81,7 +70,7 @@ TEST(InitializerBatchGate, AcceptsTheSameSolveAsWithoutTheGate) {
 TEST(InitializerBatchGate, SolvesAtLeastEveryMaxSeconds) {
   // Acceptance made impossible (yaw sigma <= 1e-6 rad): every prediction
   // fails the gate, yet a solve runs at least every batch_gate_max_s.
-  const sim::Scenario s = movingScenario(2, 20.0);
+  const sim::Scenario s = movingScenario(2, 40.0, 20.0);
   InitializerParams p = paramsFor(s);
   p.max_yaw_sigma_rad = 1e-6;
   p.batch_gate_max_s = 2.0;
@@ -107,7 +96,7 @@ TEST(InitializerBatchGate, SolvesAtLeastEveryMaxSeconds) {
 }
 
 TEST(InitializerBatchGate, ARejectedAttemptIsNotRepeatedWithoutNewData) {
-  const sim::Scenario s = movingScenario(3, 20.0);
+  const sim::Scenario s = movingScenario(3, 40.0, 20.0);
   InitializerParams p = paramsFor(s);
   p.max_yaw_sigma_rad = 1e-6;  // every solve is rejected
   p.batch_gate_sigma_factor = std::numeric_limits<double>::infinity();
@@ -137,7 +126,7 @@ TEST(InitializerBatchGate, ARejectedAttemptIsNotRepeatedWithoutNewData) {
 }
 
 TEST(InitializerBatchGate, InvalidGateParamsThrow) {
-  const sim::Scenario s = movingScenario(1, 1.0);
+  const sim::Scenario s = movingScenario(1, 40.0, 1.0);
   InitializerParams p = paramsFor(s);
   p.batch_gate_sigma_factor = 0.9;
   EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument);

@@ -18,10 +18,14 @@
 #include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
 #include "hal/sim/range_imu_scenario.h"
+#include "support/initializer_scenarios.h"
 #include "support/online_run.h"
 
 namespace rilo {
 namespace {
+
+using testing::movingScenario;
+InitializerParams paramsFor(const sim::Scenario& s) { return testing::initializerParamsFor(s); }
 
 constexpr double kDeg = M_PI / 180.0;
 
@@ -138,29 +142,12 @@ sim::Scenario simulateOn(std::shared_ptr<const sim::Trajectory> truth, const sim
   return s;
 }
 
-sim::Scenario movingScenario(std::uint64_t seed, double range_rate_hz, double duration_s) {
-  sim::ScenarioParams sp;  // 25 % NLOS by default
-  sp.seed = seed;
-  sp.range_rate_hz = range_rate_hz;
-  sp.duration_s = duration_s;
-  return sim::simulateScenario(sp);
-}
-
 sim::Scenario stillStartScenario(std::uint64_t seed, double range_rate_hz, double duration_s, double still_s = 4.0) {
   sim::ScenarioParams sp;
   sp.seed = seed;
   sp.range_rate_hz = range_rate_hz;
   sp.duration_s = duration_s;
   return simulateOn(std::make_shared<StillThenWalk>(still_s, 2.0), sp);
-}
-
-InitializerParams paramsFor(const sim::Scenario& s) {
-  InitializerParams p;
-  p.graph = testing::graphParamsFor(s);
-  // Bias priors as the device's turn-on spread: 3 sigma of the simulator's.
-  p.graph.first_accel_bias_sigma = 3.0 * s.params.accel_bias_init_sigma;
-  p.graph.first_gyro_bias_sigma = 3.0 * s.params.gyro_bias_init_sigma;
-  return p;
 }
 
 // ---------------------------------------------------------------------------

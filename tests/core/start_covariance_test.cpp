@@ -17,10 +17,14 @@
 #include "estimation/pipeline/range_imu_graph_stream.h"
 #include "estimation/pipeline/start_covariance.h"
 #include "hal/sim/range_imu_scenario.h"
+#include "support/initializer_scenarios.h"
 #include "support/online_run.h"
 
 namespace rilo {
 namespace {
+
+using testing::movingScenario;
+InitializerParams paramsFor(const sim::Scenario& s) { return testing::initializerParamsFor(s); }
 
 template <class M>
 double relDiff(const M& a, const M& b) {
@@ -96,22 +100,6 @@ TEST(StartCovariance, NonFiniteMarginalGivesNoneAndBadParamsThrow) {
 
 // ---------------------------------------------------------------------------
 // The hand-over.
-
-sim::Scenario movingScenario(std::uint64_t seed, double range_rate_hz, double duration_s) {
-  sim::ScenarioParams sp;  // 25 % NLOS by default
-  sp.seed = seed;
-  sp.range_rate_hz = range_rate_hz;
-  sp.duration_s = duration_s;
-  return sim::simulateScenario(sp);
-}
-
-InitializerParams paramsFor(const sim::Scenario& s) {
-  InitializerParams p;
-  p.graph = testing::graphParamsFor(s);
-  p.graph.first_accel_bias_sigma = 3.0 * s.params.accel_bias_init_sigma;
-  p.graph.first_gyro_bias_sigma = 3.0 * s.params.gyro_bias_init_sigma;
-  return p;
-}
 
 /// Marginal covariances of `keys` at `values`: columns of the inverse of J^T J
 /// (robust-weighted, as the batch's Gauss-Newton Hessian) over every variable

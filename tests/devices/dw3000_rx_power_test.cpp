@@ -36,7 +36,7 @@ RxDiagnostics diagnostics(std::uint32_t c, std::uint32_t f1, std::uint32_t f2, s
 }
 
 // Worked numbers for the DW3000 user manual v1.1 formulas (4.7.1, 4.7.2):
-// the table Qorvo's DW3xxx driver pins its fixed-point RSL code to
+// the reference table Qorvo's DW3xxx driver tests its fixed-point RSL code against
 // (utest/test_rsl.cc, "dataset computed on a spreadsheet", 0.1 dB), and a
 // real-world first-path reading from the same file. The manual itself gives
 // the formulas and constants but no numeric example.

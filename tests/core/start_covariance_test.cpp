@@ -9,9 +9,14 @@
 #include <Eigen/Sparse>
 #include <cmath>
 #include <map>
+#include <algorithm>
+#include <limits>
 #include <memory>
+#include <random>
+#include <vector>
 
 #include "estimation/factors/prior_factors.h"
+#include "estimation/factors/range_factor.h"
 #include "estimation/pipeline/ekf_estimator.h"
 #include "estimation/pipeline/initializer.h"
 #include "estimation/pipeline/range_imu_graph_stream.h"
@@ -96,6 +101,53 @@ TEST(StartCovariance, NonFiniteMarginalGivesNoneAndBadParamsThrow) {
   c = StartCovarianceConditioning();
   c.bias_floor_sigmas(4) = 0.0;
   EXPECT_THROW(c.validate(), std::invalid_argument);
+  for (double bad : {0.5, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    EXPECT_THROW(conditionStartCovariance(Mat6::Identity(), Mat3::Identity(), Mat6::Identity(), {}, bad),
+                 std::invalid_argument)
+        << bad;
+  }
+}
+
+TEST(StartCovariance, VarianceFactorScalesBeforeInflationAndFloors) {
+  StartCovarianceConditioning c;
+  c.inflation = 2.0;
+  const Mat6 pose = randomSpd6(3, (Vec6() << 0.02, 0.02, 0.05, 0.3, 0.3, 0.4).finished());
+  const Mat3 vel = Vec3(0.1, 0.12, 0.08).cwiseAbs2().asDiagonal();
+  const Mat6 bias = randomSpd6(4, (Vec6() << 0.05, 0.05, 0.05, 2e-3, 2e-3, 2e-3).finished());
+  const std::optional<StartCovariance> scaled = conditionStartCovariance(pose, vel, bias, c, 9.0);
+  const std::optional<StartCovariance> by_hand = conditionStartCovariance(9.0 * pose, 9.0 * vel, 9.0 * bias, c);
+  ASSERT_TRUE(scaled && by_hand);
+  EXPECT_LT(relDiff(scaled->pose, by_hand->pose), 1e-12);
+  EXPECT_LT(relDiff(scaled->velocity, by_hand->velocity), 1e-12);
+  EXPECT_LT(relDiff(scaled->bias, by_hand->bias), 1e-12);
+  EXPECT_LT(relDiff(scaled->pose, Mat6(18.0 * pose)), 1e-12);  // nothing floored: 9 x 2 x C
+  // A tiny marginal stays at its floor whatever the factor.
+  const std::optional<StartCovariance> tiny = conditionStartCovariance(1e-12 * pose, 1e-12 * vel, 1e-12 * bias, c, 4.0);
+  ASSERT_TRUE(tiny.has_value());
+  EXPECT_NEAR(tiny->velocity(0, 0), c.velocity_floor_sigma_m_s * c.velocity_floor_sigma_m_s, 1e-12);
+}
+
+TEST(ResidualScale, IsOneForUnitNormalResidualsAndGrowsWithNoiseAndBias) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n01;
+  std::vector<double> unit(20001), wide(20001), biased(20001);
+  for (std::size_t i = 0; i < unit.size(); ++i) {
+    const double r = n01(rng);
+    unit[i] = std::abs(r);
+    wide[i] = std::abs(3.0 * r);
+    biased[i] = std::abs(r + 2.0);  // a shared offset (NLOS excess on every link) counts as error
+  }
+  EXPECT_NEAR(residualScale(unit), 1.0, 0.03);
+  EXPECT_NEAR(residualScale(wide), 3.0, 0.09);
+  // median |N(2, 1)| = 2.0 (symmetric about 2, P(r < 0) tiny): scale 1.4826 x 2.
+  EXPECT_NEAR(residualScale(biased), 1.4826 * 2.0, 0.05);
+  // Exact on small sets: odd and even counts.
+  std::vector<double> odd{3.0, 0.5, 1.0};
+  EXPECT_DOUBLE_EQ(residualScale(odd), 1.4826 * 1.0);
+  std::vector<double> even{4.0, 1.0, 2.0, 0.0};
+  EXPECT_DOUBLE_EQ(residualScale(even), 1.4826 * 1.5);
+  std::vector<double> none;
+  EXPECT_TRUE(std::isnan(residualScale(none)));
 }
 
 // ---------------------------------------------------------------------------
@@ -203,19 +255,21 @@ TEST(StartCovarianceHandOver, StartPriorsAreTheBatchMarginals) {
   const Key x = sym::X(i), v = sym::V(i), b = sym::B(i);
   const std::map<Key, Eigen::MatrixXd> m = sparseMarginals(res.window->graph.graph, res.window->values, {x, v, b});
   EXPECT_LT(relDiff(Mat6(res.pose_covariance), Mat6(m.at(x))), 1e-5);
-  const std::optional<StartCovariance> expected =
-      conditionStartCovariance(Mat6(m.at(x)), Mat3(m.at(v)), Mat6(m.at(b)), init->params().hand_over_conditioning);
+  // Scaled by the batch's residual scale, clamped (max_hand_over_residual_scale).
+  const double s_res = std::clamp(res.residual_scale, 1.0, init->params().max_hand_over_residual_scale);
+  const std::optional<StartCovariance> expected = conditionStartCovariance(
+      Mat6(m.at(x)), Mat3(m.at(v)), Mat6(m.at(b)), init->params().hand_over_conditioning, s_res * s_res);
   ASSERT_TRUE(expected.has_value());
   EXPECT_LT(relDiff(res.start_covariance->pose, expected->pose), 1e-5);
   EXPECT_LT(relDiff(res.start_covariance->velocity, expected->velocity), 1e-5);
   EXPECT_LT(relDiff(res.start_covariance->bias, expected->bias), 1e-5);
   // Never tighter than the inflated marginal (the floor only widens), and at
   // 40 Hz far tighter than the loose defaults the tracker used to get (1 m).
-  const double k = init->params().hand_over_conditioning.inflation;
+  const double k = init->params().hand_over_conditioning.inflation * s_res * s_res;
   const Mat6 widened = expected->pose - k * Mat6(m.at(x));
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Mat6>(widened).eigenvalues().minCoeff(), -1e-12 * expected->pose.norm());
   const Mat3 cov_p = res.start_covariance->pose.bottomRightCorner<3, 3>();
-  EXPECT_LT(cov_p.trace(), 0.1);
+  EXPECT_LT(cov_p.trace(), 0.3);  // a tenth of the loose defaults' 3 m^2
   EXPECT_GT(cov_p.trace(), k * m.at(x).bottomRightCorner(3, 3).trace() * (1.0 - 1e-9));
 
   // handOver passes it on.
@@ -227,6 +281,43 @@ TEST(StartCovarianceHandOver, StartPriorsAreTheBatchMarginals) {
   EXPECT_EQ(spy.covariance_->bias, res.start_covariance->bias);
   EXPECT_EQ(spy.latest().t_ns, res.state.t_ns);
 
+}
+
+TEST(StartCovarianceHandOver, DataNoisierThanNominalWidenTheStartPriorsByTheResidualScale) {
+  const sim::Scenario s = movingScenario(3, 40.0, 30.0);
+  InitializerParams p = paramsFor(s);
+  p.graph.range_noise.sigma_m = s.params.range_sigma_m / 2.0;  // the ranges are 2x noisier than assumed
+  const std::unique_ptr<Initializer> init = initializedOn(s, p);
+  ASSERT_TRUE(init->initialized()) << init->status().message;
+  const InitResult& res = init->result();
+  ASSERT_TRUE(res.window && res.start_covariance);
+
+  // The scale, recomputed from the window's range factors (found by type, not by the graph's layout).
+  std::vector<double> abs_r;
+  for (const auto& f : res.window->graph.graph) {
+    if (!dynamic_cast<const RangeFactor*>(f.get())) continue;
+    Residual r;
+    f->evaluate(res.window->values, r, nullptr);
+    abs_r.push_back(std::abs(r(0)));
+  }
+  ASSERT_EQ(abs_r.size(), res.window->graph.range_factors);
+  EXPECT_DOUBLE_EQ(res.residual_scale, residualScale(abs_r));
+  EXPECT_GT(res.residual_scale, 1.8);  // ~2 from the noise, more from the NLOS excess
+
+  // The same solve without the scaling: same state, start priors s^2 tighter (the floors are far below here).
+  InitializerParams p_off = p;
+  p_off.max_hand_over_residual_scale = 1.0;
+  const std::unique_ptr<Initializer> off = initializedOn(s, p_off);
+  ASSERT_TRUE(off->initialized()) << off->status().message;
+  ASSERT_TRUE(off->result().start_covariance.has_value());
+  EXPECT_EQ(off->result().state.t_ns, res.state.t_ns);
+  EXPECT_LT((off->result().state.T_w_b.p - res.state.T_w_b.p).norm(), 1e-9);
+  const double s_res = std::min(res.residual_scale, p.max_hand_over_residual_scale);
+  const double ratio_p = res.start_covariance->pose.bottomRightCorner<3, 3>().trace() /
+                         off->result().start_covariance->pose.bottomRightCorner<3, 3>().trace();
+  const double ratio_v = res.start_covariance->velocity.trace() / off->result().start_covariance->velocity.trace();
+  EXPECT_NEAR(ratio_p, s_res * s_res, 0.05 * s_res * s_res);
+  EXPECT_NEAR(ratio_v, s_res * s_res, 0.05 * s_res * s_res);
 }
 
 TEST(StartCovarianceHandOver, OffHandsOverNoCovariance) {

@@ -99,6 +99,9 @@ void InitializerParams::validate() const {
   if (!(zero_velocity_sigma_m_s > 0.0)) fail("zero_velocity_sigma_m_s", "must be > 0 (+inf disables)");
   if (!(batch_gate_sigma_factor >= 1.0)) fail("batch_gate_sigma_factor", "must be >= 1 (+inf disables)");
   if (!(batch_gate_max_s > 0.0)) fail("batch_gate_max_s", "must be > 0");
+  if (!(max_hand_over_residual_scale >= 1.0) || !std::isfinite(max_hand_over_residual_scale)) {
+    fail("max_hand_over_residual_scale", "must be finite and >= 1 (1 disables)");
+  }
   hand_over_conditioning.validate();
   height_band.validate("InitializerParams.height_band");
   fix.validate();
@@ -548,6 +551,15 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     const double e = f.error(out.values);
     range_cost += dynamic_cast<const TdoaFactor*>(&f) ? std::min(e, kTdoaGateCostCap) : e;
   }
+  // The residual scale, for the hand-over covariance (max_hand_over_residual_scale).
+  std::vector<double> abs_residuals;
+  abs_residuals.reserve(win.graph.range_factors);
+  for (std::size_t k = first_range; k < first_range + win.graph.range_factors; ++k) {
+    Residual r;
+    win.graph.graph[k]->evaluate(out.values, r, nullptr);
+    for (Eigen::Index j = 0; j < r.size(); ++j) abs_residuals.push_back(std::abs(r(j)));
+  }
+  const double residual_scale = residualScale(abs_residuals);
   const double range_cpr = range_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.range_factors));
   const double imu_cpf = imu_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.imu_factors));
   const Pose3 T_last = out.values.pose(x_last);
@@ -576,7 +588,7 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   const Vec3 tag_last = T_last.transformFrom(P.graph.p_b_tag);
   std::string summary =
       strprintf("batch over %.1f s (%zu states): ", toS(win.graph.state_t_ns.back() - t_graph0), n_states) +
-      strprintf("range cost %.2f, IMU cost %.3g per factor, ", range_cpr, imu_cpf);
+      strprintf("range cost %.2f, IMU cost %.3g per factor, residual scale %.2f, ", range_cpr, imu_cpf, residual_scale);
   summary += cov ? strprintf("sigma %.2f m, yaw sigma %.1f deg", pos_sigma, yaw_sigma * kRadToDeg)
                  : std::string("sigmas not computed");
   if (!reject.empty()) {
@@ -603,7 +615,10 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     const std::optional<CovarianceBlock> cov_v = lm.marginalCovariance(sym::V(n_states - 1));
     const std::optional<CovarianceBlock> cov_b = lm.marginalCovariance(sym::B(n_states - 1));
     if (cov_v && cov_b && cov_v->rows() == 3 && cov_b->rows() == 6) {
-      res.start_covariance = conditionStartCovariance(Mat6(*cov), Mat3(*cov_v), Mat6(*cov_b), P.hand_over_conditioning);
+      const double s = std::clamp(std::isfinite(residual_scale) ? residual_scale : 1.0, 1.0,
+                                  P.max_hand_over_residual_scale);
+      res.start_covariance =
+          conditionStartCovariance(Mat6(*cov), Mat3(*cov_v), Mat6(*cov_b), P.hand_over_conditioning, s * s);
     }
   }
   res.data_start_ns = data_start_ns_;
@@ -615,6 +630,7 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   res.alignment = align;
   res.lm = out.result;
   res.range_cost_per_range = range_cpr;
+  res.residual_scale = residual_scale;
   res.imu_cost_per_factor = imu_cpf;
   res.still_s = still_s;
   if (P.keep_window) {

@@ -164,6 +164,13 @@ struct InitializerParams {
   /// (start_covariance.h); off, the graph's loose first-state priors.
   bool hand_over_covariance = true;
   StartCovarianceConditioning hand_over_conditioning;
+  /// ... with the marginals first scaled by s^2, s the batch's residual scale
+  /// (residualScale of the measurement factors' whitened residuals at the
+  /// solution) clamped to [1, this]. The marginals assume the nominal sigmas:
+  /// on the office TDoA sims s is 1.9-4.5 (blocked paths on most links), on
+  /// the two-way office sims ~2, in the hall 0.8-1.1. 1 disables; the cap
+  /// keeps one bad window from handing over a prior of metres.
+  double max_hand_over_residual_scale = 4.0;
 
   double max_range_m = 500.0;  ///< ranges (two-way, ultrasonic) or |TDoA| beyond this (or negative ranges) are dropped as garbage (m)
   bool keep_window = true;     ///< keep the solved window in the result
@@ -222,6 +229,7 @@ struct InitResult {
   AlignmentResult alignment;
   LmResult lm;
   double range_cost_per_range = 0.0;  ///< per measurement factor of any kind
+  double residual_scale = 1.0;        ///< the measurement factors' residual scale at the solution (unclamped)
   double imu_cost_per_factor = 0.0;
   double still_s = 0.0;          ///< still time in the window (zero-velocity priors)
   std::optional<InitWindow> window;  ///< with InitializerParams::keep_window

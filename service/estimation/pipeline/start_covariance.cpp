@@ -1,7 +1,9 @@
 #include "estimation/pipeline/start_covariance.h"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -38,14 +40,29 @@ void StartCovarianceConditioning::validate() const {
 }
 
 std::optional<StartCovariance> conditionStartCovariance(const Mat6& pose, const Mat3& velocity, const Mat6& bias,
-                                                        const StartCovarianceConditioning& params) {
+                                                        const StartCovarianceConditioning& params,
+                                                        double variance_factor) {
   params.validate();
+  if (!(variance_factor >= 1.0) || !std::isfinite(variance_factor)) {
+    throw std::invalid_argument("conditionStartCovariance: variance_factor must be finite and >= 1");
+  }
   if (!pose.allFinite() || !velocity.allFinite() || !bias.allFinite()) return std::nullopt;
+  const double k = variance_factor * params.inflation;
   StartCovariance out;
-  out.pose = conditioned<6>(pose, params.pose_floor_sigmas, params.inflation);
-  out.velocity = conditioned<3>(velocity, Vec3(Vec3::Constant(params.velocity_floor_sigma_m_s)), params.inflation);
-  out.bias = conditioned<6>(bias, params.bias_floor_sigmas, params.inflation);
+  out.pose = conditioned<6>(pose, params.pose_floor_sigmas, k);
+  out.velocity = conditioned<3>(velocity, Vec3(Vec3::Constant(params.velocity_floor_sigma_m_s)), k);
+  out.bias = conditioned<6>(bias, params.bias_floor_sigmas, k);
   return out;
+}
+
+double residualScale(std::span<double> abs_residuals) {
+  if (abs_residuals.empty()) return std::numeric_limits<double>::quiet_NaN();
+  // 1.4826 = 1 / Phi^-1(3/4): the median of |r| of a unit normal.
+  const auto mid = abs_residuals.begin() + static_cast<std::ptrdiff_t>(abs_residuals.size() / 2);
+  std::nth_element(abs_residuals.begin(), mid, abs_residuals.end());
+  double median = *mid;
+  if (abs_residuals.size() % 2 == 0) median = 0.5 * (median + *std::max_element(abs_residuals.begin(), mid));
+  return 1.4826 * median;
 }
 
 }  // namespace rilo

@@ -19,7 +19,14 @@
 //    back, so no direction of the prior is tighter than its floor (a
 //    near-singular marginal cannot make an over-confident prior), whatever
 //    the units mix in the block.
+// Before that the marginals can be scaled by the batch's a-posteriori
+// variance factor (residualScale below): the marginals assume the nominal
+// measurement sigmas, and where the data are noisier than that (office TDoA
+// under NLOS: whitened residuals 2-4x the nominal) they are that much too
+// tight. Handed over unscaled, a start 1 m / 2 m/s off claimed a 0.05 m /
+// 0.08 m/s sigma, and the tracker ran away from it (issue 7, seeds 4/6).
 #include <optional>
+#include <span>
 
 #include "estimation/math/types.h"
 
@@ -49,8 +56,17 @@ struct StartCovarianceConditioning {
 
 /// The conditioned start covariance from the marginals of one state, or
 /// nullopt when a marginal is not finite (the caller then starts with the
-/// default priors). Symmetrizes its input.
+/// default priors). Symmetrizes its input. `variance_factor` (>= 1, finite)
+/// multiplies the marginals before the inflation and the floors.
 std::optional<StartCovariance> conditionStartCovariance(const Mat6& pose, const Mat3& velocity, const Mat6& bias,
-                                                        const StartCovarianceConditioning& params = {});
+                                                        const StartCovarianceConditioning& params = {},
+                                                        double variance_factor = 1.0);
+
+/// Robust scale of whitened residuals (1 when they follow the nominal
+/// sigmas): 1.4826 x the median of |r|, taken about zero rather than about
+/// the residuals' median, so that a shared bias (NLOS excess on most links)
+/// counts as the error it is. NaN for no residuals. Reorders `abs_residuals`
+/// (partial sort); every entry must be |r| >= 0.
+double residualScale(std::span<double> abs_residuals);
 
 }  // namespace rilo

@@ -492,6 +492,25 @@ TEST(InitAlignment, StillDeviceLeavesYawUnobservable) {
   EXPECT_LT(tiltErrorDeg(a.T_w_b.R, st0.T_w_b.R), 1.0);
 }
 
+TEST(InitAlignment, NoiseScaleFromTheInlierShare) {
+  // Exact inverses of P(|N(0, s^2)| <= 3) = share.
+  EXPECT_NEAR(noiseScaleFromInlierShare(6827, 10000), 3.0, 1e-3);           // share within 1 sigma: s = 3
+  EXPECT_NEAR(noiseScaleFromInlierShare(8664, 10000), 2.0, 2e-3);           // within 1.5 sigma: s = 2
+  EXPECT_NEAR(noiseScaleFromInlierShare(9973, 10000), 1.0, 1e-3);           // nominal
+  EXPECT_DOUBLE_EQ(noiseScaleFromInlierShare(10, 10), noiseScaleFromInlierShare(99999, 100000));  // clamped: 1
+  EXPECT_NEAR(noiseScaleFromInlierShare(10, 10), 1.0, 1e-9);
+  EXPECT_NEAR(noiseScaleFromInlierShare(1, 10), 3.0 / 0.6745, 1e-3);      // clamped at a half: 4.45
+  EXPECT_DOUBLE_EQ(noiseScaleFromInlierShare(0, 0), 1.0);
+  EXPECT_NEAR(noiseScaleFromInlierShare(6827, 10000, 2.0), 2.0, 1e-3);     // another bound
+  // Monotonic: fewer inliers, larger scale.
+  double prev = 0.0;
+  for (int k = 100; k >= 50; k -= 5) {
+    const double sc = noiseScaleFromInlierShare(k, 100);
+    EXPECT_GE(sc, prev);
+    prev = sc;
+  }
+}
+
 // ---------------------------------------------------------------------------
 // The Initializer on whole sessions
 
@@ -528,6 +547,27 @@ TEST(Initializer, MovingStart40HzSeveralSeeds) {
   EXPECT_EQ(t.tilt, t.runs) << "roll/pitch < 2 deg";
   EXPECT_GE(t.yaw, t.runs - 2) << "yaw < 10 deg";
   EXPECT_GE(t.vel, t.runs - 1) << "velocity < 0.3 m/s";
+}
+
+TEST(Initializer, NoisierThanNominalDataNeedALargerYawCostGap) {
+  // Ranges 2.5x noisier than the graph assumes: every cost, and the gap
+  // between two yaws, grows by ~s^2; the accepted alignment must have won by
+  // the scaled gap, and the scale must have been seen.
+  const sim::Scenario s = movingScenario(2, 40.0, 40.0);
+  InitializerParams p = paramsFor(s);
+  p.graph.range_noise.sigma_m = s.params.range_sigma_m / 2.5;
+  Initializer init(s.p_w_anchors, p);
+  bool saw_scaled_wait = false;
+  const InitRun r = runInit(s, init, [&](const Initializer& in, const ImuSample&) {
+    saw_scaled_wait |= in.status().message.find("at noise scale") != std::string::npos &&
+                       in.status().message.find("at noise scale 1.0)") == std::string::npos;
+  });
+  ASSERT_TRUE(r.initialized) << init.status().message;
+  const AlignmentResult& a = init.result().alignment;
+  const double sc = std::min(a.noiseScale(), p.max_yaw_gap_noise_scale);
+  EXPECT_GT(sc, 1.5);
+  EXPECT_GE(a.second_cost_gap, p.min_yaw_cost_gap * sc * sc);
+  EXPECT_TRUE(saw_scaled_wait);
 }
 
 TEST(Initializer, StillStart40HzWaitsForMotionThenInitializes) {
@@ -707,6 +747,12 @@ TEST(InitializerParamsTest, InvalidParamsAndAnchorsThrow) {
   EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument);
   p = paramsFor(s);
   p.height_band.max_height_m = 0.1;
+  EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument);
+  p = paramsFor(s);
+  p.max_yaw_gap_noise_scale = 0.5;
+  EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument);
+  p = paramsFor(s);
+  p.max_hand_over_residual_scale = std::numeric_limits<double>::infinity();
   EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument);
   EXPECT_THROW(Initializer({}, paramsFor(s)), std::invalid_argument);
   EXPECT_THROW(Initializer({Vec3(0, 0, std::nan(""))}, paramsFor(s)), std::invalid_argument);

@@ -345,6 +345,21 @@ double wrapAngle(double a) { return std::remainder(a, 2.0 * M_PI); }
 
 }  // namespace
 
+double noiseScaleFromInlierShare(int inliers, int total, double bound) {
+  if (total <= 0) return 1.0;
+  const auto share_within = [](double k) { return std::erf(k / std::sqrt(2.0)); };  // P(|N(0, 1)| <= k)
+  const double share = std::clamp(static_cast<double>(inliers) / total, 0.5, share_within(bound));
+  // Solve share_within(k) = share for k (increasing in k): bisection, k in [0.6745, bound].
+  double lo = 0.6, hi = bound;
+  for (int it = 0; it < 60; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (share_within(mid) < share ? lo : hi) = mid;
+  }
+  return bound / (0.5 * (lo + hi));
+}
+
+double AlignmentResult::noiseScale() const { return noiseScaleFromInlierShare(inliers, measurements); }
+
 AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<const RangeSample> ranges,
                                    std::int64_t t_ref_ns, const std::vector<Vec3>& p_w_anchors,
                                    const GravityAlignment& gravity, const Vec3& p_w_tag_guess,

@@ -99,11 +99,22 @@ struct AlignmentResult {
   double horizontal_dv_m_s = 0.0;  ///< largest horizontal velocity change over the window (m/s)
   std::vector<double> hypothesis_costs;  ///< final cost per yaw hypothesis
 
+  /// Scale of the fit's whitened residuals (1 when the data follow the
+  /// nominal sigmas), from the share of them within 3: see noiseScaleFromInlierShare.
+  double noiseScale() const;
+
   /// The fitted model evaluated at one strapdown delta (from the same t_r).
   StrapdownState at(const StrapdownDelta& d, double gravity_m_s2) const {
     return propagate(d, T_w_b, v_w, bias, gravity_m_s2);
   }
 };
+
+/// The s for which |N(0, s^2)| <= `bound` has probability inliers / total:
+/// a residual scale that needs only a count (robust: the share is a median-like
+/// statistic, NLOS tails beyond the bound weigh as much as any outlier).
+/// The share is clamped to [0.5, P(|N(0, 1)| <= bound)], so s lies in
+/// [1, bound / 0.6745]; 1 for total <= 0.
+double noiseScaleFromInlierShare(int inliers, int total, double bound = 3.0);
 
 /// Fits the model above to `measurements` (in time order; those before
 /// t_ref_ns, with an unknown anchor or beacon, or a non-finite value are

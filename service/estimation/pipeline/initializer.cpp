@@ -90,6 +90,9 @@ void InitializerParams::validate() const {
   if (!(fix_max_window_s >= fix_window_s)) fail("fix_max_window_s", "must be >= fix_window_s");
   if (!(max_alignment_yaw_sigma_rad > 0.0)) fail("max_alignment_yaw_sigma_rad", "must be > 0");
   if (!(min_yaw_cost_gap >= 0.0)) fail("min_yaw_cost_gap", "must be >= 0");
+  if (!(max_yaw_gap_noise_scale >= 1.0) || !std::isfinite(max_yaw_gap_noise_scale)) {
+    fail("max_yaw_gap_noise_scale", "must be finite and >= 1 (1 disables)");
+  }
   if (!(max_alignment_cost_per_range > 0.0)) fail("max_alignment_cost_per_range", "must be > 0");
   if (!(max_position_sigma_m > 0.0)) fail("max_position_sigma_m", "must be > 0");
   if (!(max_yaw_sigma_rad > 0.0)) fail("max_yaw_sigma_rad", "must be > 0");
@@ -433,12 +436,15 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
   }
   // Yaw at the window's end, where the batch hands over: at its start the
   // unresolved gyro bias adds up to 0.01 rad/s x the window (init_alignment.h).
-  if (a.yaw_sigma_end_rad > P.max_alignment_yaw_sigma_rad || a.second_cost_gap < P.min_yaw_cost_gap) {
+  const double gap_scale = std::min(a.noiseScale(), P.max_yaw_gap_noise_scale);
+  const double min_gap = P.min_yaw_cost_gap * gap_scale * gap_scale;
+  if (a.yaw_sigma_end_rad > P.max_alignment_yaw_sigma_rad || a.second_cost_gap < min_gap) {
     w.state = InitState::kYawUnobservable;
     w.message = strprintf("yaw not observable yet: moved %.1f m, horizontal speed change %.2f m/s, yaw sigma %.1f deg",
                           a.moved_m, a.horizontal_dv_m_s, a.yaw_sigma_end_rad * kRadToDeg);
     if (std::isfinite(a.second_cost_gap)) {
-      w.message += strprintf(", another yaw fits almost as well (cost +%.1f)", a.second_cost_gap);
+      w.message += strprintf(", another yaw fits almost as well (cost +%.1f, needs +%.1f at noise scale %.1f)",
+                             a.second_cost_gap, min_gap, gap_scale);
     }
     return w;
   }

@@ -125,7 +125,16 @@ struct InitializerParams {
   /// gyro bias prior dominates it (10-11 deg at 1 Hz ranging where the end
   /// has 6-8), so a start gate never opened within max_window_s at 1 Hz.
   double max_alignment_yaw_sigma_rad = 0.14;
-  double min_yaw_cost_gap = 8.0;              ///< a distinct yaw within this cost is still plausible
+  double min_yaw_cost_gap = 8.0;              ///< a distinct yaw within this cost is still plausible ...
+  /// ... times s^2, s the alignment's noise scale (AlignmentResult::noiseScale)
+  /// capped to this: costs are in nominal-sigma units, and data s times
+  /// noisier than nominal inflate every cost, and the gap between two yaws,
+  /// by s^2. On the office TDoA sims (s ~3) a yaw 50 deg off won by a gap of
+  /// 41 and the trackers ran away from it; two-way ranging at 40 Hz is
+  /// unchanged (its gaps are large), and at 1 Hz office sim2 no longer
+  /// starts 3.75 m off. 1 disables. The cost: at 1 Hz with twice the
+  /// default NLOS excess a 2-minute session did not initialize.
+  double max_yaw_gap_noise_scale = 4.0;
   double max_alignment_cost_per_range = 3.0;  ///< per measurement; else they disagree with the IMU (wrong fix, bad data)
 
   // Acceptance of the batch solve (step 4).

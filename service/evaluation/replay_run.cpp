@@ -87,7 +87,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   lp.graph.p_b_ultrasonic = rec.meta.ultrasonic_lever_arm_m;
   lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(rec.anchors);
   const bool tdoa_used = s.measurements.tdoa && !rec.tdoa.empty();
-  lp.vertical_speed_sigma_m_s = s.vertical_speed_sigma_m_s.value_or(tdoa_used ? kTdoaVerticalSpeedSigmaMs : 0.0);
+  lp.vertical_speed_sigma_m_s = s.vertical_speed_sigma_m_s.value_or(defaultVerticalSpeedSigma(tdoa_used));
   if (s.same_state_window_ms) {
     lp.graph.same_state_window_ns = static_cast<std::int64_t>(std::llround(*s.same_state_window_ms * 1e6));
   } else if (tdoa_used) {

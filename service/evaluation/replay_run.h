@@ -33,17 +33,6 @@ MeasurementKinds measurementKindsFromString(const std::string& list);
 /// "range,tdoa,ultrasonic" (the selected kinds in that order).
 std::string toString(const MeasurementKinds& kinds);
 
-/// Vertical speed prior of every estimator when TDoA rows are used and
-/// --vertical-speed-sigma is not given (m/s). Why: TDoA anchors on walls at
-/// similar heights (2.0-2.8 m in the sims) leave the height weakly observable
-/// and the NLOS-biased differences (97-99 % of the office sims' rows) pull it
-/// around; a walking wearer on one floor keeps v_z near 0 (the sims' 2 cm step
-/// bob: |v_z| <= 0.23 m/s). Measured (sliding window, TDoA + ultrasonic,
-/// 2-minute sims seeds 1-3, online 3D RMSE): office 0.637/0.560/0.475 ->
-/// 0.459/0.412/0.341 m (vertical mean error 0.27-0.32 -> 0.09-0.11 m), hall
-/// 0.283/0.211/0.186 -> 0.254/0.185/0.161 m; 0.1 m/s gave 0.474/0.450/0.369
-/// and 0.258/0.199/0.171. Stairs or lifts: pass 0 (off).
-inline constexpr double kTdoaVerticalSpeedSigmaMs = 0.05;
 
 struct ReplaySettings {
   std::string smoother = "d-isam2";  ///< d-isam2 | isam2 | dogleg | sliding-window | ekf

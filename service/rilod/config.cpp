@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <set>
@@ -305,7 +306,15 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
       f->fail(ex.what());
     }
   }
-  m.read("vertical_speed_sigma_m_s", e.vertical_speed_sigma_m_s, [](const ConfigField& f) { return f.number(0.0, 100.0); });
+  m.read("vertical_speed_sigma_m_s", e.vertical_speed_sigma_m_s, [](const ConfigField& f) -> std::optional<double> {
+    if (f.node().IsScalar() && f.node().Scalar() == "auto") return std::nullopt;
+    char* end = nullptr;
+    const std::string text = f.node().IsScalar() ? f.node().Scalar() : std::string();
+    if (f.node().IsScalar() && (std::strtod(text.c_str(), &end), end == text.c_str())) {
+      f.fail("expected a number (m/s) or auto, got '" + text + "'");
+    }
+    return f.number(0.0, 100.0);
+  });
   try {
     e.smoother.validate();
   } catch (const std::invalid_argument& ex) {

@@ -133,8 +133,10 @@ struct EstimatorConfig {
   /// Tag height band above the floor (a wearable's height; see
   /// estimation/pipeline/init_height_band.h): initialization and every state.
   HeightBand height_band;
-  /// Zero vertical-speed prior on every state (m/s std-dev; 0 = none).
-  double vertical_speed_sigma_m_s = 0.0;
+  /// Zero vertical-speed prior on every state (m/s std-dev; 0 = none);
+  /// unset ("auto"): on the tracked states when the ranging is TDoA
+  /// (LocalizerParams::vertical_speed_sigma_m_s).
+  std::optional<double> vertical_speed_sigma_m_s;
 };
 
 // --- output, recording, run-time ---------------------------------------------

@@ -72,6 +72,7 @@ TEST(Localizer, InitializesFromScratchAndTracks) {
   EXPECT_EQ(localizer.initializations(), 1u);
   EXPECT_EQ(localizer.reinitializations(), 0u) << localizer.lastFailure();
   EXPECT_GT(run.tracked_updates, 400);
+  EXPECT_EQ(localizer.trackingVerticalSpeedSigma(), 0.0);  // "auto" with two-way ranges: no prior
   // The initializer waits until yaw and position are determined (18 s on
   // this seed's slow start); it must not wait for ever.
   EXPECT_LT(static_cast<double>(run.first_track_ns - s.imu.front().t_ns) * 1e-9, 25.0);

@@ -87,6 +87,9 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_EQ(c.estimator.smoother.method, SmootherParams::Method::kDamped);
   EXPECT_DOUBLE_EQ(c.estimator.smoother.lag_s, 10.0);
   EXPECT_DOUBLE_EQ(c.estimator.init_window_s, 10.0);
+  EXPECT_FALSE(c.estimator.vertical_speed_sigma_m_s.has_value());  // auto: decided by the ranging in use
+  EXPECT_FALSE(parse(valid("estimator:\n  vertical_speed_sigma_m_s: auto\n")).estimator.vertical_speed_sigma_m_s);
+  EXPECT_EQ(parse(valid("estimator:\n  vertical_speed_sigma_m_s: 0\n")).estimator.vertical_speed_sigma_m_s, 0.0);
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_EQ(c.dds.topics.odometry, "rt/rilo/odometry");
   EXPECT_EQ(c.dds.frames.world, "map");
@@ -199,7 +202,8 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_DOUBLE_EQ(c.estimator.height_band.min_height_m, 1.0);
   EXPECT_DOUBLE_EQ(c.estimator.height_band.max_height_m, 1.6);
   EXPECT_DOUBLE_EQ(c.estimator.height_band.sigma_m, 0.05);
-  EXPECT_DOUBLE_EQ(c.estimator.vertical_speed_sigma_m_s, 0.4);
+  ASSERT_TRUE(c.estimator.vertical_speed_sigma_m_s.has_value());
+  EXPECT_DOUBLE_EQ(*c.estimator.vertical_speed_sigma_m_s, 0.4);
 
   EXPECT_EQ(c.dds.domain_id, 42u);
   EXPECT_EQ(c.dds.cyclone_config_file, (dir_ / "cyclone.xml").lexically_normal());
@@ -392,6 +396,7 @@ TEST(ShippedConfigTest, DefaultReplayDemoLoads) {
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_FALSE(c.recording.enabled);
   EXPECT_EQ(c.estimator.smoother.method, SmootherParams::Method::kDamped);
+  EXPECT_FALSE(c.estimator.vertical_speed_sigma_m_s.has_value());  // auto
 }
 
 TEST(ShippedConfigTest, HardwareExampleLoads) {
@@ -575,6 +580,8 @@ std::vector<BadCase> badCases() {
       {"unknown_smoother", valid("estimator:\n  smoother: isam3\n"), "estimator.smoother",
        "expected one of d-isam2, isam2, dogleg, got 'isam3'", 11},
       {"lag_not_a_number", valid("estimator:\n  lag_s: abc\n"), "estimator.lag_s", "expected a number", 11},
+      {"vertical_speed_neither_auto_nor_a_number", valid("estimator:\n  vertical_speed_sigma_m_s: automatic\n"),
+       "estimator.vertical_speed_sigma_m_s", "expected a number (m/s) or auto, got 'automatic'", 11},
       {"lag_zero", valid("estimator:\n  lag_s: 0\n"), "estimator.lag_s", "the service must bound its memory", 11},
       {"lag_negative", valid("estimator:\n  lag_s: -1\n"), "estimator.lag_s", "expected a number in [0, 3600], got -1",
        11},

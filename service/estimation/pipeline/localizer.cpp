@@ -26,7 +26,9 @@ void LocalizerParams::validate() const {
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   height_band.validate("LocalizerParams.height_band");
-  if (!(vertical_speed_sigma_m_s >= 0.0 && std::isfinite(vertical_speed_sigma_m_s))) fail("vertical_speed_sigma_m_s", "must be finite and >= 0");
+  if (vertical_speed_sigma_m_s && !(*vertical_speed_sigma_m_s >= 0.0 && std::isfinite(*vertical_speed_sigma_m_s))) {
+    fail("vertical_speed_sigma_m_s", "must be finite and >= 0 (or unset: auto)");
+  }
   smoother.validate();
   sliding_window.validate();
   init.validate();
@@ -84,7 +86,7 @@ LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors
   }
   p.init.height_band = p.height_band;
   p.graph.height_band = p.track_height_band ? p.height_band : HeightBand::off();
-  p.graph.vertical_speed_sigma_m_s = p.vertical_speed_sigma_m_s;
+  p.graph.vertical_speed_sigma_m_s = p.vertical_speed_sigma_m_s.value_or(0.0);  // auto: see startTracking
   // The initializer's batch window and small solvers use the estimator's
   // graph (IMU model, noise, lever arms, TDoA and ultrasonic settings).
   p.init.graph = p.graph;
@@ -188,13 +190,22 @@ void Localizer::guarded(F&& f) {
 }
 
 void Localizer::startTracking() {
+  RangeImuGraphParams graph = params_.graph;
+  if (!params_.vertical_speed_sigma_m_s) {
+    // "auto": the data the tracker starts on say which ranging is in use.
+    const std::vector<Measurement>& buffered = initializer_.measurementBuffer();
+    const bool tdoa = std::any_of(buffered.begin(), buffered.end(),
+                                  [](const Measurement& m) { return m.kind == Measurement::Kind::kTdoa; });
+    graph.vertical_speed_sigma_m_s = defaultVerticalSpeedSigma(tdoa);
+  }
+  tracking_vertical_speed_sigma_m_s_ = graph.vertical_speed_sigma_m_s;
   if (params_.estimator == LocalizerParams::Estimator::kEkf) {
-    estimator_ = std::make_unique<EkfEstimator>(p_w_anchors_, params_.graph, params_.ekf);
+    estimator_ = std::make_unique<EkfEstimator>(p_w_anchors_, graph, params_.ekf);
   } else if (params_.estimator == LocalizerParams::Estimator::kSlidingWindow) {
     estimator_ = std::make_unique<RangeImuEstimator>(
-        p_w_anchors_, params_.graph, std::make_unique<SlidingWindowSmoother>(params_.sliding_window), params_.stream);
+        p_w_anchors_, graph, std::make_unique<SlidingWindowSmoother>(params_.sliding_window), params_.stream);
   } else {
-    estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, params_.graph,
+    estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, graph,
                                                      std::make_unique<BayesTreeSmoother>(params_.smoother), params_.stream);
   }
   // Starts at the initializer's state and replays what it buffered after

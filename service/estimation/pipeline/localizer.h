@@ -23,6 +23,20 @@
 
 namespace rilo {
 
+/// Vertical speed prior of every estimator when TDoA rows are used and no
+/// value is given (rilo replay --vertical-speed-sigma, rilod's "auto"; m/s). Why: TDoA anchors on walls at
+/// similar heights (2.0-2.8 m in the sims) leave the height weakly observable
+/// and the NLOS-biased differences (97-99 % of the office sims' rows) pull it
+/// around; a walking wearer on one floor keeps v_z near 0 (the sims' 2 cm step
+/// bob: |v_z| <= 0.23 m/s). Measured (sliding window, TDoA + ultrasonic,
+/// 2-minute sims seeds 1-3, online 3D RMSE): office 0.637/0.560/0.475 ->
+/// 0.459/0.412/0.341 m (vertical mean error 0.27-0.32 -> 0.09-0.11 m), hall
+/// 0.283/0.211/0.186 -> 0.254/0.185/0.161 m; 0.1 m/s gave 0.474/0.450/0.369
+/// and 0.258/0.199/0.171. Stairs or lifts: pass 0 (off).
+inline constexpr double kTdoaVerticalSpeedSigmaMs = 0.05;
+/// The vertical speed prior "auto" stands for: kTdoaVerticalSpeedSigmaMs with TDoA rows, else none.
+inline double defaultVerticalSpeedSigma(bool tdoa_used) { return tdoa_used ? kTdoaVerticalSpeedSigmaMs : 0.0; }
+
 struct LocalizerParams {
   /// What tracks after initialization: the factor graph with a Bayes-tree
   /// smoother (method in `smoother`), the factor graph with the sliding-window
@@ -40,8 +54,11 @@ struct LocalizerParams {
   /// init.height_band and graph.height_band).
   HeightBand height_band;
   bool track_height_band = true;
-  /// Vertical speed prior on every tracked state (m/s; 0: none), see RangeImuGraphParams.
-  double vertical_speed_sigma_m_s = 0.0;
+  /// Vertical speed prior on every state (m/s; 0: none), see
+  /// RangeImuGraphParams. Unset ("auto"): none in the initializer, and on the
+  /// tracked states kTdoaVerticalSpeedSigmaMs when the data that started
+  /// tracking hold TDoA rows, else none (defaultVerticalSpeedSigma).
+  std::optional<double> vertical_speed_sigma_m_s;
   // Failure detection: any of these ends tracking and restarts initialization.
   double max_speed_m_s = 10.0;       ///< a walking/running person stays well below
   double max_accel_bias_m_s2 = 1.5;  ///< far beyond a BMI263's bias range
@@ -118,6 +135,9 @@ class Localizer {
   const std::string& heightBandNote() const { return height_band_note_; }
   /// The parameters in effect (after the height band was resolved).
   const LocalizerParams& params() const { return params_; }
+  /// The tracker's vertical speed prior (m/s; 0: none): the configured one,
+  /// or what "auto" chose when tracking last started.
+  double trackingVerticalSpeedSigma() const { return tracking_vertical_speed_sigma_m_s_; }
   /// Why tracking last ended ("speed 14.2 m/s at t=12.3 s"), empty if never.
   const std::string& lastFailure() const { return last_failure_; }
 
@@ -138,6 +158,7 @@ class Localizer {
   RangeConsistencyMonitor consistency_;
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
+  double tracking_vertical_speed_sigma_m_s_ = 0.0;
   std::int64_t last_imu_ns_ = 0;
   bool have_imu_ = false;
   int consecutive_rejections_ = 0;

@@ -103,6 +103,10 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   // collapsed to a few cm, its gate refused 30-70 % of the rows and it
   // diverged (21 re-initializations on the three office sims).
   lp.ekf.dynamic_covariance.enabled = s.dynamic_covariance.value_or(tdoa_used);
+  // And a velocity that may wander (EkfParams::velocity_noise_density): with
+  // the IMU's densities alone it learnt a tilt from NLOS errors that persist
+  // for seconds and ran away on 4 of 12 office sims (issue 7).
+  if (tdoa_used) lp.ekf.velocity_noise_density = kEkfTdoaVelocityNoiseDensity;
   setEstimatorByName(lp, s.smoother);
   lp.smoother.lag_s = s.lag_s;
   lp.sliding_window.window_s = s.lag_s;

@@ -5,6 +5,9 @@
 
 namespace rilo {
 
+/// EkfParams::velocity_noise_density `rilo replay` uses with TDoA rows (m/s^2/sqrt(Hz)).
+inline constexpr double kEkfTdoaVelocityNoiseDensity = 0.1;
+
 struct EkfParams {
   /// Noise densities, bias processes and gravity, shared with preintegration.
   ImuParams imu;
@@ -52,6 +55,29 @@ struct EkfParams {
   /// residuals of the current iterate and relinearizes there (an iterated
   /// EKF: Gauss-Newton on prior + robust likelihood, the prior fixed).
   int group_iterations = 3;
+
+  /// Unmodelled acceleration (m/s^2/sqrt(Hz), >= 0): white acceleration
+  /// noise added to the propagation on top of the IMU's densities (per axis,
+  /// Q_v += q^2 dt, Q_pv += q^2 dt^2/2, Q_p += q^2 dt^3/3). 0 (default): none.
+  /// Why: on TDoA the NLOS errors persist for seconds; taken as white they
+  /// teach the filter a tilt / accelerometer bias it then trusts (office sim
+  /// 11: tilt 1-2 deg and yaw 13-23 deg off against claimed sigmas of 0.1-0.2
+  /// and 3-4.6 deg, velocity 1.5 m/s off against a claimed 0.06-0.1 m/s), and
+  /// the IMU-integrated velocity runs away. A velocity that may wander lets the
+  /// rows correct it. `rilo replay` sets kEkfTdoaVelocityNoiseDensity when TDoA
+  /// rows are used; two-way ranges keep 0 (0.1 made office / hall TWR worse).
+  double velocity_noise_density = 0.0;
+
+  /// Gate recovery of the TDoA group update (ErrorStateEkf::updateTdoaGroup):
+  /// the share of a group's rows the gate refused is averaged exponentially
+  /// over recovery_window_groups groups (alpha = 1 / window); while that
+  /// average is above recovery_gated_share, the rows the gate refuses in the
+  /// next group are applied all the same (robust-weighted like the others),
+  /// and that group counts as refusing none. Why: a filter that is off gates
+  /// the rows that would bring it back (office sim 11: 30-50 % of the rows
+  /// gated for 25 s while the error grew to 88 m). In (0, 1); 1 or more: off.
+  double recovery_gated_share = 0.3;
+  double recovery_window_groups = 20.0;  ///< >= 1
 
   /// EkfEstimator: per-link measurement sigmas from DynamicCovariance, fed
   /// with each update's innovation and its predicted variance H P H^T

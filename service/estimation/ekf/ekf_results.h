@@ -44,6 +44,7 @@ inline constexpr int kEkfMaxGroupRows = 16;
 struct EkfGroupResult {
   int rows = 0;
   int accepted = 0, gated = 0, zero_weight = 0;
+  int recovered = 0;              ///< rows the gate refused that gate recovery applied all the same (counted in accepted too)
   int iterations = 0;             ///< iterations run (<= EkfParams::group_iterations)
   double mahalanobis_sq = 0.0;    ///< y^T S^-1 y of the rows that passed the gate (prior S, correlated R)
   /// Per row: status, innovation y = z - h(x_prior) (m), H P H^T (m^2), final weight.
@@ -70,6 +71,7 @@ struct EkfCounters {
   EkfUpdateCounts ultrasonic;
   EkfUpdateCounts height_band;  ///< applyHeightBand updates
   EkfUpdateCounts vertical_speed;  ///< applyVerticalSpeedPrior updates
+  std::uint64_t tdoa_recovered = 0;  ///< TDoA rows the gate refused that gate recovery applied (also in tdoa.accepted)
 
   std::uint64_t updates() const { return range.accepted + tdoa.accepted + ultrasonic.accepted; }
   std::uint64_t gated() const { return range.gated + tdoa.gated + ultrasonic.gated; }

@@ -101,6 +101,7 @@ void ErrorStateEkf::initialize(std::int64_t t_ns, const EkfState& state, const M
   t_ns_ = t_ns;
   index_ = 0;
   has_last_sample_ = false;
+  gated_share_ = 0.0;
   initialized_ = true;
 }
 
@@ -187,6 +188,15 @@ void ErrorStateEkf::addProcessNoise(double dt_s) {
     P_(kVel + i, kPos + i) += q_pv;
     P_(kAccelBias + i, kAccelBias + i) += bias_q_(i);
     P_(kGyroBias + i, kGyroBias + i) += bias_q_(3 + i);
+  }
+  if (params_.velocity_noise_density > 0.0) {  // unmodelled acceleration (EkfParams)
+    const double q2 = params_.velocity_noise_density * params_.velocity_noise_density;
+    for (int i = 0; i < 3; ++i) {
+      P_(kPos + i, kPos + i) += q2 * dt2 * dt_s / 3.0;
+      P_(kVel + i, kVel + i) += q2 * dt_s;
+      P_(kPos + i, kVel + i) += 0.5 * q2 * dt2;
+      P_(kVel + i, kPos + i) += 0.5 * q2 * dt2;
+    }
   }
   if (dt_s > imu.gap_threshold_s) {  // dropped samples: the held sample stands for unmeasured motion
     const double ga2 = imu.gap_accel_sigma_m_s2 * imu.gap_accel_sigma_m_s2;
@@ -323,6 +333,8 @@ EkfGroupResult ErrorStateEkf::updateTdoaGroup(const EkfTdoaRow* rows, int n, con
   EkfGroupResult res;
   res.rows = n;
   if (n == 0) return res;
+  // Gate recovery (EkfParams::recovery_gated_share): decided on the groups before this one.
+  const bool recovering = gated_share_ > params_.recovery_gated_share;
 
   // 1. Prior innovations and their covariance.
   EkfGroupVec y(n);
@@ -372,8 +384,21 @@ EkfGroupResult ErrorStateEkf::updateTdoaGroup(const EkfTdoaRow* rows, int n, con
     for (int a = worst; a + 1 < m; ++a) idx[a] = idx[a + 1];
     --m;
   }
+  bool refused[kEkfMaxGroupRows] = {};
+  if (recovering && m < n) {
+    // The rows the gate refused go to the robust update all the same.
+    for (int i = 0; i < n; ++i) {
+      refused[i] = res.status[i] == UpdateStatus::kGated;
+      idx[i] = i;
+      res.status[i] = UpdateStatus::kAccepted;
+    }
+    m = n;
+  }
   res.gated = n - m;
   counters_.tdoa.gated += static_cast<std::uint64_t>(n - m);
+  // Average of the refused share; a recovered group refused none, so the
+  // gate closes again unless the next groups are refused too.
+  gated_share_ += (static_cast<double>(n - m) / static_cast<double>(n) - gated_share_) / params_.recovery_window_groups;
   if (m == 0) return res;
 
   // 3. Iterated, re-weighted update over the m rows that passed.
@@ -433,11 +458,14 @@ EkfGroupResult ErrorStateEkf::updateTdoaGroup(const EkfTdoaRow* rows, int n, con
     if (!in_use) {
       res.status[idx[a]] = UpdateStatus::kZeroWeight;
       ++res.zero_weight;
+    } else if (refused[idx[a]]) {
+      ++res.recovered;
     }
   }
   res.accepted = u;
   counters_.tdoa.zero_weight += static_cast<std::uint64_t>(m - u);
   counters_.tdoa.accepted += static_cast<std::uint64_t>(u);
+  counters_.tdoa_recovered += static_cast<std::uint64_t>(res.recovered);
 
   // 4. Joseph form with the last gain (as update<M>), then injection and reset.
   const Group15 PHt = P_.leftCols<6>() * Hu.transpose();

@@ -16,7 +16,9 @@
 // samples), the gap's unmeasured motion as a constant input error of std-dev
 // ga (accel) and gg (gyro) over dt, as preintegration adds it:
 //   Q_theta += gg^2 dt^2 I,  Q_v += ga^2 dt^2 I,  Q_pv += ga^2 dt^3/2 I,  Q_p += ga^2 dt^4/4 I
-// and the nominal bias decaying with the Gauss-Markov transition. The first
+// and the nominal bias decaying with the Gauss-Markov transition. With
+// EkfParams::velocity_noise_density q > 0, an unmodelled white acceleration:
+//   Q_v += q^2 dt I,  Q_pv += q^2 dt^2/2 I,  Q_p += q^2 dt^3/3 I. The first
 // sample after initialize() at the filter's time only opens the interval; a
 // first sample after it is held over [t_state, t_sample] (Euler).
 //
@@ -54,7 +56,11 @@
 //
 // Known limits: the gate trusts the prior S, so a filter that has diverged
 // (or been started far off with a small covariance) gates good measurements
-// too: watch counters() for a run of gated updates and re-initialize. In
+// too: watch counters() for a run of gated updates and re-initialize. For
+// TDoA groups, gate recovery (updateTdoaGroup) lets such rows back in once the
+// refused share stays high, and EkfParams::velocity_noise_density keeps the
+// velocity from being trusted beyond what persistent NLOS errors allow
+// (issue 7: office sims 4, 6, 7, 11 ran away at 2-3 m/s with both off). In
 // simulation (tests/core/ekf_tracking_test.cpp) the mean NEES is 17-19.5 for
 // 15 dof, the theta and gyro-bias blocks slightly overconfident (3.4-4.2 for
 // 3): the usual EKF linearization optimism, no stabilising noise is added.
@@ -160,6 +166,11 @@ class ErrorStateEkf {
   ///      there, and d_{j+1} = K_j (z - h(x_j) + H_j d_j) (Gauss-Newton on the
   ///      fixed prior and the re-weighted likelihood: the iterated EKF).
   ///   4. Joseph covariance with the last K, H, R_w; injection of d and reset.
+  /// Gate recovery (EkfParams::recovery_gated_share): while the average share
+  /// of refused rows of the earlier groups (gatedShare()) is above the
+  /// threshold, the rows step 2 refuses are kept for step 3 all the same
+  /// (EkfGroupResult::recovered, counters().tdoa_recovered), and the group
+  /// enters the average as refusing none.
   /// Rows are counted in counters().tdoa. Throws std::invalid_argument for a
   /// bad n, non-finite rows, sigma <= 0 or equal anchors in a row.
   EkfGroupResult updateTdoaGroup(const EkfTdoaRow* rows, int n, const Vec3& p_b_tag, const RobustLoss* loss = nullptr);
@@ -184,6 +195,10 @@ class ErrorStateEkf {
   /// 6x6 pose covariance in the smoother's Pose3 chart [phi; rho], rho = R^T dp (body).
   Mat6 poseCovarianceInRetractionChart() const;
   const EkfCounters& counters() const { return counters_; }
+  /// Exponential average of the share of TDoA group rows the gate refused
+  /// (EkfParams::recovery_window_groups; a recovered group counts as 0); gate
+  /// recovery is on while it is above EkfParams::recovery_gated_share. 0 after initialize().
+  double gatedShare() const { return gated_share_; }
   void resetCounters() { counters_ = EkfCounters(); }
   const EkfParams& params() const { return params_; }
 
@@ -210,6 +225,7 @@ class ErrorStateEkf {
   bool has_last_sample_ = false;
   ImuSample last_sample_;
   EkfCounters counters_;
+  double gated_share_ = 0.0;  ///< average share of refused TDoA group rows (gate recovery, EkfParams)
 
   // Bias transition and added variance for the last dt (IMU dt rarely changes).
   double bias_dt_cached_s_ = -1.0;

@@ -183,7 +183,9 @@ void EkfEstimator::flushTdoaGroup() {
   }
   tdoa_n_ = 0;
   applyHeightBand();
-  group_accepted_ += r.accepted;
+  // Rows the gate refused count as refused for the tracking-failure share even
+  // when gate recovery applied them: recovery must not hide a lost filter.
+  group_accepted_ += r.accepted - r.recovered;
   group_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   group_state_ = ekf_.estimate();
 }
@@ -206,6 +208,8 @@ void EkfEstimator::closeGroup() {
   // measurement now and then breaks such a run, hence also the windowed
   // share, LocalizerParams::rejection_window). Healthy tracking gates
   // 15-35 % of the rows there, so few groups lose half of theirs.
+  // Rows gate recovery applied (ErrorStateEkf::updateTdoaGroup) count as
+  // refused here, see flushTdoaGroup().
   s.step_accepted = 2 * group_accepted_ >= group_size_;
   s.time_s = group_time_s_;
   ready_.push_back(s);

@@ -6,6 +6,7 @@
 
 #include "hal/sim/range_imu_scenario.h"
 #include "support/online_run.h"
+#include "support/tdoa_row.h"
 
 namespace rilo {
 namespace {
@@ -170,12 +171,7 @@ TEST(EkfEstimator, TdoaRowsOfAGroupAreOneJointUpdateAtItsClose) {
     // Four chained rows within 20 ms, then IMU past the window.
     const std::uint32_t chain[5] = {0, 1, 2, 3, 4};
     for (int k = 0; k < 4; ++k) {
-      TdoaSample row;
-      row.t_ns = t + k * 5'000'000;
-      row.anchor_a = chain[k];
-      row.anchor_b = chain[k + 1];
-      row.diff_m = diff(chain[k], chain[k + 1]);
-      ekf.addTdoa(row);
+      ekf.addTdoa(testing::tdoaRow(t + k * 5'000'000, chain[k], chain[k + 1], diff(chain[k], chain[k + 1])));
     }
     ekf.addImu(imuAt(t + 20'000'000));  // rows applied (their times passed), group still open
     EXPECT_EQ(ekf.filter().counters().tdoa.attempted(), grouped ? 0u : 4u) << grouped;

@@ -9,6 +9,7 @@
 #include "estimation/ekf/error_state_ekf.h"
 #include "estimation/pipeline/ekf_estimator.h"
 #include "support/expect_throws_naming.h"
+#include "support/tdoa_row.h"
 
 namespace rilo {
 namespace {
@@ -221,12 +222,8 @@ TEST(EkfEstimatorRecovery, RecoveredRowsStillCountAsRefusedSteps) {
     }
     const std::uint32_t chain[5] = {2, 4, 6, 0, 5};
     for (int k = 0; k < 4; ++k) {
-      TdoaSample row;
-      row.t_ns = t + k * 2'000'000;
-      row.anchor_a = chain[k];
-      row.anchor_b = chain[k + 1];
-      row.diff_m = (kTruth - anchors()[chain[k + 1]]).norm() - (kTruth - anchors()[chain[k]]).norm();
-      ekf.addTdoa(row);
+      const double diff_m = (kTruth - anchors()[chain[k + 1]]).norm() - (kTruth - anchors()[chain[k]]).norm();
+      ekf.addTdoa(testing::tdoaRow(t + k * 2'000'000, chain[k], chain[k + 1], diff_m));
     }
   }
   EXPECT_EQ(steps, 59);

@@ -51,12 +51,22 @@ Mat6 randomSpd6(std::uint32_t seed, const Vec6& sigmas) {
   return sigmas.asDiagonal() * (d.asDiagonal() * corr * d.asDiagonal()) * sigmas.asDiagonal();
 }
 
+/// Batch-like marginals of a well-determined state (random correlations, seeded).
+struct Marginals {
+  Mat6 pose;
+  Mat3 vel;
+  Mat6 bias;
+};
+Marginals wellDeterminedMarginals(std::uint32_t seed) {
+  return {randomSpd6(seed, (Vec6() << 0.02, 0.02, 0.05, 0.3, 0.3, 0.4).finished()),
+          Vec3(0.1, 0.12, 0.08).cwiseAbs2().asDiagonal(),
+          randomSpd6(seed + 1, (Vec6() << 0.05, 0.05, 0.05, 2e-3, 2e-3, 2e-3).finished())};
+}
+
 TEST(StartCovariance, WellDeterminedMarginalsAreOnlyInflated) {
   StartCovarianceConditioning c;
   c.inflation = 2.0;
-  const Mat6 pose = randomSpd6(1, (Vec6() << 0.02, 0.02, 0.05, 0.3, 0.3, 0.4).finished());
-  const Mat3 vel = Vec3(0.1, 0.12, 0.08).cwiseAbs2().asDiagonal();
-  const Mat6 bias = randomSpd6(2, (Vec6() << 0.05, 0.05, 0.05, 2e-3, 2e-3, 2e-3).finished());
+  const auto [pose, vel, bias] = wellDeterminedMarginals(1);
   const std::optional<StartCovariance> out = conditionStartCovariance(pose, vel, bias, c);
   ASSERT_TRUE(out.has_value());
   // Every whitened eigenvalue of 2 C is above 1 here, so nothing is floored.
@@ -111,9 +121,7 @@ TEST(StartCovariance, NonFiniteMarginalGivesNoneAndBadParamsThrow) {
 TEST(StartCovariance, VarianceFactorScalesBeforeInflationAndFloors) {
   StartCovarianceConditioning c;
   c.inflation = 2.0;
-  const Mat6 pose = randomSpd6(3, (Vec6() << 0.02, 0.02, 0.05, 0.3, 0.3, 0.4).finished());
-  const Mat3 vel = Vec3(0.1, 0.12, 0.08).cwiseAbs2().asDiagonal();
-  const Mat6 bias = randomSpd6(4, (Vec6() << 0.05, 0.05, 0.05, 2e-3, 2e-3, 2e-3).finished());
+  const auto [pose, vel, bias] = wellDeterminedMarginals(3);
   const std::optional<StartCovariance> scaled = conditionStartCovariance(pose, vel, bias, c, 9.0);
   const std::optional<StartCovariance> by_hand = conditionStartCovariance(9.0 * pose, 9.0 * vel, 9.0 * bias, c);
   ASSERT_TRUE(scaled && by_hand);

@@ -14,6 +14,7 @@
 #include "hal/sim/office_scenario.h"
 #include "hal/sim/office_tdoa.h"
 #include "hal/sim/office_ultrasonic.h"
+#include "support/tdoa_row.h"
 
 namespace rilo {
 namespace {
@@ -173,14 +174,7 @@ TEST(TdoaInitialization, InitializerDropsMalformedTdoaAndUltrasonicAndCountsThem
   InitializerParams ip;
   ip.graph.p_w_ultrasonic = {Vec3(1e6, 1e6, 1e6), Vec3(1.0, 1.0, 3.0)};  // beacon id 1
   Initializer init({Vec3(0, 0, 2), Vec3(5, 0, 2), Vec3(0, 5, 2), Vec3(5, 5, 2)}, ip);
-  auto tdoa = [](std::int64_t t, std::uint32_t a, std::uint32_t b, double diff) {
-    TdoaSample s;
-    s.t_ns = t;
-    s.anchor_a = a;
-    s.anchor_b = b;
-    s.diff_m = diff;
-    return s;
-  };
+  const auto& tdoa = testing::tdoaRow;
   auto us = [](std::int64_t t, std::uint32_t id, double r) {
     UltrasonicSample s;
     s.t_ns = t;

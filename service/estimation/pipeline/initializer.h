@@ -30,7 +30,9 @@
 //     integration over the window, the window-start state and a constant bias
 //     fitted to all ranges from 8 yaw hypotheses; yaw is observable once its
 //     marginal sigma is small and no other yaw fits nearly as well (the device
-//     has accelerated horizontally: started walking, turned). Chosen over the
+//     has accelerated horizontally: started walking, turned); "nearly as
+//     well" is judged in units of the data's own noise scale
+//     (max_yaw_gap_noise_scale), not the nominal sigmas'. Chosen over the
 //     "velocity direction vs IMU velocity" heuristic because it needs no
 //     velocity from differentiated fixes and so also works at 1 Hz ranging;
 //  4. the seed's batch: buildRangeImuGraph over the window (every kind of

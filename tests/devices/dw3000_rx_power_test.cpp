@@ -35,11 +35,10 @@ RxDiagnostics diagnostics(std::uint32_t c, std::uint32_t f1, std::uint32_t f2, s
   return diag;
 }
 
-// Worked numbers for the DW3000 user manual v1.1 formulas (4.7.1, 4.7.2):
-// the reference table Qorvo's DW3xxx driver tests its fixed-point RSL code against
-// (utest/test_rsl.cc, "dataset computed on a spreadsheet", 0.1 dB), and a
-// real-world first-path reading from the same file. The manual itself gives
-// the formulas and constants but no numeric example.
+// Worked numbers for the DW3000 user manual v1.1 formulas (4.7.1, 4.7.2),
+// computed by hand from the formulas (the arithmetic is beside each case).
+// The manual gives no numeric example; Qorvo's driver's RSL unit test lists
+// the same values (0.1 dB), which cross-checks our reading of the constants.
 TEST(RxPowerFromDiagnostics, MatchesWorkedExamplesOfTheUserManualFormula) {
   // RX level, 64 MHz PRF (A = 121.7): 10 log10(47 * 2^21 / 65^2) - 121.7.
   EXPECT_NEAR(rxPowerFromDiagnostics(diagnostics(47, 0, 0, 0, 65, 0), true).rssi_dbm, -78.0, 0.05);
@@ -51,9 +50,10 @@ TEST(RxPowerFromDiagnostics, MatchesWorkedExamplesOfTheUserManualFormula) {
   // 16 MHz PRF (A = 113.8).
   EXPECT_NEAR(rxPowerFromDiagnostics(diagnostics(2, 0, 0, 0, 65, 0), false).rssi_dbm, -83.83, 0.05);
 
-  // First path: F = 0x26D9, 0x27EA, 0x159E (2 fractional bits), N = 63,
-  // D = 3. Qorvo's case is an STS reception (A = 120.7): -67.04 dBm; the
-  // Ipatov preamble we range on has A = 121.7, 1 dB lower.
+  // First path: F = 0x26D9, 0x27EA, 0x159E (2 fractional bits: 2486.25,
+  // 2554.5, 1383.5), N = 63, D = 3: 10 log10(sum F^2 / 63^2) + 6 * 3 - A.
+  // With A = 120.7 (an STS reception) that is -67.04 dBm; the Ipatov
+  // preamble we range on has A = 121.7, 1 dB lower: -68.04 dBm.
   const RxPower fp = rxPowerFromDiagnostics(diagnostics(0, 0x26D9, 0x27EA, 0x159E, 0x3F, 3), true);
   EXPECT_NEAR(fp.fp_power_dbm, -67.04 - 1.0, 0.05);
   EXPECT_TRUE(std::isnan(fp.rssi_dbm));  // C = 0: no RX level, not -inf

@@ -547,23 +547,22 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   const std::size_t first_imu = 3, first_range = 3 + win.graph.imu_factors;
   double imu_cost = 0.0, range_cost = 0.0;
   for (std::size_t k = first_imu; k < first_range; ++k) imu_cost += win.graph.graph[k]->error(out.values);
+  // One evaluation per measurement factor: its cost and its whitened
+  // residuals (the residual scale, for the hand-over covariance).
+  std::vector<double> abs_residuals;
+  abs_residuals.reserve(win.graph.range_factors);
   for (std::size_t k = first_range; k < first_range + win.graph.range_factors; ++k) {
     const Factor& f = *win.graph.graph[k];
+    Residual r;
+    f.evaluate(out.values, r, nullptr);
+    for (Eigen::Index j = 0; j < r.size(); ++j) abs_residuals.push_back(std::abs(r(j)));
     // TDoA's default loss (Huber) grows without bound: in a hall where most
     // rows have a blocked path, the mean would measure the NLOS share, not
     // the fit. Capped at a 3-sigma residual's cost, the mean says how many
     // rows the solution explains. (The range and ultrasonic losses have heavy
     // NLOS tails already.)
-    const double e = f.error(out.values);
+    const double e = f.errorOfResidual(r);
     range_cost += dynamic_cast<const TdoaFactor*>(&f) ? std::min(e, kTdoaGateCostCap) : e;
-  }
-  // The residual scale, for the hand-over covariance (max_hand_over_residual_scale).
-  std::vector<double> abs_residuals;
-  abs_residuals.reserve(win.graph.range_factors);
-  for (std::size_t k = first_range; k < first_range + win.graph.range_factors; ++k) {
-    Residual r;
-    win.graph.graph[k]->evaluate(out.values, r, nullptr);
-    for (Eigen::Index j = 0; j < r.size(); ++j) abs_residuals.push_back(std::abs(r(j)));
   }
   const double residual_scale = residualScale(abs_residuals);
   const double range_cpr = range_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.range_factors));

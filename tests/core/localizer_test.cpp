@@ -326,6 +326,36 @@ TEST(Localizer, EstimatesTheExcessOfFlaggedRangesAndTakesItOff) {
   EXPECT_LT(excess_clear, 0.03) << "no delay, no excess";
 }
 
+// FlaggedExcessParams::relative_to_unflagged: the flagged quartile read at a
+// pose the excess has biased low under-reads the excess; less the unflagged
+// ranges' quartile at the same pose it reads more, and most of the height
+// bias goes. Measured (seed 1, 60 s): excess 0.25 -> 0.48 m, height
+// -0.31 -> +0.07 m, mean error 0.385 -> 0.504 m (the reason it is off by
+// default: the online error is mixed, see range_consistency.h).
+TEST(Localizer, FlaggedExcessRelativeToUnflaggedRangesTakesOutMostOfTheHeightBias) {
+  sim::OfficeScenarioParams op;
+  op.seed = 1;
+  op.duration_s = 60.0;
+  const sim::Scenario s = sim::simulateOfficeScenario(op);
+  auto run = [&](bool relative, double* dz_m) {
+    LocalizerParams p = paramsFor(s);
+    p.flagged_excess.relative_to_unflagged = relative;
+    Localizer localizer(s.p_w_anchors, p);
+    const FeedResult fed = feed(s, localizer);
+    EXPECT_GT(fed.tracked_updates, 100);
+    *dz_m = fed.mean_height_error_m;
+    return localizer.flaggedExcess();
+  };
+  double dz_absolute = 0.0, dz_relative = 0.0;
+  const double absolute = run(false, &dz_absolute);
+  const double relative = run(true, &dz_relative);
+  std::printf("flagged excess %.3f m (height %+.3f) absolute, %.3f m (%+.3f) relative\n", absolute, dz_absolute,
+              relative, dz_relative);
+  EXPECT_GT(relative, absolute + 0.1);
+  EXPECT_LE(relative, FlaggedExcessParams().max_m);
+  EXPECT_LT(std::abs(dz_relative), 0.5 * std::abs(dz_absolute));
+}
+
 TEST(Localizer, DropsAHeightBandThatDoesNotFitTheAnchors) {
   sim::ScenarioParams sp;
   sp.duration_s = 2.0;
@@ -341,3 +371,4 @@ TEST(Localizer, DropsAHeightBandThatDoesNotFitTheAnchors) {
 
 }  // namespace
 }  // namespace rilo
+

@@ -183,13 +183,36 @@ TEST(RangeModel, FlaggedRangesGetTheMixtureWithTheLargerNlosPriorByDefault) {
   EXPECT_THROW(RangeModel("asymmetric", noise), std::invalid_argument) << "the mixture needs w < 0.5";
 }
 
+TEST(RangeModel, FlaggedRangesTakeTheirOwnExcessScaleWhenGiven) {
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.1;
+  noise.flagged_nlos_scale_m = 0.5;
+  const RangeModel model("asymmetric", noise);
+  const auto* flagged = dynamic_cast<const AsymmetricLoss*>(model.term(rangeWithGap(9.0), 0.1).loss.get());
+  const auto* clear = dynamic_cast<const AsymmetricLoss*>(model.term(rangeWithGap(3.0), 0.1).loss.get());
+  ASSERT_NE(flagged, nullptr);
+  ASSERT_NE(clear, nullptr);
+  EXPECT_DOUBLE_EQ(flagged->gamma(), 5.0) << "0.5 m in LOS sigmas";
+  EXPECT_DOUBLE_EQ(clear->gamma(), noise.nlosScaleM() / 0.1) << "unflagged ranges keep the shared scale";
+  EXPECT_DOUBLE_EQ(flagged->nlosWeight(), noise.flagged_nlos_weight);
+  // The NLOS component alone takes it too.
+  noise.flagged_nlos_component = true;
+  const RangeModel component("asymmetric", noise);
+  const auto* alone = dynamic_cast<const NlosComponentLoss*>(component.term(rangeWithGap(9.0), 0.1).loss.get());
+  ASSERT_NE(alone, nullptr);
+  EXPECT_DOUBLE_EQ(alone->gamma(), 5.0);
+  noise.flagged_nlos_scale_m = 0.0;
+  EXPECT_THROW(RangeModel("asymmetric", noise), std::invalid_argument) << "a scale must be > 0";
+}
+
 TEST(RangeModel, FlaggedRangesGetTheNlosComponentShiftedAndWidenedOnRequest) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;
   noise.flagged_nlos_component = true;
   const RangeModel model("asymmetric", noise);
   ASSERT_TRUE(model.usesIndicator());
-  const std::shared_ptr<const NlosComponentLoss> nlos = makeNlosComponentLoss(noise);
+  const std::shared_ptr<const NlosComponentLoss> nlos = makeNlosComponentLoss(noise.flagged());
+  EXPECT_DOUBLE_EQ(nlos->gamma(), noise.nlosScaleM() / 0.1) << "unset flagged scale: the shared one";
 
   const RangeTerm flagged = model.term(rangeWithGap(9.0), 0.1);
   EXPECT_TRUE(flagged.flagged_nlos);

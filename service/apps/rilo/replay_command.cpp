@@ -167,6 +167,14 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--flagged-nlos-component", options->settings.flagged_nlos_component,
                   "Flagged ranges get the asymmetric model's NLOS component alone instead of the mixture (true/false; "
                   "default false)");
+  cmd->add_option("--flagged-nlos-scale", options->settings.flagged_nlos_scale_m,
+                  "Half-Cauchy scale of the excess of a range the receiver flags (m; default: --nlos-scale)")
+      ->check(CLI::Range(0.001, 100.0));
+  cmd->add_option("--flagged-excess-quantile", options->settings.flagged_excess_quantile,
+                  "Quantile of the flagged ranges' residuals taken as their excess, estimated on line (default 0.25; 0: off)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--flagged-excess-relative", options->settings.flagged_excess_relative,
+                  "The flagged excess is taken relative to the unflagged ranges' residuals at the same pose (true/false; default false)");
   cmd->add_option("--height-band", options->settings.height_band, "Soft tag height band on tracked states (true/false)");
   cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");

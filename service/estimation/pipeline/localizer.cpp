@@ -254,7 +254,13 @@ void Localizer::checkConsistency() {
   const bool consistent = consistency_.judge(s.t_ns, s.T_w_b);
   if (estimate_flagged_excess_) {
     const FlaggedExcessParams& fx = params_.flagged_excess;
-    const double e = consistency_.flaggedQuantile(fx.quantile, fx.min_ranges);
+    double e = consistency_.flaggedQuantile(fx.quantile, fx.min_ranges);
+    if (fx.relative_to_unflagged) {
+      // Unflagged ranges judged at the same pose are the reference; too few
+      // of them yet (nearly every range flagged): the flagged quantile alone.
+      const double reference = consistency_.unflaggedQuantile(fx.quantile, fx.min_ranges);
+      if (std::isfinite(reference)) e -= reference;
+    }
     if (std::isfinite(e)) {
       flagged_excess_m_ = std::clamp(e, 0.0, fx.max_m);
       estimator_->setFlaggedExcess(flagged_excess_m_);

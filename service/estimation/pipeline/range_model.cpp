@@ -14,12 +14,11 @@ RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noi
   // core (the half-Cauchy variant's is 0 below zero excess); the symmetric
   // models have none, so the indicator leaves them as configured.
   if (loss_name != "asymmetric" || !std::isfinite(gap_db_)) return;
+  const RangeNoiseParams flagged = noise.flagged();  // validated by the factory
   if (noise.flagged_nlos_component) {
-    component_ = makeNlosComponentLoss(noise);
+    component_ = makeNlosComponentLoss(flagged);
     flagged_loss_ = component_;
   } else {
-    RangeNoiseParams flagged = noise;
-    flagged.nlos_weight = noise.flagged_nlos_weight;  // validated by the factory: (0, 0.5)
     flagged_loss_ = makeRangeLoss(loss_name, flagged);
   }
 }

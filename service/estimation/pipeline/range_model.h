@@ -3,7 +3,8 @@
 // the configured robust loss, or, when the receiver flags it as NLOS
 // (RangeNoiseParams::nlos_power_gap_db, the DW1000/DW3000 RX-level-minus-
 // first-path-power indicator) and the model is "asymmetric", with the
-// mixture at the larger prior NLOS weight flagged_nlos_weight, or (option
+// mixture at the larger prior NLOS weight flagged_nlos_weight and the wider
+// excess scale flagged_nlos_scale_m, or (option
 // flagged_nlos_component) with the model's NLOS component alone: the range
 // shifted by that component's most likely excess and its sigma widened to
 // the component's curvature (nlos_component_loss.h). Ranges without the

@@ -274,7 +274,7 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
 EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
   const ConfigMap m = field.map({"smoother", "lag_s", "relinearization", "damping", "trust_region", "range",
                                  "anchors_as_variables", "anchor_sigma_m", "init", "height_band",
-                                 "vertical_speed_sigma_m_s"});
+                                 "vertical_speed_sigma_m_s", "max_outside_anchors_m"});
   m.read("smoother", e.smoother.method, [](const ConfigField& f) {
     return f.choice<SmootherParams::Method>({{"d-isam2", SmootherParams::Method::kDamped},
                                              {"isam2", SmootherParams::Method::kGaussNewton},
@@ -308,6 +308,11 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
       f->fail(ex.what());
     }
   }
+  m.read("max_outside_anchors_m", e.max_outside_anchors_m, [](const ConfigField& f) {
+    const double v = f.number(0.0, std::numeric_limits<double>::infinity(), true);
+    if (!(v > 0.0)) f.fail("expected a number > 0 (m) or .inf, got 0");
+    return v;
+  });
   m.read("vertical_speed_sigma_m_s", e.vertical_speed_sigma_m_s, [](const ConfigField& f) -> std::optional<double> {
     if (f.node().IsScalar() && f.node().Scalar() == "auto") return std::nullopt;
     char* end = nullptr;

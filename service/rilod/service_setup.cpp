@@ -16,6 +16,7 @@ ServiceOptions serviceOptions(const ServiceConfig& cfg) {
   so.localizer.init.window_s = cfg.estimator.init_window_s;
   so.localizer.height_band = cfg.estimator.height_band;
   so.localizer.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
+  so.localizer.max_outside_anchors_m = cfg.estimator.max_outside_anchors_m;
   so.localizer.flagged_excess.quantile = cfg.estimator.flagged_excess_quantile;
   so.participant.domain_id = cfg.dds.domain_id;
   if (cfg.dds.loopback_only) so.participant.config_xml = dds::loopbackConfigXml();

@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -354,6 +357,55 @@ TEST(Localizer, FlaggedExcessRelativeToUnflaggedRangesTakesOutMostOfTheHeightBia
   EXPECT_GT(relative, absolute + 0.1);
   EXPECT_LE(relative, FlaggedExcessParams().max_m);
   EXPECT_LT(std::abs(dz_relative), 0.5 * std::abs(dz_absolute));
+}
+
+// LocalizerParams::max_outside_anchors_m: only the five anchors at y <= 0
+// are surveyed (their box: y in [-5.5, 0]) while the walk goes to y > 0.
+// With a limit below how far the walk leaves the box, tracking ends saying
+// where the tag was; with the default limit (10 m) it does not. (That
+// IMU-only drift through a ranging blackout is not judged: the rilod
+// blackout test, RilodFaults.RangingBlackout*, where it went 10.5 m out.)
+TEST(Localizer, TrackingFarOutsideTheAnchorsIsAFailure) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 60.0;
+  sim::Scenario s = sim::simulateScenario(sp);
+  std::vector<Vec3> kept;
+  std::vector<int> new_id(s.p_w_anchors.size(), -1);
+  for (std::size_t a = 0; a < s.p_w_anchors.size(); ++a) {
+    if (s.p_w_anchors[a].y() > 0.0) continue;
+    new_id[a] = static_cast<int>(kept.size());
+    kept.push_back(s.p_w_anchors[a]);
+  }
+  ASSERT_EQ(kept.size(), 5u);
+  std::vector<RangeSample> ranges;
+  for (RangeSample r : s.ranges) {
+    if (new_id[r.anchor_id] < 0) continue;
+    r.anchor_id = static_cast<std::uint32_t>(new_id[r.anchor_id]);
+    ranges.push_back(r);
+  }
+  s.ranges = ranges;
+  s.p_w_anchors = kept;
+  double max_y = -1e9;
+  for (double t = 0.0; t < sp.duration_s; t += 0.1) max_y = std::max(max_y, s.truth->at(t).T_w_b.p.y());
+  ASSERT_GT(max_y, 2.0) << "the walk must leave the anchors' box by more than the limit below";
+
+  LocalizerParams p = paramsFor(s);
+  p.max_outside_anchors_m = 1.0;
+  Localizer strict(s.p_w_anchors, p);
+  feed(s, strict);
+  EXPECT_GE(strict.reinitializations(), 1u);
+  EXPECT_NE(strict.lastFailure().find("outside the anchors' area"), std::string::npos) << strict.lastFailure();
+  EXPECT_NE(strict.lastFailure().find("(limit 1.0)"), std::string::npos) << strict.lastFailure();
+
+  Localizer lenient(s.p_w_anchors, paramsFor(s));
+  feed(s, lenient);
+  EXPECT_TRUE(lenient.initializations() >= 1u) << lenient.initStatus().message;
+  EXPECT_EQ(lenient.lastFailure().find("outside the anchors' area"), std::string::npos) << lenient.lastFailure();
+
+  p.max_outside_anchors_m = 0.0;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p.max_outside_anchors_m = std::numeric_limits<double>::infinity();
+  EXPECT_NO_THROW(p.validate()) << "+inf: off";
 }
 
 TEST(Localizer, DropsAHeightBandThatDoesNotFitTheAnchors) {

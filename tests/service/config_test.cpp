@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "estimation/pipeline/localizer.h"
 #include "rilod/config_reader.h"
 #include "service/service_test_support.h"
 
@@ -90,6 +91,10 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_FALSE(c.estimator.vertical_speed_sigma_m_s.has_value());  // auto: decided by the ranging in use
   EXPECT_FALSE(parse(valid("estimator:\n  vertical_speed_sigma_m_s: auto\n")).estimator.vertical_speed_sigma_m_s);
   EXPECT_EQ(parse(valid("estimator:\n  vertical_speed_sigma_m_s: 0\n")).estimator.vertical_speed_sigma_m_s, 0.0);
+  EXPECT_EQ(c.estimator.max_outside_anchors_m, LocalizerParams().max_outside_anchors_m);
+  EXPECT_EQ(parse(valid("estimator:\n  max_outside_anchors_m: .inf\n")).estimator.max_outside_anchors_m,
+            std::numeric_limits<double>::infinity());
+  EXPECT_EQ(parse(valid("estimator:\n  max_outside_anchors_m: 4.5\n")).estimator.max_outside_anchors_m, 4.5);
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_EQ(c.dds.topics.odometry, "rt/rilo/odometry");
   EXPECT_EQ(c.dds.frames.world, "map");
@@ -595,6 +600,8 @@ std::vector<BadCase> badCases() {
        "estimator.range.lever_arm_m", "at most 5 m", 11},
       {"nlos_weight_too_big", valid("estimator:\n  range: {nlos_weight: 0.7}\n"), "estimator.range.nlos_weight",
        "[0, 0.5]", 11},
+      {"max_outside_anchors_zero", valid("estimator:\n  max_outside_anchors_m: 0\n"), "estimator.max_outside_anchors_m",
+       "expected a number > 0 (m) or .inf, got 0", 11},
       {"flagged_nlos_scale_zero", valid("estimator:\n  range: {flagged_nlos_scale_m: 0}\n"),
        "estimator.range.flagged_nlos_scale_m", "expected a number > 0, got 0", 11},
       {"max_wait_below_interval", valid("estimator:\n  range: {max_state_interval_s: 1.0, max_wait_s: 0.5}\n"),

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 #include "estimation/pipeline/ekf_estimator.h"
@@ -20,6 +21,7 @@ void LocalizerParams::validate() const {
   if (!(max_accel_bias_m_s2 > 0.0)) fail("max_accel_bias_m_s2", "must be > 0");
   if (!(max_gyro_bias_rad_s > 0.0)) fail("max_gyro_bias_rad_s", "must be > 0");
   if (!(max_imu_gap_s > 0.0)) fail("max_imu_gap_s", "must be > 0");
+  if (!(max_outside_anchors_m > 0.0)) fail("max_outside_anchors_m", "must be > 0 (+inf: off)");
   if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
   range_consistency.validate();
   flagged_excess.validate();
@@ -108,6 +110,12 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
   estimate_flagged_excess_ = params_.flagged_excess.quantile > 0.0 && params_.graph.range_loss == "asymmetric" &&
                              std::isfinite(n.nlos_power_gap_db) && !n.flagged_nlos_component;
   if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
+  anchors_min_xy_.setConstant(std::numeric_limits<double>::infinity());
+  anchors_max_xy_.setConstant(-std::numeric_limits<double>::infinity());
+  for (const Vec3& a : p_w_anchors_) {
+    anchors_min_xy_ = anchors_min_xy_.cwiseMin(a.head<2>());
+    anchors_max_xy_ = anchors_max_xy_.cwiseMax(a.head<2>());
+  }
 }
 
 void Localizer::addImu(const ImuSample& sample) {
@@ -129,6 +137,7 @@ void Localizer::addImu(const ImuSample& sample) {
 void Localizer::addRange(const RangeSample& sample) {
   if (sample.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
   if (phase_ == Phase::kTracking) {
+    noteRanging(sample.t_ns);
     consistency_.onRange(sample);
     guarded([&] { estimator_->addRange(sample); });
   } else {
@@ -139,6 +148,7 @@ void Localizer::addRange(const RangeSample& sample) {
 void Localizer::addTdoa(const TdoaSample& sample) {
   if (sample.anchor_a >= p_w_anchors_.size() || sample.anchor_b >= p_w_anchors_.size()) return;  // as addRange
   if (phase_ == Phase::kTracking) {
+    noteRanging(sample.t_ns);
     guarded([&] { estimator_->addTdoa(sample); });
   } else {
     initializer_.addTdoa(sample);
@@ -148,6 +158,7 @@ void Localizer::addTdoa(const TdoaSample& sample) {
 void Localizer::addUltrasonic(const UltrasonicSample& sample) {
   if (sample.anchor_id >= params_.graph.p_w_ultrasonic.size()) return;  // unknown beacon
   if (phase_ == Phase::kTracking) {
+    noteRanging(sample.t_ns);
     guarded([&] { estimator_->addUltrasonic(sample); });
   } else {
     initializer_.addUltrasonic(sample);
@@ -215,6 +226,7 @@ void Localizer::startTracking() {
   if (phase_ != Phase::kTracking) return;
   consecutive_rejections_ = 0;
   consistency_.reset();
+  ranging_since_ns_ = last_ranging_ns_ = -1;
   flagged_excess_m_ = 0.0;  // the new estimator starts without a shift
   if (rejection_window_) rejection_window_->reset();
   ++initializations_;
@@ -232,6 +244,12 @@ void Localizer::checkHealth(const UpdateStats& stats) {
   } else if (speed > params_.max_speed_m_s) {
     std::snprintf(why, sizeof why, "speed %.1f m/s at t=%.3f s (limit %.1f)", speed, t_s, params_.max_speed_m_s);
     fail(why);
+  } else if (const double outside = outsideAnchors(s.T_w_b.p);
+             outside > params_.max_outside_anchors_m && ranging_since_ns_ >= 0 && last_ranging_ns_ >= s.t_ns - kRangingGapNs &&
+             s.t_ns - ranging_since_ns_ >= kOutsideGraceNs) {
+    std::snprintf(why, sizeof why, "position (%.1f, %.1f) m is %.1f m outside the anchors' area at t=%.3f s (limit %.1f)",
+                  s.T_w_b.p.x(), s.T_w_b.p.y(), outside, t_s, params_.max_outside_anchors_m);
+    fail(why);
   } else if (b.head<3>().cwiseAbs().maxCoeff() > params_.max_accel_bias_m_s2 ||
              b.tail<3>().cwiseAbs().maxCoeff() > params_.max_gyro_bias_rad_s) {
     std::snprintf(why, sizeof why, "implausible IMU bias (accel %.2f m/s^2, gyro %.3f rad/s) at t=%.3f s",
@@ -247,6 +265,18 @@ void Localizer::checkHealth(const UpdateStats& stats) {
   } else if (stats.step_accepted) {
     consecutive_rejections_ = 0;
   }
+}
+
+void Localizer::noteRanging(std::int64_t t_ns) {
+  if (ranging_since_ns_ < 0 || t_ns - last_ranging_ns_ > kRangingGapNs) ranging_since_ns_ = t_ns;
+  last_ranging_ns_ = std::max(last_ranging_ns_, t_ns);
+}
+
+double Localizer::outsideAnchors(const Vec3& p_w) const {
+  if (p_w_anchors_.empty()) return 0.0;
+  const Eigen::Vector2d below = (anchors_min_xy_ - p_w.head<2>()).cwiseMax(0.0);
+  const Eigen::Vector2d above = (p_w.head<2>() - anchors_max_xy_).cwiseMax(0.0);
+  return (below + above).norm();
 }
 
 void Localizer::checkConsistency() {

@@ -82,7 +82,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.flagged_nlos_component) lp.graph.range_noise.flagged_nlos_component = *s.flagged_nlos_component;
   if (s.flagged_nlos_scale_m) lp.graph.range_noise.flagged_nlos_scale_m = *s.flagged_nlos_scale_m;
   if (s.flagged_excess_quantile) lp.flagged_excess.quantile = *s.flagged_excess_quantile;
-  if (s.flagged_excess_relative) lp.flagged_excess.relative_to_unflagged = *s.flagged_excess_relative;
+  if (s.max_outside_anchors_m) lp.max_outside_anchors_m = *s.max_outside_anchors_m;
   if (s.height_band) lp.track_height_band = *s.height_band;
   if (s.floor_z_m) lp.height_band.floor_z_m = *s.floor_z_m;
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;

@@ -49,7 +49,7 @@ struct ReplaySettings {
   std::optional<bool> flagged_nlos_component;   ///< flagged ranges: the NLOS component alone
   std::optional<double> flagged_nlos_scale_m;   ///< half-Cauchy scale of a flagged range's excess (m)
   std::optional<double> flagged_excess_quantile;  ///< FlaggedExcessParams::quantile (0: off)
-  std::optional<bool> flagged_excess_relative;    ///< FlaggedExcessParams::relative_to_unflagged
+  std::optional<double> max_outside_anchors_m;    ///< LocalizerParams::max_outside_anchors_m (+inf: off)
   // Height knowledge (unset: LocalizerParams defaults).
   std::optional<bool> height_band;             ///< soft tag height band on tracked states
   std::optional<double> floor_z_m;             ///< floor height in the world frame (m)

@@ -309,8 +309,8 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     }
   }
   m.read("max_outside_anchors_m", e.max_outside_anchors_m, [](const ConfigField& f) {
-    const double v = f.number(0.0, std::numeric_limits<double>::infinity(), true);
-    if (!(v > 0.0)) f.fail("expected a number > 0 (m) or .inf, got 0");
+    const double v = f.number(0.0, std::numeric_limits<double>::infinity(), true);  // as positive(), with .inf
+    if (!(v > 0.0)) f.fail("expected a number > 0 (m) or .inf, got " + f.node().Scalar());
     return v;
   });
   m.read("vertical_speed_sigma_m_s", e.vertical_speed_sigma_m_s, [](const ConfigField& f) -> std::optional<double> {

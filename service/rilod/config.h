@@ -138,7 +138,8 @@ struct EstimatorConfig {
   /// (LocalizerParams::vertical_speed_sigma_m_s).
   std::optional<double> vertical_speed_sigma_m_s;
   /// Tracking ends (and initialization restarts) when the tag is estimated
-  /// farther than this beyond the anchors' horizontal bounding box (m; .inf: off).
+  /// farther than this beyond the anchors' horizontal bounding box while
+  /// ranging holds the estimate (ranging_support.h) (m; .inf: off).
   double max_outside_anchors_m = 10.0;  // as LocalizerParams (config_test checks they agree)
 };
 

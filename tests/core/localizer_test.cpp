@@ -329,36 +329,6 @@ TEST(Localizer, EstimatesTheExcessOfFlaggedRangesAndTakesItOff) {
   EXPECT_LT(excess_clear, 0.03) << "no delay, no excess";
 }
 
-// FlaggedExcessParams::relative_to_unflagged: the flagged quartile read at a
-// pose the excess has biased low under-reads the excess; less the unflagged
-// ranges' quartile at the same pose it reads more, and most of the height
-// bias goes. Measured (seed 1, 60 s): excess 0.25 -> 0.48 m, height
-// -0.31 -> +0.07 m, mean error 0.385 -> 0.504 m (the reason it is off by
-// default: the online error is mixed, see range_consistency.h).
-TEST(Localizer, FlaggedExcessRelativeToUnflaggedRangesTakesOutMostOfTheHeightBias) {
-  sim::OfficeScenarioParams op;
-  op.seed = 1;
-  op.duration_s = 60.0;
-  const sim::Scenario s = sim::simulateOfficeScenario(op);
-  auto run = [&](bool relative, double* dz_m) {
-    LocalizerParams p = paramsFor(s);
-    p.flagged_excess.relative_to_unflagged = relative;
-    Localizer localizer(s.p_w_anchors, p);
-    const FeedResult fed = feed(s, localizer);
-    EXPECT_GT(fed.tracked_updates, 100);
-    *dz_m = fed.mean_height_error_m;
-    return localizer.flaggedExcess();
-  };
-  double dz_absolute = 0.0, dz_relative = 0.0;
-  const double absolute = run(false, &dz_absolute);
-  const double relative = run(true, &dz_relative);
-  std::printf("flagged excess %.3f m (height %+.3f) absolute, %.3f m (%+.3f) relative\n", absolute, dz_absolute,
-              relative, dz_relative);
-  EXPECT_GT(relative, absolute + 0.1);
-  EXPECT_LE(relative, FlaggedExcessParams().max_m);
-  EXPECT_LT(std::abs(dz_relative), 0.5 * std::abs(dz_absolute));
-}
-
 // LocalizerParams::max_outside_anchors_m: only the five anchors at y <= 0
 // are surveyed (their box: y in [-5.5, 0]) while the walk goes to y > 0.
 // With a limit below how far the walk leaves the box, tracking ends saying
@@ -399,8 +369,8 @@ TEST(Localizer, TrackingFarOutsideTheAnchorsIsAFailure) {
 
   Localizer lenient(s.p_w_anchors, paramsFor(s));
   feed(s, lenient);
-  EXPECT_TRUE(lenient.initializations() >= 1u) << lenient.initStatus().message;
-  EXPECT_EQ(lenient.lastFailure().find("outside the anchors' area"), std::string::npos) << lenient.lastFailure();
+  EXPECT_EQ(lenient.initializations(), 1u) << lenient.initStatus().message;
+  EXPECT_EQ(lenient.reinitializations(), 0u) << lenient.lastFailure();
 
   p.max_outside_anchors_m = 0.0;
   EXPECT_THROW(p.validate(), std::invalid_argument);
@@ -423,4 +393,3 @@ TEST(Localizer, DropsAHeightBandThatDoesNotFitTheAnchors) {
 
 }  // namespace
 }  // namespace rilo
-

@@ -602,6 +602,8 @@ std::vector<BadCase> badCases() {
        "[0, 0.5]", 11},
       {"max_outside_anchors_zero", valid("estimator:\n  max_outside_anchors_m: 0\n"), "estimator.max_outside_anchors_m",
        "expected a number > 0 (m) or .inf, got 0", 11},
+      {"max_outside_anchors_negative", valid("estimator:\n  max_outside_anchors_m: -2.5\n"),
+       "estimator.max_outside_anchors_m", "expected a number in [0, .inf], got -2.5", 11},
       {"flagged_nlos_scale_zero", valid("estimator:\n  range: {flagged_nlos_scale_m: 0}\n"),
        "estimator.range.flagged_nlos_scale_m", "expected a number > 0, got 0", 11},
       {"max_wait_below_interval", valid("estimator:\n  range: {max_state_interval_s: 1.0, max_wait_s: 0.5}\n"),

@@ -173,8 +173,10 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--flagged-excess-quantile", options->settings.flagged_excess_quantile,
                   "Quantile of the flagged ranges' residuals taken as their excess, estimated on line (default 0.25; 0: off)")
       ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--flagged-excess-relative", options->settings.flagged_excess_relative,
-                  "The flagged excess is taken relative to the unflagged ranges' residuals at the same pose (true/false; default false)");
+  cmd->add_option("--max-outside-anchors", options->settings.max_outside_anchors_m,
+                  "Re-initialize when the tag is estimated farther than this beyond the anchors' horizontal box while "
+                  "ranging holds it (m; default 10; inf: off)")
+      ->check(CLI::Range(0.001, std::numeric_limits<double>::infinity()));
   cmd->add_option("--height-band", options->settings.height_band, "Soft tag height band on tracked states (true/false)");
   cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");

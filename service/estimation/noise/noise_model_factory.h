@@ -40,7 +40,8 @@ struct RangeNoiseParams {
   /// Half-Cauchy scale of a flagged range's excess [m]; unset: nlos_scale_m.
   /// A site whose flagged ranges run longer than its unflagged NLOS ranges
   /// can widen it (office sims: flagged excess median 0.35-0.5 m, unflagged
-  /// NLOS 0.13-0.17 m); on 15 sims 0.5-1.0 m changed the mean error by < 0.01 m.
+  /// NLOS 0.13-0.17 m); on 15 sims 0.5-1.0 m changed the mean error by
+  /// < 0.01 m, so it is no default (docs/noise-models.md).
   std::optional<double> flagged_nlos_scale_m;
 
   /// gamma in metres after applying the default.

@@ -137,7 +137,7 @@ void Localizer::addImu(const ImuSample& sample) {
 void Localizer::addRange(const RangeSample& sample) {
   if (sample.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
   if (phase_ == Phase::kTracking) {
-    noteRanging(sample.t_ns);
+    ranging_support_.note(sample.t_ns);
     consistency_.onRange(sample);
     guarded([&] { estimator_->addRange(sample); });
   } else {
@@ -148,7 +148,7 @@ void Localizer::addRange(const RangeSample& sample) {
 void Localizer::addTdoa(const TdoaSample& sample) {
   if (sample.anchor_a >= p_w_anchors_.size() || sample.anchor_b >= p_w_anchors_.size()) return;  // as addRange
   if (phase_ == Phase::kTracking) {
-    noteRanging(sample.t_ns);
+    ranging_support_.note(sample.t_ns);
     guarded([&] { estimator_->addTdoa(sample); });
   } else {
     initializer_.addTdoa(sample);
@@ -158,7 +158,7 @@ void Localizer::addTdoa(const TdoaSample& sample) {
 void Localizer::addUltrasonic(const UltrasonicSample& sample) {
   if (sample.anchor_id >= params_.graph.p_w_ultrasonic.size()) return;  // unknown beacon
   if (phase_ == Phase::kTracking) {
-    noteRanging(sample.t_ns);
+    ranging_support_.note(sample.t_ns);
     guarded([&] { estimator_->addUltrasonic(sample); });
   } else {
     initializer_.addUltrasonic(sample);
@@ -226,7 +226,7 @@ void Localizer::startTracking() {
   if (phase_ != Phase::kTracking) return;
   consecutive_rejections_ = 0;
   consistency_.reset();
-  ranging_since_ns_ = last_ranging_ns_ = -1;
+  ranging_support_.reset();
   flagged_excess_m_ = 0.0;  // the new estimator starts without a shift
   if (rejection_window_) rejection_window_->reset();
   ++initializations_;
@@ -245,8 +245,7 @@ void Localizer::checkHealth(const UpdateStats& stats) {
     std::snprintf(why, sizeof why, "speed %.1f m/s at t=%.3f s (limit %.1f)", speed, t_s, params_.max_speed_m_s);
     fail(why);
   } else if (const double outside = outsideAnchors(s.T_w_b.p);
-             outside > params_.max_outside_anchors_m && ranging_since_ns_ >= 0 && last_ranging_ns_ >= s.t_ns - kRangingGapNs &&
-             s.t_ns - ranging_since_ns_ >= kOutsideGraceNs) {
+             outside > params_.max_outside_anchors_m && ranging_support_.supports(s.t_ns)) {
     std::snprintf(why, sizeof why, "position (%.1f, %.1f) m is %.1f m outside the anchors' area at t=%.3f s (limit %.1f)",
                   s.T_w_b.p.x(), s.T_w_b.p.y(), outside, t_s, params_.max_outside_anchors_m);
     fail(why);
@@ -267,11 +266,6 @@ void Localizer::checkHealth(const UpdateStats& stats) {
   }
 }
 
-void Localizer::noteRanging(std::int64_t t_ns) {
-  if (ranging_since_ns_ < 0 || t_ns - last_ranging_ns_ > kRangingGapNs) ranging_since_ns_ = t_ns;
-  last_ranging_ns_ = std::max(last_ranging_ns_, t_ns);
-}
-
 double Localizer::outsideAnchors(const Vec3& p_w) const {
   if (p_w_anchors_.empty()) return 0.0;
   const Eigen::Vector2d below = (anchors_min_xy_ - p_w.head<2>()).cwiseMax(0.0);
@@ -284,13 +278,7 @@ void Localizer::checkConsistency() {
   const bool consistent = consistency_.judge(s.t_ns, s.T_w_b);
   if (estimate_flagged_excess_) {
     const FlaggedExcessParams& fx = params_.flagged_excess;
-    double e = consistency_.flaggedQuantile(fx.quantile, fx.min_ranges);
-    if (fx.relative_to_unflagged) {
-      // Unflagged ranges judged at the same pose are the reference; too few
-      // of them yet (nearly every range flagged): the flagged quantile alone.
-      const double reference = consistency_.unflaggedQuantile(fx.quantile, fx.min_ranges);
-      if (std::isfinite(reference)) e -= reference;
-    }
+    const double e = consistency_.flaggedQuantile(fx.quantile, fx.min_ranges);
     if (std::isfinite(e)) {
       flagged_excess_m_ = std::clamp(e, 0.0, fx.max_m);
       estimator_->setFlaggedExcess(flagged_excess_m_);

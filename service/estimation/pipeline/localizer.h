@@ -16,6 +16,7 @@
 #include "estimation/pipeline/initializer.h"
 #include "estimation/pipeline/range_consistency.h"
 #include "estimation/pipeline/range_imu_estimator.h"
+#include "estimation/pipeline/ranging_support.h"
 #include "estimation/pipeline/rejection_window.h"
 #include "estimation/pipeline/tracking_estimator.h"
 #include "estimation/smoother/sliding_window_params.h"
@@ -65,8 +66,8 @@ struct LocalizerParams {
   double max_gyro_bias_rad_s = 0.3;
   double max_imu_gap_s = 1.0;        ///< IMU silence longer than this: the motion model is broken
   /// Horizontal distance (m) the tag may be estimated beyond the bounding box
-  /// of the UWB anchors while ranging supports it (see Localizer::kOutsideGraceNs);
-  /// +inf: off. Far outside, the ranging geometry
+  /// of the UWB anchors while ranging holds the estimate (ranging_support.h:
+  /// judged only after 5 s of ranging without a gap over 3 s); +inf: off. Far outside, the ranging geometry
   /// degenerates (range differences approach the anchor baselines, whatever
   /// the distance), so a tracker that wanders there is held by nothing and
   /// its residuals stay small: office TDoA seed 6 at 40 % reception drifted
@@ -155,14 +156,6 @@ class Localizer {
   void checkConsistency();
   /// Horizontal distance (m) of p_w beyond the anchors' bounding box, 0 inside.
   double outsideAnchors(const Vec3& p_w) const;
-  /// A range, TDoA row or ultrasonic range at t_ns reached the tracker.
-  void noteRanging(std::int64_t t_ns);
-  /// max_outside_anchors_m judges only ranging-supported estimates: IMU-only
-  /// dead reckoning through a ranging gap longer than kRangingGapNs may drift
-  /// anywhere (a 30 s blackout went 10.5 m outside and was pulled back), and
-  /// when ranging returns the smoother gets kOutsideGraceNs to pull it in.
-  static constexpr std::int64_t kRangingGapNs = 1'000'000'000;
-  static constexpr std::int64_t kOutsideGraceNs = 5'000'000'000;
   void fail(std::string why);
   template <typename F>
   void guarded(F&& f);
@@ -178,8 +171,7 @@ class Localizer {
   double flagged_excess_m_ = 0.0;
   double tracking_vertical_speed_sigma_m_s_ = 0.0;
   Eigen::Vector2d anchors_min_xy_, anchors_max_xy_;  ///< horizontal bounding box of the UWB anchors (m)
-  std::int64_t ranging_since_ns_ = -1;  ///< start of the current stretch without a ranging gap (-1: none yet)
-  std::int64_t last_ranging_ns_ = -1;
+  RangingSupport ranging_support_;  ///< when max_outside_anchors_m is judged
   std::int64_t last_imu_ns_ = 0;
   bool have_imu_ = false;
   int consecutive_rejections_ = 0;

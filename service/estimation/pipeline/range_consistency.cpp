@@ -68,10 +68,6 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b) noexc
       flagged_[static_cast<std::size_t>(flagged_next_)] = res;
       flagged_next_ = (flagged_next_ + 1) % kFlaggedWindow;
       if (flagged_filled_ < kFlaggedWindow) ++flagged_filled_;
-    } else {
-      unflagged_[static_cast<std::size_t>(unflagged_next_)] = res;
-      unflagged_next_ = (unflagged_next_ + 1) % kFlaggedWindow;
-      if (unflagged_filled_ < kFlaggedWindow) ++unflagged_filled_;
     }
     const std::uint8_t is_short = res < -short_m_ ? 1 : 0;
     auto& slot = window_[static_cast<std::size_t>(next_)];
@@ -86,18 +82,9 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b) noexc
 }
 
 double RangeConsistencyMonitor::flaggedQuantile(double q, int min_count) const noexcept {
-  return ringQuantile(flagged_, flagged_filled_, q, min_count);
-}
-
-double RangeConsistencyMonitor::unflaggedQuantile(double q, int min_count) const noexcept {
-  return ringQuantile(unflagged_, unflagged_filled_, q, min_count);
-}
-
-double RangeConsistencyMonitor::ringQuantile(const std::array<double, kFlaggedWindow>& ring, int filled, double q,
-                                             int min_count) const noexcept {
-  if (filled < min_count || filled == 0) return std::numeric_limits<double>::quiet_NaN();
-  const auto n = static_cast<std::size_t>(filled);
-  std::copy(ring.begin(), ring.begin() + static_cast<std::ptrdiff_t>(n), scratch_.begin());
+  if (flagged_filled_ < min_count || flagged_filled_ == 0) return std::numeric_limits<double>::quiet_NaN();
+  const auto n = static_cast<std::size_t>(flagged_filled_);
+  std::copy(flagged_.begin(), flagged_.begin() + static_cast<std::ptrdiff_t>(n), scratch_.begin());
   const auto k = static_cast<std::size_t>(q * static_cast<double>(n - 1));
   std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(k), scratch_.begin() + static_cast<std::ptrdiff_t>(n));
   return scratch_[k];
@@ -105,7 +92,6 @@ double RangeConsistencyMonitor::ringQuantile(const std::array<double, kFlaggedWi
 
 void RangeConsistencyMonitor::reset() noexcept {
   flagged_next_ = flagged_filled_ = 0;
-  unflagged_next_ = unflagged_filled_ = 0;
   pending_.clear();
   std::fill(window_.begin(), window_.end(), std::uint8_t{0});
   next_ = filled_ = short_in_window_ = 0;

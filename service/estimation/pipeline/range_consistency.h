@@ -56,22 +56,17 @@ struct RangeConsistencyParams {
 /// but lost 0.1 m on a default-plan one; 0.5 took the severity-0 sims (no
 /// excess at all) from 0.14 to 0.32 m. 0 turns it off.
 ///
-/// The residuals are taken at an estimate that the not-yet-removed excess
-/// itself biases: with anchors overhead a tag estimated 0.4 m low sees every
-/// range ~0.05 m shorter, and on the office sims the flagged quartile read
-/// 0.02-0.07 m against a true 0.17-0.2 m. relative_to_unflagged subtracts
-/// the unflagged ranges' same quantile at the same pose, which a pose bias
-/// moves alike. It removes most of the height bias (office, 60 s, seeds 1-4:
-/// -0.31/-0.28/+0.02/-0.25 -> +0.07/-0.13/+0.09/-0.18 m) and lowers the
-/// smoothed error everywhere measured, but the online error only at the
-/// replay's range sigma of 0.15 m (15 sims: 0.408 -> 0.359 m); at the
-/// service's 0.10 m it rose on office sims (0.445 -> 0.483 m, 4 sims) and on
-/// 3 of 4 60 s scenarios, so it is off by default.
+/// Tried and dropped (session 10): the flagged quantile less the unflagged
+/// ranges' same quantile at the same pose, meant to cancel the pose bias the
+/// excess itself causes. It lowered the mean error on 2-minute replays at a
+/// 0.15 m range sigma (15 sims, 0.408 -> 0.359 m online), but on the 60 s
+/// default-plan office (seed 1, 0.10 m sigma) it read 0.48 m where the same
+/// statistic at the true poses is 0.22 m (the plain quartile read 0.25 m
+/// against a true 0.18 m), and the error rose 0.385 -> 0.504 m.
 struct FlaggedExcessParams {
   double quantile = 0.25;
   int min_ranges = 50;  ///< fewer flagged ranges judged: no estimate (0 m)
   double max_m = 1.0;   ///< cap (m)
-  bool relative_to_unflagged = false;  ///< less the unflagged ranges' quantile (see above)
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -104,12 +99,9 @@ class RangeConsistencyMonitor {
   /// Quantile q in [0, 1] of the residuals (m) of the last flagged ranges
   /// judged; NaN with fewer than min_count of them. Does not allocate.
   double flaggedQuantile(double q, int min_count) const noexcept;
-  /// The same over the last ranges the receiver did not flag.
-  double unflaggedQuantile(double q, int min_count) const noexcept;
 
  private:
   static constexpr std::size_t kMaxPending = 256;
-  double ringQuantile(const std::array<double, kFlaggedWindow>& ring, int filled, double q, int min_count) const noexcept;
 
   std::vector<Vec3> p_w_anchors_;
   Vec3 p_b_tag_;
@@ -123,8 +115,6 @@ class RangeConsistencyMonitor {
   std::array<double, kFlaggedWindow> flagged_{};          ///< ring of flagged ranges' residuals (m)
   mutable std::array<double, kFlaggedWindow> scratch_{};  ///< for nth_element
   int flagged_next_ = 0, flagged_filled_ = 0;
-  std::array<double, kFlaggedWindow> unflagged_{};        ///< ring of unflagged ranges' residuals (m)
-  int unflagged_next_ = 0, unflagged_filled_ = 0;
 };
 
 }  // namespace rilo

@@ -2,11 +2,16 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace rilo {
 
 RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noise)
     : loss_(makeRangeLoss(loss_name, noise)), gap_db_(noise.nlos_power_gap_db) {
+  if (noise.flagged_nlos_scale_m && !(std::isfinite(*noise.flagged_nlos_scale_m) && *noise.flagged_nlos_scale_m > 0.0)) {
+    throw std::invalid_argument("range_noise.flagged_nlos_scale_m must be finite and > 0 (m), got " +
+                                std::to_string(*noise.flagged_nlos_scale_m));
+  }
   if (std::isnan(noise.nlos_power_gap_db)) {
     throw std::invalid_argument("range_noise.nlos_power_gap_db must be a number (dB) or +inf to disable, got NaN");
   }

@@ -70,9 +70,13 @@ std::string toString(const MeasurementKinds& kinds) {
 }
 
 LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s) {
-  LocalizerParams lp;
-  lp.graph.imu = imuParamsFrom(rec.meta);
-  lp.graph.p_b_tag = rec.meta.uwb_lever_arm_m;
+  const bool from_service = s.service_params.has_value();
+  LocalizerParams lp = s.service_params.value_or(LocalizerParams{});
+  if (!from_service) {
+    lp.graph.imu = imuParamsFrom(rec.meta);
+    lp.graph.p_b_tag = rec.meta.uwb_lever_arm_m;
+    lp.graph.p_b_ultrasonic = rec.meta.ultrasonic_lever_arm_m;
+  }
   lp.graph.range_loss = s.noise;
   if (s.range_sigma_m) lp.graph.range_noise.sigma_m = *s.range_sigma_m;
   if (s.nlos_scale_m) lp.graph.range_noise.nlos_scale_m = *s.nlos_scale_m;
@@ -87,20 +91,25 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.floor_z_m) lp.height_band.floor_z_m = *s.floor_z_m;
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;
   if (s.max_height_m) lp.height_band.max_height_m = *s.max_height_m;
-  lp.graph.p_b_ultrasonic = rec.meta.ultrasonic_lever_arm_m;
   lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(rec.anchors);
+  // The recording-dependent choices below are the replay's own; with the
+  // service's parameters only what the caller set explicitly changes them.
   const bool tdoa_used = s.measurements.tdoa && !rec.tdoa.empty();
-  lp.vertical_speed_sigma_m_s = s.vertical_speed_sigma_m_s.value_or(defaultVerticalSpeedSigma(tdoa_used));
+  if (s.vertical_speed_sigma_m_s) {
+    lp.vertical_speed_sigma_m_s = *s.vertical_speed_sigma_m_s;
+  } else if (!from_service) {
+    lp.vertical_speed_sigma_m_s = defaultVerticalSpeedSigma(tdoa_used);
+  }
   if (s.same_state_window_ms) {
     lp.graph.same_state_window_ns = static_cast<std::int64_t>(std::llround(*s.same_state_window_ms * 1e6));
-  } else if (tdoa_used) {
+  } else if (tdoa_used && !from_service) {
     lp.graph.same_state_window_ns = 25'000'000;
   }
   if (s.tdoa_sigma_m) lp.graph.tdoa_sigma_m = *s.tdoa_sigma_m;
   if (s.ultrasonic_sigma_m) lp.graph.ultrasonic_sigma_m = *s.ultrasonic_sigma_m;
   if (s.tdoa_noise) lp.graph.tdoa_loss = *s.tdoa_noise;
   if (s.ultrasonic_noise) lp.graph.ultrasonic_loss = *s.ultrasonic_noise;
-  lp.stream.dynamic_covariance.enabled = s.dynamic_covariance.value_or(tdoa_used);
+  if (s.dynamic_covariance || !from_service) lp.stream.dynamic_covariance.enabled = s.dynamic_covariance.value_or(tdoa_used);
   // The EKF baseline gets the graph's per-link sigmas too: at the configured
   // 0.15 m against the office sim's 1.3-1.5 m NLOS TDoA errors its covariance
   // collapsed to a few cm, its gate refused 30-70 % of the rows and it

@@ -35,6 +35,14 @@ std::string toString(const MeasurementKinds& kinds);
 
 
 struct ReplaySettings {
+  /// The service's parameters (rilod's configuration, `rilo replay
+  /// --config`): the replay starts from them instead of the library defaults,
+  /// and takes nothing from the recording but its data, anchors and
+  /// ultrasonic beacons (not its IMU densities or lever arms, nor the TDoA
+  /// defaults below), so it runs what rilod would run. smoother, noise and
+  /// lag_s still apply (a caller sets them from the same configuration unless
+  /// told otherwise), and so does every optional setting that is set.
+  std::optional<LocalizerParams> service_params;
   std::string smoother = "d-isam2";  ///< d-isam2 | isam2 | dogleg | sliding-window | ekf
   std::string noise = "asymmetric";  ///< gaussian | huber | cauchy | asymmetric
   double range_hz = 0.0;             ///< thin ranges to this total rate (0: keep all)
@@ -129,7 +137,7 @@ struct ReplayResult {
 
 /// Builds the Localizer parameters a replay of `rec` uses (IMU noise, lever
 /// arms and ultrasonic beacons from the recording, smoother and noise model
-/// from `settings`).
+/// from `settings`; from settings.service_params when given, see there).
 LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& settings);
 
 /// Runs the pipeline over `rec`. Throws std::runtime_error naming the

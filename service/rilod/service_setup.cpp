@@ -9,15 +9,7 @@ namespace rilo {
 ServiceOptions serviceOptions(const ServiceConfig& cfg) {
   ServiceOptions so;
   so.p_w_anchors = uwbAnchorsById(cfg.anchors);
-  so.localizer.graph = cfg.estimator.graph;
-  so.localizer.graph.p_w_ultrasonic = ultrasonicBeaconsById(cfg.anchors);  // for ultrasonic ranges
-  so.localizer.smoother = cfg.estimator.smoother;
-  so.localizer.stream = cfg.estimator.stream;
-  so.localizer.init.window_s = cfg.estimator.init_window_s;
-  so.localizer.height_band = cfg.estimator.height_band;
-  so.localizer.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
-  so.localizer.max_outside_anchors_m = cfg.estimator.max_outside_anchors_m;
-  so.localizer.flagged_excess.quantile = cfg.estimator.flagged_excess_quantile;
+  so.localizer = localizerParams(cfg);
   so.participant.domain_id = cfg.dds.domain_id;
   if (cfg.dds.loopback_only) so.participant.config_xml = dds::loopbackConfigXml();
   if (!cfg.dds.cyclone_config_file.empty()) so.participant.config_xml = "file://" + cfg.dds.cyclone_config_file.string();
@@ -31,6 +23,20 @@ ServiceOptions serviceOptions(const ServiceConfig& cfg) {
   so.sensor_silence_s = static_cast<double>(cfg.status.imu_timeout_ns) * 1e-9;
   so.ranging_silence_s = static_cast<double>(cfg.status.range_timeout_ns) * 1e-9;
   return so;
+}
+
+LocalizerParams localizerParams(const ServiceConfig& cfg) {
+  LocalizerParams lp;
+  lp.graph = cfg.estimator.graph;
+  lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(cfg.anchors);  // for ultrasonic ranges
+  lp.smoother = cfg.estimator.smoother;
+  lp.stream = cfg.estimator.stream;
+  lp.init.window_s = cfg.estimator.init_window_s;
+  lp.height_band = cfg.estimator.height_band;
+  lp.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
+  lp.max_outside_anchors_m = cfg.estimator.max_outside_anchors_m;
+  lp.flagged_excess.quantile = cfg.estimator.flagged_excess_quantile;
+  return lp;
 }
 
 std::unique_ptr<SampleSource> makeReplaySource(const ReplaySourceConfig& replay) {

@@ -16,6 +16,11 @@ namespace rilo {
 /// timeouts. The callbacks are left empty.
 ServiceOptions serviceOptions(const ServiceConfig& config);
 
+/// The Localizer parameters the service runs with: the estimator and imu
+/// sections, and the ultrasonic beacons among the configured anchors.
+/// `rilo replay --config` replays a recording with exactly these.
+LocalizerParams localizerParams(const ServiceConfig& config);
+
 /// The replay source of sources.replay: pace, speed, time shift, and the
 /// faults (a FaultInjectingSource around it) when any are configured.
 /// Throws RecordingError for a malformed recording.

@@ -113,6 +113,47 @@ TEST(RiloReplay, MeasurementKindsAndReceptionAreCountedInTheSummary) {
   EXPECT_NE(runRilo({"replay", rec, "--out", out.path().string(), "--reception", "1.5"}), 0);
 }
 
+std::string summaryOf(const std::filesystem::path& out) {
+  std::ifstream summary(out / "summary.json");
+  std::stringstream buffer;
+  buffer << summary.rdbuf();
+  return buffer.str();
+}
+
+TEST(RiloReplay, ConfigRunsTheServicesEstimatorAndOptionsOverrideIt) {
+  const std::string rec = (testing::sourceDir() / "tests" / "data" / "office-demo").string();
+  testing::TempDir dir("rilo-replay-config");
+  // A rilod configuration with a smoother, noise model and lag of its own.
+  const std::string config = (dir / "rilod.yaml").string();
+  testing::writeFile(config,
+                     "sources:\n  mode: replay\n  replay:\n    path: " + rec + "\n"
+                     "anchors:\n  file: " + rec + "/anchors.csv\n"
+                     "estimator:\n  smoother: isam2\n  lag_s: 4.0\n  range:\n    noise_model: cauchy\n");
+  const std::string from_config = (dir / "from-config").string();
+  ASSERT_EQ(runRilo({"replay", rec, "--out", from_config, "--config", config}), 0);
+  const std::string text = summaryOf(from_config);
+  EXPECT_NE(text.find("\"config\": \"" + config + "\""), std::string::npos) << text;
+  EXPECT_NE(text.find("\"smoother\": \"isam2\""), std::string::npos) << text;
+  EXPECT_NE(text.find("\"noise\": \"cauchy\""), std::string::npos) << text;
+  EXPECT_NE(text.find("\"initializations\": 1"), std::string::npos) << text;
+
+  const std::string overridden = (dir / "overridden").string();
+  ASSERT_EQ(runRilo({"replay", rec, "--out", overridden, "--config", config, "--smoother", "d-isam2"}), 0);
+  const std::string text2 = summaryOf(overridden);
+  EXPECT_NE(text2.find("\"smoother\": \"d-isam2\""), std::string::npos) << text2;
+  EXPECT_NE(text2.find("\"noise\": \"cauchy\""), std::string::npos) << text2;
+
+  // Without --config the summary says so.
+  const std::string own = (dir / "own").string();
+  ASSERT_EQ(runRilo({"replay", rec, "--out", own, "--measurements", "range", "--range-hz", "1"}), 0);
+  EXPECT_NE(summaryOf(own).find("\"config\": null"), std::string::npos);
+
+  // A malformed configuration is refused before any replay, naming the key.
+  testing::writeFile(config, "sources:\n  mode: replay\n  replay:\n    path: " + rec + "\nestimator:\n  lag_s: soon\n");
+  EXPECT_NE(runRilo({"replay", rec, "--out", (dir / "bad").string(), "--config", config}), 0);
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad"));
+}
+
 TEST(RiloReplay, MissingRecordingIsAClearError) {
   const std::string exe = (testing::binaryDir() / "rilo").string();
   const pid_t pid = ::fork();

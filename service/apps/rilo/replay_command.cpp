@@ -15,6 +15,8 @@
 #include "evaluation/replay_run.h"
 #include "evaluation/tum.h"
 #include "hal/recording/recording_reader.h"
+#include "rilod/config.h"
+#include "rilod/service_setup.h"
 
 namespace rilo::tool {
 
@@ -38,6 +40,15 @@ std::string countJson(const MeasurementCount& c) {
 }
 
 }  // namespace
+
+void applyServiceConfig(const std::string& config_file, bool smoother_given, bool noise_given, bool lag_given,
+                        ReplaySettings& settings) {
+  const ServiceConfig cfg = loadServiceConfig(config_file);
+  settings.service_params = localizerParams(cfg);
+  if (!smoother_given) settings.smoother = smootherMethodName(cfg.estimator.smoother.method);
+  if (!noise_given) settings.noise = cfg.estimator.graph.range_loss;
+  if (!lag_given) settings.lag_s = cfg.estimator.smoother.lag_s;
+}
 
 int runReplay(const ReplayOptions& o) {
   const Recording rec = readRecording(o.recording);
@@ -67,7 +78,9 @@ int runReplay(const ReplayOptions& o) {
   const double max_ms = sorted.empty() ? 0.0 : sorted.back();
 
   std::ofstream summary(dir / "summary.json");
-  summary << "{\n  \"recording\": " << jsonString(o.recording) << ",\n  \"smoother\": " << jsonString(o.settings.smoother)
+  summary << "{\n  \"recording\": " << jsonString(o.recording)
+          << ",\n  \"config\": " << (o.config.empty() ? std::string("null") : jsonString(o.config))
+          << ",\n  \"smoother\": " << jsonString(o.settings.smoother)
           << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"range_hz\": " << o.settings.range_hz
           << ",\n  \"thinning\": " << jsonString(rangeThinningName(o.settings.thinning))
           << ",\n  \"ranges_used\": " << run.ranges_used
@@ -101,6 +114,7 @@ int runReplay(const ReplayOptions& o) {
   summary << "\n}\n";
   if (!summary) throw std::runtime_error("cannot write " + (dir / "summary.json").string());
 
+  if (!o.config.empty()) std::printf("rilo replay: estimator of %s (lag %g s)\n", o.config.c_str(), o.settings.lag_s);
   std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations\n",
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
               max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations));
@@ -140,9 +154,15 @@ void addReplayCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("replay", "Run the online pipeline over a recording (as fast as possible) and write its trajectories and timing");
   cmd->add_option("REC", options->recording, "Recording folder")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--out", options->out, "Output folder")->required();
-  cmd->add_option("--smoother", options->settings.smoother, "Estimator: an incremental smoother, or the EKF baseline")
+  cmd->add_option("--config", options->config,
+                  "rilod configuration (YAML) whose estimator, imu and lever-arm settings the replay runs instead of its "
+                  "own defaults and the recording's sensor parameters: what the service would have published. Options "
+                  "given with it override it")
+      ->check(CLI::ExistingFile);
+  CLI::Option* smoother = cmd->add_option("--smoother", options->settings.smoother,
+                                          "Estimator: an incremental smoother, or the EKF baseline (with --config: its smoother)")
       ->capture_default_str()->check(CLI::IsMember(estimatorNames()));
-  cmd->add_option("--noise", options->settings.noise, "Range noise model")
+  CLI::Option* noise = cmd->add_option("--noise", options->settings.noise, "Range noise model (with --config: its noise_model)")
       ->capture_default_str()->check(CLI::IsMember({"gaussian", "huber", "cauchy", "asymmetric"}));
   cmd->add_option("--range-hz", options->settings.range_hz, "Thin ranges to this total rate (Hz; 0 keeps all)")
       ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
@@ -151,7 +171,8 @@ void addReplayCommand(CLI::App& app) {
       ->capture_default_str()
       ->transform(CLI::CheckedTransformer(std::map<std::string, RangeThinning>{{"rotate", RangeThinning::kRotate},
                                                                                {"first", RangeThinning::kFirst}}));
-  cmd->add_option("--lag", options->settings.lag_s, "Fixed lag of the smoother (s)")->capture_default_str()->check(CLI::Range(0.5, 600.0));
+  CLI::Option* lag = cmd->add_option("--lag", options->settings.lag_s, "Fixed lag of the smoother (s; with --config: its lag_s)")
+      ->capture_default_str()->check(CLI::Range(0.5, 600.0));
   cmd->add_option("--range-sigma", options->settings.range_sigma_m, "LOS range noise std-dev (m)")->check(CLI::Range(0.001, 10.0));
   cmd->add_option("--nlos-scale", options->settings.nlos_scale_m, "Half-Cauchy scale of the NLOS range excess (m; asymmetric model)")
       ->check(CLI::Range(0.001, 100.0));
@@ -212,9 +233,13 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
                   "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on for the graph "
                   "estimators and the EKF when TDoA rows are used)");
-  cmd->callback([options] {
+  cmd->callback([options, smoother, noise, lag] {
     int code = 1;
     try {
+      if (!options->config.empty()) {
+        applyServiceConfig(options->config, smoother->count() > 0, noise->count() > 0, lag->count() > 0,
+                           options->settings);
+      }
       code = runReplay(*options);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "rilo replay: %s\n", e.what());

@@ -18,8 +18,16 @@ namespace rilo::tool {
 struct ReplayOptions {
   std::string recording;
   std::string out;
+  /// rilod configuration to replay with (empty: the replay's own defaults).
+  std::string config;
   ReplaySettings settings;
 };
+
+/// Loads a rilod configuration into `settings` (ReplaySettings::
+/// service_params), and its smoother, range noise model and lag unless the
+/// caller gave them. Throws ConfigError naming the file, line and key.
+void applyServiceConfig(const std::string& config_file, bool smoother_given, bool noise_given, bool lag_given,
+                        ReplaySettings& settings);
 
 /// Returns the process exit code (0 ok, 1 failure with the message on stderr).
 int runReplay(const ReplayOptions& options);

@@ -1,0 +1,126 @@
+// `rilo replay --config`: the replay runs the parameters rilod derives from
+// its configuration (service_setup.h localizerParams), not the replay's own
+// defaults or the recording's sensor parameters, and explicit replay
+// settings still override them.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "evaluation/replay_run.h"
+#include "hal/recording/recording_reader.h"
+#include "rilod/config.h"
+#include "rilod/service_setup.h"
+#include "service/service_test_support.h"
+
+namespace rilo {
+namespace {
+
+// A replay configuration whose estimator differs from every replay default
+// and from the demo recording's meta.yaml (lever arm [0.06, 0, 0.1], its
+// own IMU densities).
+const std::string kConfig =
+    "sources:\n"
+    "  mode: replay\n"
+    "  replay:\n"
+    "    path: rec\n"
+    "anchors:\n"
+    "  - {id: 0, x: 0, y: 0, z: 2.5}\n"
+    "  - {id: 1, x: 6, y: 0, z: 1.0}\n"
+    "  - {id: 2, x: 6, y: 5, z: 2.5}\n"
+    "  - {id: 3, x: 0, y: 5, z: 1.0, kind: ultrasonic}\n"
+    "imu:\n"
+    "  gyro_noise_density: 5.0e-4\n"
+    "estimator:\n"
+    "  smoother: isam2\n"
+    "  lag_s: 7.0\n"
+    "  range:\n"
+    "    noise_model: huber\n"
+    "    sigma_m: 0.07\n"
+    "    lever_arm_m: [0.0, 0.0, 0.2]\n"
+    "  height_band:\n"
+    "    min_height_m: 1.1\n";
+
+ServiceConfig config() { return parseServiceConfig(kConfig, "test.yaml"); }
+
+const Recording& demo() {
+  static const Recording rec = readRecording(testing::sourceDir() / "tests" / "data" / "office-demo");
+  return rec;
+}
+
+TEST(ServiceLocalizerParams, CarryTheEstimatorAndImuSectionsAndTheUltrasonicBeacons) {
+  const LocalizerParams lp = localizerParams(config());
+  EXPECT_EQ(lp.smoother.method, SmootherParams::Method::kGaussNewton);
+  EXPECT_DOUBLE_EQ(lp.smoother.lag_s, 7.0);
+  EXPECT_EQ(lp.graph.range_loss, "huber");
+  EXPECT_DOUBLE_EQ(lp.graph.range_noise.sigma_m, 0.07);
+  EXPECT_DOUBLE_EQ(lp.graph.imu.gyro_noise_density, 5.0e-4);
+  EXPECT_TRUE(lp.graph.p_b_tag.isApprox(Vec3(0.0, 0.0, 0.2)));
+  EXPECT_DOUBLE_EQ(lp.height_band.min_height_m, 1.1);
+  ASSERT_EQ(lp.graph.p_w_ultrasonic.size(), 4u);  // indexed by anchor id
+  EXPECT_TRUE(lp.graph.p_w_ultrasonic[3].isApprox(Vec3(0.0, 5.0, 1.0)));
+  // The service assembles its Localizer from the same function.
+  const ServiceOptions so = serviceOptions(config());
+  EXPECT_DOUBLE_EQ(so.localizer.graph.range_noise.sigma_m, 0.07);
+  EXPECT_DOUBLE_EQ(so.localizer.smoother.lag_s, 7.0);
+}
+
+TEST(ReplayWithServiceParams, TakesTheServicesModelInsteadOfTheRecordingsSensorParameters) {
+  const Recording& rec = demo();
+  ReplaySettings own;
+  const LocalizerParams replay_own = localizerParamsFor(rec, own);
+  EXPECT_TRUE(replay_own.graph.p_b_tag.isApprox(rec.meta.uwb_lever_arm_m));
+  ASSERT_TRUE(rec.meta.gyro_noise_density.has_value());
+  EXPECT_DOUBLE_EQ(replay_own.graph.imu.gyro_noise_density, *rec.meta.gyro_noise_density);
+
+  ReplaySettings s;
+  s.service_params = localizerParams(config());
+  s.smoother = "isam2";
+  s.noise = "huber";
+  s.lag_s = 7.0;
+  const LocalizerParams lp = localizerParamsFor(rec, s);
+  EXPECT_TRUE(lp.graph.p_b_tag.isApprox(Vec3(0.0, 0.0, 0.2)));
+  EXPECT_DOUBLE_EQ(lp.graph.imu.gyro_noise_density, 5.0e-4);
+  EXPECT_DOUBLE_EQ(lp.graph.range_noise.sigma_m, 0.07);
+  EXPECT_DOUBLE_EQ(lp.height_band.min_height_m, 1.1);
+  EXPECT_EQ(lp.smoother.method, SmootherParams::Method::kGaussNewton);
+  EXPECT_DOUBLE_EQ(lp.smoother.lag_s, 7.0);
+  // The recording's beacons, not the configuration's (the demo has none).
+  EXPECT_TRUE(lp.graph.p_w_ultrasonic.empty());
+
+  // Explicit settings still override the service's.
+  s.range_sigma_m = 0.2;
+  s.smoother = "dogleg";
+  s.lag_s = 3.0;
+  const LocalizerParams overridden = localizerParamsFor(rec, s);
+  EXPECT_DOUBLE_EQ(overridden.graph.range_noise.sigma_m, 0.2);
+  EXPECT_EQ(overridden.smoother.method, SmootherParams::Method::kDogleg);
+  EXPECT_DOUBLE_EQ(overridden.smoother.lag_s, 3.0);
+}
+
+TEST(ReplayWithServiceParams, TheReplaysOwnTdoaDefaultsGiveWayToTheConfiguration) {
+  Recording rec = demo();
+  rec.tdoa.push_back(TdoaSample{rec.imu.front().t_ns, 0, 1, 0.5, -1});
+  ReplaySettings own;
+  const LocalizerParams replay_own = localizerParamsFor(rec, own);
+  EXPECT_EQ(replay_own.graph.same_state_window_ns, 25'000'000);
+  EXPECT_TRUE(replay_own.stream.dynamic_covariance.enabled);
+  EXPECT_EQ(replay_own.vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
+
+  ReplaySettings s;
+  s.service_params = localizerParams(config());
+  const LocalizerParams lp = localizerParamsFor(rec, s);
+  EXPECT_EQ(lp.graph.same_state_window_ns, s.service_params->graph.same_state_window_ns);
+  EXPECT_EQ(lp.stream.dynamic_covariance.enabled, s.service_params->stream.dynamic_covariance.enabled);
+  EXPECT_FALSE(lp.vertical_speed_sigma_m_s.has_value());  // the configuration's "auto" (Localizer decides)
+
+  s.same_state_window_ms = 12.0;
+  s.dynamic_covariance = true;
+  s.vertical_speed_sigma_m_s = 0.1;
+  const LocalizerParams set = localizerParamsFor(rec, s);
+  EXPECT_EQ(set.graph.same_state_window_ns, 12'000'000);
+  EXPECT_TRUE(set.stream.dynamic_covariance.enabled);
+  EXPECT_EQ(set.vertical_speed_sigma_m_s, 0.1);
+}
+
+}  // namespace
+}  // namespace rilo

@@ -92,8 +92,11 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;
   if (s.max_height_m) lp.height_band.max_height_m = *s.max_height_m;
   lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(rec.anchors);
-  // The recording-dependent choices below are the replay's own; with the
-  // service's parameters only what the caller set explicitly changes them.
+  // The vertical speed prior is the replay's own choice (with the service's
+  // parameters, only an explicit one changes theirs): on TDoA data it holds
+  // in the initializer too, where the Localizer's "auto" starts with tracking.
+  // The TDoA state window and per-link sigmas are the Localizer's with_tdoa;
+  // explicit settings replace them for every kind of data.
   const bool tdoa_used = s.measurements.tdoa && !rec.tdoa.empty();
   if (s.vertical_speed_sigma_m_s) {
     lp.vertical_speed_sigma_m_s = *s.vertical_speed_sigma_m_s;
@@ -102,14 +105,16 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   }
   if (s.same_state_window_ms) {
     lp.graph.same_state_window_ns = static_cast<std::int64_t>(std::llround(*s.same_state_window_ms * 1e6));
-  } else if (tdoa_used && !from_service) {
-    lp.graph.same_state_window_ns = 25'000'000;
+    lp.with_tdoa.state_window_ns = 0;
   }
   if (s.tdoa_sigma_m) lp.graph.tdoa_sigma_m = *s.tdoa_sigma_m;
   if (s.ultrasonic_sigma_m) lp.graph.ultrasonic_sigma_m = *s.ultrasonic_sigma_m;
   if (s.tdoa_noise) lp.graph.tdoa_loss = *s.tdoa_noise;
   if (s.ultrasonic_noise) lp.graph.ultrasonic_loss = *s.ultrasonic_noise;
-  if (s.dynamic_covariance || !from_service) lp.stream.dynamic_covariance.enabled = s.dynamic_covariance.value_or(tdoa_used);
+  if (s.dynamic_covariance) {
+    lp.stream.dynamic_covariance.enabled = *s.dynamic_covariance;
+    lp.with_tdoa.dynamic_covariance = *s.dynamic_covariance;
+  }
   // The EKF baseline gets the graph's per-link sigmas too: at the configured
   // 0.15 m against the office sim's 1.3-1.5 m NLOS TDoA errors its covariance
   // collapsed to a few cm, its gate refused 30-70 % of the rows and it
@@ -183,8 +188,6 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   const std::vector<UltrasonicSample> no_ultrasonic;
   const std::vector<UltrasonicSample>& ultrasonic = kinds.ultrasonic ? rec.ultrasonic : no_ultrasonic;
   out.ranges_used = counts.range.used = ranges.size();
-  out.dynamic_covariance = params.estimator == LocalizerParams::Estimator::kEkf ? params.ekf.dynamic_covariance.enabled
-                                                                                : params.stream.dynamic_covariance.enabled;
   counts.tdoa.used = tdoa.size();
   counts.ultrasonic.used = ultrasonic.size();
 
@@ -236,6 +239,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.data_s = static_cast<double>(rec.imu.back().t_ns - rec.imu.front().t_ns) * 1e-9;
   out.initializations = localizer.initializations();
   out.reinitializations = localizer.reinitializations();
+  out.dynamic_covariance = localizer.trackingDynamicCovariance();
   out.last_failure = localizer.lastFailure();
   out.init_status = localizer.initStatus().message;
   out.init_attempts = localizer.initStatus().attempts;

@@ -74,15 +74,15 @@ struct ReplaySettings {
   /// (deterministic). Ultrasonic ranges are not UWB packets: all kept.
   double reception = 1.0;
   std::uint64_t reception_seed = 1;
-  /// Measurements closer than this share one state (ms; unset: the graph's
-  /// 5 ms, or 25 ms when TDoA rows are used: a TDoA round of 8 anchors is 8
-  /// packets 6.25 ms apart, grouped into ~40 states/s instead of 160).
+  /// Measurements closer than this share one state, for every kind of data
+  /// (ms; unset: the Localizer's, 5 ms or, once the data hold TDoA rows,
+  /// LocalizerParams::with_tdoa's 25 ms).
   std::optional<double> same_state_window_ms;
   /// Per-link TDoA and ultrasonic sigmas from DynamicCovariance. true: the
-  /// graph stream and the EKF; false: neither; unset: the graph stream when
-  /// TDoA rows are used (seed 002's system: 20-45 % lower online RMSE of the
-  /// sliding window on the hall and office sims), never the EKF (the seed's
-  /// baseline is a conventional Kalman filter).
+  /// graph stream and the EKF; false: neither; unset: both when TDoA rows
+  /// are used (the graph stream by LocalizerParams::with_tdoa, seed 002's
+  /// system: 20-45 % lower online RMSE of the sliding window on the hall and
+  /// office sims; the EKF by the replay, see localizerParamsFor).
   std::optional<bool> dynamic_covariance;
   // TDoA and ultrasonic noise models (unset: RangeImuGraphParams defaults).
   std::optional<double> tdoa_sigma_m, ultrasonic_sigma_m;  ///< LOS std-dev (m)
@@ -114,7 +114,7 @@ struct ReplayResult {
   std::vector<RangeImuEstimator::TimedPose> smoothed;  ///< final estimate of every state, time order
   std::vector<ReplayUpdate> updates;
   std::size_t ranges_used = 0;        ///< after --range-hz thinning and reception
-  bool dynamic_covariance = false;    ///< the estimator used per-link sigmas (ReplaySettings::dynamic_covariance)
+  bool dynamic_covariance = false;    ///< the last tracker used per-link sigmas (Localizer::trackingDynamicCovariance)
   MeasurementCounts measurements;     ///< per kind: recorded, used, dropped
   std::uint64_t initializations = 0;
   std::uint64_t reinitializations = 0;

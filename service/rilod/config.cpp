@@ -274,7 +274,7 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
 EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
   const ConfigMap m = field.map({"smoother", "lag_s", "relinearization", "damping", "trust_region", "range",
                                  "anchors_as_variables", "anchor_sigma_m", "init", "height_band",
-                                 "vertical_speed_sigma_m_s", "max_outside_anchors_m"});
+                                 "vertical_speed_sigma_m_s", "max_outside_anchors_m", "tdoa"});
   m.read("smoother", e.smoother.method, [](const ConfigField& f) {
     return f.choice<SmootherParams::Method>({{"d-isam2", SmootherParams::Method::kDamped},
                                              {"isam2", SmootherParams::Method::kGaussNewton},
@@ -307,6 +307,11 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     } catch (const std::invalid_argument& ex) {
       f->fail(ex.what());
     }
+  }
+  if (auto f = m.get("tdoa")) {
+    const ConfigMap t = f->map({"state_window_s", "dynamic_covariance"});
+    t.read("state_window_s", e.with_tdoa.state_window_ns, [](const ConfigField& w) { return w.secondsAsNs(0.0, 1.0); });
+    t.read("dynamic_covariance", e.with_tdoa.dynamic_covariance, [](const ConfigField& d) { return d.boolean(); });
   }
   m.read("max_outside_anchors_m", e.max_outside_anchors_m, [](const ConfigField& f) {
     const double v = f.number(0.0, std::numeric_limits<double>::infinity(), true);  // as positive(), with .inf

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "dds/topics.h"
+#include "estimation/pipeline/localizer.h"
 #include "estimation/pipeline/range_consistency.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/range_imu_graph_stream.h"
@@ -141,6 +142,9 @@ struct EstimatorConfig {
   /// farther than this beyond the anchors' horizontal bounding box while
   /// ranging holds the estimate (ranging_support.h) (m; .inf: off).
   double max_outside_anchors_m = 10.0;  // as LocalizerParams (config_test checks they agree)
+  /// State window and per-link sigmas once the data hold TDoA rows (`tdoa`
+  /// section; LocalizerParams::with_tdoa).
+  LocalizerParams::WithTdoa with_tdoa;
 };
 
 // --- output, recording, run-time ---------------------------------------------

@@ -36,6 +36,7 @@ LocalizerParams localizerParams(const ServiceConfig& cfg) {
   lp.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
   lp.max_outside_anchors_m = cfg.estimator.max_outside_anchors_m;
   lp.flagged_excess.quantile = cfg.estimator.flagged_excess_quantile;
+  lp.with_tdoa = cfg.estimator.with_tdoa;
   return lp;
 }
 

@@ -75,6 +75,8 @@ struct RunResult {
   std::uint64_t reinitializations = 0;
   std::string init_message;
   double tracking_vertical_speed_sigma_m_s = -1.0;  ///< the tracker's vertical speed prior
+  bool tracking_dynamic_covariance = false;         ///< the tracker's per-link sigmas
+  double states_per_s = 0.0;                        ///< tracked states per second of tracked data
 };
 
 double yawOfRotation(const Mat3& R) { return std::atan2(R(1, 0), R(0, 0)); }
@@ -83,6 +85,7 @@ RunResult run(const TdoaData& d, LocalizerParams lp) {
   const sim::Scenario& s = d.scenario;
   Localizer loc(s.p_w_anchors, lp);
   RunResult out;
+  std::int64_t first_tracked_ns = 0, last_tracked_ns = 0;
   std::size_t i = 0, k = 0, u = 0;
   const auto t_of = [](auto const& v, std::size_t j) { return j < v.size() ? v[j].t_ns : INT64_MAX; };
   while (i < s.imu.size() || k < d.tdoa.size() || u < d.ultrasonic.size()) {
@@ -111,6 +114,8 @@ RunResult run(const TdoaData& d, LocalizerParams lp) {
     out.horizontal_mean_m += dp.head<2>().norm();
     out.max_error_m = std::max(out.max_error_m, dp.norm());
     ++out.tracked_states;
+    if (out.tracked_states == 1) first_tracked_ns = x.t_ns;
+    last_tracked_ns = x.t_ns;
   }
   if (out.tracked_states > 0) {
     out.mean_error_m /= out.tracked_states;
@@ -118,6 +123,10 @@ RunResult run(const TdoaData& d, LocalizerParams lp) {
   }
   out.reinitializations = loc.reinitializations();
   out.tracking_vertical_speed_sigma_m_s = loc.trackingVerticalSpeedSigma();
+  out.tracking_dynamic_covariance = loc.trackingDynamicCovariance();
+  if (last_tracked_ns > first_tracked_ns) {
+    out.states_per_s = out.tracked_states / (1e-9 * static_cast<double>(last_tracked_ns - first_tracked_ns));
+  }
   if (!out.initialized) out.init_message = loc.initStatus().message;
   return out;
 }
@@ -168,6 +177,28 @@ TEST(TdoaInitialization, HallWalkInitializesAndTracksFromTdoaAlone) {
   LocalizerParams off = paramsFor(d);
   off.vertical_speed_sigma_m_s = 0.0;  // stairs: off whatever the ranging
   EXPECT_EQ(run(d, off).tracking_vertical_speed_sigma_m_s, 0.0);
+}
+
+TEST(TdoaInitialization, TdoaDataGetTheirStateWindowAndPerLinkSigmasWithoutBeingAskedFor) {
+  // LocalizerParams::with_tdoa: a configuration written for two-way ranges
+  // (the graph's 5 ms window, no dynamic covariance) tracks TDoA rows with
+  // 25 ms states and per-link sigmas, since the data hold TDoA rows.
+  const TdoaData d = simulateHall(2, 25.0, false, 1.0);
+  LocalizerParams lp = paramsFor(d);
+  lp.graph.same_state_window_ns = RangeImuGraphParams().same_state_window_ns;
+  ASSERT_FALSE(lp.stream.dynamic_covariance.enabled);
+  const RunResult r = run(d, lp);
+  ASSERT_TRUE(r.initialized) << r.init_message;
+  EXPECT_TRUE(r.tracking_dynamic_covariance);
+  EXPECT_LT(r.states_per_s, 45.0);  // at most one state per 25 ms
+  LocalizerParams off = lp;
+  off.with_tdoa.state_window_ns = 0;
+  off.with_tdoa.dynamic_covariance = false;
+  const RunResult r_off = run(d, off);
+  ASSERT_TRUE(r_off.initialized) << r_off.init_message;
+  EXPECT_FALSE(r_off.tracking_dynamic_covariance);
+  EXPECT_GT(r_off.states_per_s, 1.5 * r.states_per_s);  // measured 55 against 30: packets 6.25 ms apart
+  std::printf("states per second: %.1f with with_tdoa, %.1f without\n", r.states_per_s, r_off.states_per_s);
 }
 
 TEST(TdoaInitialization, InitializerDropsMalformedTdoaAndUltrasonicAndCountsThem) {

@@ -80,20 +80,22 @@ TEST(ReplayMeasurements, OnlyTheSelectedKindsReachThePipeline) {
   EXPECT_EQ(ranges_only.measurements.tdoa.recorded, rec.tdoa.size());
   // Without TDoA rows the graph keeps its 5 ms state window: more states than with them (25 ms).
   const ReplayResult all = replayRecording(rec, ReplaySettings());
+  // (the Localizer's with_tdoa window; the replay leaves both windows to it).
   EXPECT_EQ(localizerParamsFor(rec, s).graph.same_state_window_ns, 5'000'000);
-  EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).graph.same_state_window_ns, 25'000'000);
+  EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).with_tdoa.state_window_ns, 25'000'000);
   EXPECT_NE(ranges_only.updates.size(), all.updates.size());
-  // Dynamic covariance by default when TDoA is used: the graph stream and the EKF alike.
-  EXPECT_FALSE(localizerParamsFor(rec, s).stream.dynamic_covariance.enabled);
+  // Dynamic covariance by default when TDoA is used: the graph stream (the
+  // Localizer's with_tdoa) and the EKF alike.
   EXPECT_FALSE(localizerParamsFor(rec, s).ekf.dynamic_covariance.enabled);
-  EXPECT_TRUE(localizerParamsFor(rec, ReplaySettings()).stream.dynamic_covariance.enabled);
   EXPECT_TRUE(localizerParamsFor(rec, ReplaySettings()).ekf.dynamic_covariance.enabled);
   EXPECT_TRUE(all.dynamic_covariance);
   EXPECT_FALSE(ranges_only.dynamic_covariance);
   ReplaySettings off;
   off.dynamic_covariance = false;
   EXPECT_FALSE(localizerParamsFor(rec, off).stream.dynamic_covariance.enabled);
+  EXPECT_FALSE(localizerParamsFor(rec, off).with_tdoa.dynamic_covariance);
   EXPECT_FALSE(localizerParamsFor(rec, off).ekf.dynamic_covariance.enabled);
+  EXPECT_FALSE(replayRecording(rec, off).dynamic_covariance);
   // The vertical speed prior by default when TDoA is used (every estimator; the EKF reads it from graph).
   EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
   EXPECT_EQ(localizerParamsFor(rec, s).vertical_speed_sigma_m_s, 0.0);

@@ -95,6 +95,11 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_EQ(parse(valid("estimator:\n  max_outside_anchors_m: .inf\n")).estimator.max_outside_anchors_m,
             std::numeric_limits<double>::infinity());
   EXPECT_EQ(parse(valid("estimator:\n  max_outside_anchors_m: 4.5\n")).estimator.max_outside_anchors_m, 4.5);
+  EXPECT_EQ(c.estimator.with_tdoa.state_window_ns, LocalizerParams().with_tdoa.state_window_ns);
+  EXPECT_TRUE(c.estimator.with_tdoa.dynamic_covariance);
+  const ServiceConfig tdoa = parse(valid("estimator:\n  tdoa:\n    state_window_s: 0\n    dynamic_covariance: false\n"));
+  EXPECT_EQ(tdoa.estimator.with_tdoa.state_window_ns, 0);
+  EXPECT_FALSE(tdoa.estimator.with_tdoa.dynamic_covariance);
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_EQ(c.dds.topics.odometry, "rt/rilo/odometry");
   EXPECT_EQ(c.dds.frames.world, "map");
@@ -600,6 +605,10 @@ std::vector<BadCase> badCases() {
        "estimator.range.lever_arm_m", "at most 5 m", 11},
       {"nlos_weight_too_big", valid("estimator:\n  range: {nlos_weight: 0.7}\n"), "estimator.range.nlos_weight",
        "[0, 0.5]", 11},
+      {"tdoa_window_too_long", valid("estimator:\n  tdoa:\n    state_window_s: 2\n"), "estimator.tdoa.state_window_s",
+       "expected", 12},
+      {"tdoa_unknown_key", valid("estimator:\n  tdoa:\n    dynamic_covarance: true\n"), "estimator.tdoa",
+       "did you mean 'dynamic_covariance'?", 12},
       {"max_outside_anchors_zero", valid("estimator:\n  max_outside_anchors_m: 0\n"), "estimator.max_outside_anchors_m",
        "expected a number > 0 (m) or .inf, got 0", 11},
       {"max_outside_anchors_negative", valid("estimator:\n  max_outside_anchors_m: -2.5\n"),

@@ -97,28 +97,31 @@ TEST(ReplayWithServiceParams, TakesTheServicesModelInsteadOfTheRecordingsSensorP
   EXPECT_DOUBLE_EQ(overridden.smoother.lag_s, 3.0);
 }
 
-TEST(ReplayWithServiceParams, TheReplaysOwnTdoaDefaultsGiveWayToTheConfiguration) {
+TEST(ReplayWithServiceParams, TdoaSettingsComeFromTheConfigurationUnlessGiven) {
   Recording rec = demo();
   rec.tdoa.push_back(TdoaSample{rec.imu.front().t_ns, 0, 1, 0.5, -1});
-  ReplaySettings own;
-  const LocalizerParams replay_own = localizerParamsFor(rec, own);
-  EXPECT_EQ(replay_own.graph.same_state_window_ns, 25'000'000);
-  EXPECT_TRUE(replay_own.stream.dynamic_covariance.enabled);
-  EXPECT_EQ(replay_own.vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
+  // The replay's own vertical speed default for TDoA data...
+  EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
 
+  ServiceConfig cfg = config();
+  cfg.estimator.with_tdoa.state_window_ns = 30'000'000;
+  cfg.estimator.with_tdoa.dynamic_covariance = false;
   ReplaySettings s;
-  s.service_params = localizerParams(config());
+  s.service_params = localizerParams(cfg);
   const LocalizerParams lp = localizerParamsFor(rec, s);
-  EXPECT_EQ(lp.graph.same_state_window_ns, s.service_params->graph.same_state_window_ns);
-  EXPECT_EQ(lp.stream.dynamic_covariance.enabled, s.service_params->stream.dynamic_covariance.enabled);
-  EXPECT_FALSE(lp.vertical_speed_sigma_m_s.has_value());  // the configuration's "auto" (Localizer decides)
+  EXPECT_EQ(lp.with_tdoa.state_window_ns, 30'000'000);
+  EXPECT_FALSE(lp.with_tdoa.dynamic_covariance);
+  EXPECT_EQ(lp.graph.same_state_window_ns, cfg.estimator.graph.same_state_window_ns);
+  EXPECT_FALSE(lp.vertical_speed_sigma_m_s.has_value());  // ... gives way to the configuration's "auto"
 
-  s.same_state_window_ms = 12.0;
+  s.same_state_window_ms = 12.0;  // for every kind of data
   s.dynamic_covariance = true;
   s.vertical_speed_sigma_m_s = 0.1;
   const LocalizerParams set = localizerParamsFor(rec, s);
   EXPECT_EQ(set.graph.same_state_window_ns, 12'000'000);
+  EXPECT_EQ(set.with_tdoa.state_window_ns, 0);
   EXPECT_TRUE(set.stream.dynamic_covariance.enabled);
+  EXPECT_TRUE(set.with_tdoa.dynamic_covariance);
   EXPECT_EQ(set.vertical_speed_sigma_m_s, 0.1);
 }
 

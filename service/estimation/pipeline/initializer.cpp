@@ -480,7 +480,13 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   const std::int64_t t_graph0 = range_vec.front().t_ns;
   const StrapdownState s0 = align.at(integrateStrapdown(imu, t_w0, {t_graph0}).front(), P.graph.imu.gravity_m_s2);
   InitWindow win;
-  win.graph = buildRangeImuGraph(imu_vec, range_vec, p_w_anchors_, s0.T_w_b, s0.v_w, P.graph);
+  RangeImuGraphParams graph_params = P.graph;
+  if (P.tdoa_state_window_ns > 0 && std::any_of(range_vec.begin(), range_vec.end(), [](const Measurement& m) {
+        return m.kind == Measurement::Kind::kTdoa;
+      })) {
+    graph_params.same_state_window_ns = P.tdoa_state_window_ns;
+  }
+  win.graph = buildRangeImuGraph(imu_vec, range_vec, p_w_anchors_, s0.T_w_b, s0.v_w, graph_params);
   const std::vector<StrapdownDelta> deltas = integrateStrapdown(imu, t_w0, win.graph.state_t_ns);
   Values initial;
   for (std::size_t i = 0; i < deltas.size(); ++i) {

@@ -109,6 +109,10 @@ struct InitializerParams {
   double fix_max_window_s = 8.0;   ///< ... grown up to this until it holds enough anchors and ranges (s)
 
   HeightBand height_band;          ///< tag height band (a wearable: 0.9-1.9 m above the floor z = 0)
+  /// A batch window holding TDoA rows groups measurements closer than this
+  /// into one state instead of graph.same_state_window_ns (ns; 0: the
+  /// graph's window). LocalizerParams::with_tdoa sets it.
+  std::int64_t tdoa_state_window_ns = 0;
   /// Multilateration settings; sigma_m, long_side_loss and band are set from graph / height_band.
   MultilaterationParams fix;
   /// TDoA fix settings (windows without two-way ranges); sigma_m,

@@ -28,6 +28,9 @@ void LocalizerParams::validate() const {
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   height_band.validate("LocalizerParams.height_band");
+  if (with_tdoa.state_window_ns < 0 || with_tdoa.state_window_ns > 1'000'000'000) {
+    fail("with_tdoa.state_window_ns", "must be in [0, 1 s] (0: the graph's window)");
+  }
   if (vertical_speed_sigma_m_s && !(*vertical_speed_sigma_m_s >= 0.0 && std::isfinite(*vertical_speed_sigma_m_s))) {
     fail("vertical_speed_sigma_m_s", "must be finite and >= 0 (or unset: auto)");
   }
@@ -92,6 +95,7 @@ LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors
   // The initializer's batch window and small solvers use the estimator's
   // graph (IMU model, noise, lever arms, TDoA and ultrasonic settings).
   p.init.graph = p.graph;
+  p.init.tdoa_state_window_ns = p.with_tdoa.state_window_ns;
   return p;
 }
 
@@ -202,22 +206,26 @@ void Localizer::guarded(F&& f) {
 
 void Localizer::startTracking() {
   RangeImuGraphParams graph = params_.graph;
-  if (!params_.vertical_speed_sigma_m_s) {
-    // "auto": the data the tracker starts on say which ranging is in use.
-    const std::vector<Measurement>& buffered = initializer_.measurementBuffer();
-    const bool tdoa = std::any_of(buffered.begin(), buffered.end(),
-                                  [](const Measurement& m) { return m.kind == Measurement::Kind::kTdoa; });
-    graph.vertical_speed_sigma_m_s = defaultVerticalSpeedSigma(tdoa);
-  }
+  RangeImuStreamOptions stream = params_.stream;
+  // The data the tracker starts on say which ranging is in use.
+  const std::vector<Measurement>& buffered = initializer_.measurementBuffer();
+  const bool tdoa = std::any_of(buffered.begin(), buffered.end(),
+                                [](const Measurement& m) { return m.kind == Measurement::Kind::kTdoa; });
+  if (!params_.vertical_speed_sigma_m_s) graph.vertical_speed_sigma_m_s = defaultVerticalSpeedSigma(tdoa);  // "auto"
+  if (tdoa && params_.with_tdoa.state_window_ns > 0) graph.same_state_window_ns = params_.with_tdoa.state_window_ns;
+  if (tdoa && params_.with_tdoa.dynamic_covariance) stream.dynamic_covariance.enabled = true;
   tracking_vertical_speed_sigma_m_s_ = graph.vertical_speed_sigma_m_s;
+  tracking_dynamic_covariance_ = params_.estimator == LocalizerParams::Estimator::kEkf
+                                     ? params_.ekf.dynamic_covariance.enabled
+                                     : stream.dynamic_covariance.enabled;
   if (params_.estimator == LocalizerParams::Estimator::kEkf) {
     estimator_ = std::make_unique<EkfEstimator>(p_w_anchors_, graph, params_.ekf);
   } else if (params_.estimator == LocalizerParams::Estimator::kSlidingWindow) {
     estimator_ = std::make_unique<RangeImuEstimator>(
-        p_w_anchors_, graph, std::make_unique<SlidingWindowSmoother>(params_.sliding_window), params_.stream);
+        p_w_anchors_, graph, std::make_unique<SlidingWindowSmoother>(params_.sliding_window), stream);
   } else {
     estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, graph,
-                                                     std::make_unique<BayesTreeSmoother>(params_.smoother), params_.stream);
+                                                     std::make_unique<BayesTreeSmoother>(params_.smoother), stream);
   }
   // Starts at the initializer's state and replays what it buffered after
   // it, so no sample is lost.

@@ -60,6 +60,22 @@ struct LocalizerParams {
   /// tracked states kTdoaVerticalSpeedSigmaMs when the data that started
   /// tracking hold TDoA rows, else none (defaultVerticalSpeedSigma).
   std::optional<double> vertical_speed_sigma_m_s;
+  /// Settings for data with UWB TDoA rows (seed 002's system), applied when
+  /// the data a batch window (initializer) or the tracker starts on hold
+  /// TDoA rows, so that one configuration serves both ranging schemes.
+  struct WithTdoa {
+    /// Measurements closer than this share one state, instead of
+    /// graph.same_state_window_ns (ns; 0: keep that). A TDoA round of 8
+    /// anchors is 8 packets 6.25 ms apart: 40 states a second instead of
+    /// 160. With the graph's 5 ms the office TDoA sims replayed at 3.4x real
+    /// time and 0.46 m online error, against 40x and 0.32 m.
+    std::int64_t state_window_ns = 25'000'000;
+    /// Per-link TDoA and ultrasonic sigmas from their residuals
+    /// (stream.dynamic_covariance on; false: as `stream` says): the office
+    /// sims' NLOS TDoA errors are 1.3-1.5 m against a nominal 0.15 m.
+    bool dynamic_covariance = true;
+  };
+  WithTdoa with_tdoa;
   // Failure detection: any of these ends tracking and restarts initialization.
   double max_speed_m_s = 10.0;       ///< a walking/running person stays well below
   double max_accel_bias_m_s2 = 1.5;  ///< far beyond a BMI263's bias range
@@ -147,6 +163,9 @@ class Localizer {
   /// The tracker's vertical speed prior (m/s; 0: none): the configured one,
   /// or what "auto" chose when tracking last started.
   double trackingVerticalSpeedSigma() const { return tracking_vertical_speed_sigma_m_s_; }
+  /// Whether the tracker started last uses per-link TDoA/ultrasonic sigmas
+  /// (the graph stream's or the EKF's dynamic covariance; with_tdoa).
+  bool trackingDynamicCovariance() const { return tracking_dynamic_covariance_; }
   /// Why tracking last ended ("speed 14.2 m/s at t=12.3 s"), empty if never.
   const std::string& lastFailure() const { return last_failure_; }
 
@@ -170,6 +189,7 @@ class Localizer {
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
   double tracking_vertical_speed_sigma_m_s_ = 0.0;
+  bool tracking_dynamic_covariance_ = false;
   Eigen::Vector2d anchors_min_xy_, anchors_max_xy_;  ///< horizontal bounding box of the UWB anchors (m)
   RangingSupport ranging_support_;  ///< when max_outside_anchors_m is judged
   std::int64_t last_imu_ns_ = 0;

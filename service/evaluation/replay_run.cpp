@@ -115,14 +115,16 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
     lp.stream.dynamic_covariance.enabled = *s.dynamic_covariance;
     lp.with_tdoa.dynamic_covariance = *s.dynamic_covariance;
   }
-  // The EKF baseline gets the graph's per-link sigmas too: at the configured
-  // 0.15 m against the office sim's 1.3-1.5 m NLOS TDoA errors its covariance
-  // collapsed to a few cm, its gate refused 30-70 % of the rows and it
-  // diverged (21 re-initializations on the three office sims).
-  lp.ekf.dynamic_covariance.enabled = s.dynamic_covariance.value_or(tdoa_used);
-  // And a velocity that may wander (EkfParams::velocity_noise_density): with
-  // the IMU's densities alone it learnt a tilt from NLOS errors that persist
-  // for seconds and ran away on 4 of 12 office sims (issue 7).
+  // The EKF baseline gets the per-link sigmas like the graph (with_tdoa): at
+  // the configured 0.15 m against the office sim's 1.3-1.5 m NLOS TDoA errors
+  // its covariance collapsed to a few cm, its gate refused 30-70 % of the
+  // rows and it diverged (21 re-initializations on the three office sims).
+  if (s.dynamic_covariance) lp.ekf.dynamic_covariance.enabled = *s.dynamic_covariance;
+  // And, the replay's own choice for the baseline (rilod runs no EKF, so
+  // also with service_params), a velocity that may wander
+  // (EkfParams::velocity_noise_density): with the IMU's densities alone it
+  // learnt a tilt from NLOS errors that persist for seconds and ran away on 4
+  // of 12 office sims (issue 7).
   if (tdoa_used) lp.ekf.velocity_noise_density = kEkfTdoaVelocityNoiseDensity;
   setEstimatorByName(lp, s.smoother);
   lp.smoother.lag_s = s.lag_s;

@@ -38,8 +38,9 @@ struct ReplaySettings {
   /// The service's parameters (rilod's configuration, `rilo replay
   /// --config`): the replay starts from them instead of the library defaults,
   /// and takes nothing from the recording but its data, anchors and
-  /// ultrasonic beacons (not its IMU densities or lever arms, nor the TDoA
-  /// defaults below), so it runs what rilod would run. smoother, noise and
+  /// ultrasonic beacons (not its IMU densities or lever arms, nor the vertical
+  /// speed default below; the EKF's TDoA velocity noise stays, rilod has no
+  /// EKF), so it runs what rilod would run. smoother, noise and
   /// lag_s still apply (a caller sets them from the same configuration unless
   /// told otherwise), and so does every optional setting that is set.
   std::optional<LocalizerParams> service_params;
@@ -79,10 +80,9 @@ struct ReplaySettings {
   /// LocalizerParams::with_tdoa's 25 ms).
   std::optional<double> same_state_window_ms;
   /// Per-link TDoA and ultrasonic sigmas from DynamicCovariance. true: the
-  /// graph stream and the EKF; false: neither; unset: both when TDoA rows
-  /// are used (the graph stream by LocalizerParams::with_tdoa, seed 002's
-  /// system: 20-45 % lower online RMSE of the sliding window on the hall and
-  /// office sims; the EKF by the replay, see localizerParamsFor).
+  /// graph stream and the EKF; false: neither; unset: both once the data
+  /// hold TDoA rows (LocalizerParams::with_tdoa; seed 002's system: 20-45 %
+  /// lower online RMSE of the sliding window on the hall and office sims).
   std::optional<bool> dynamic_covariance;
   // TDoA and ultrasonic noise models (unset: RangeImuGraphParams defaults).
   std::optional<double> tdoa_sigma_m, ultrasonic_sigma_m;  ///< LOS std-dev (m)

@@ -312,6 +312,15 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     const ConfigMap t = f->map({"state_window_s", "dynamic_covariance"});
     t.read("state_window_s", e.with_tdoa.state_window_ns, [](const ConfigField& w) { return w.secondsAsNs(0.0, 1.0); });
     t.read("dynamic_covariance", e.with_tdoa.dynamic_covariance, [](const ConfigField& d) { return d.boolean(); });
+    if (e.with_tdoa.state_window_ns >= e.graph.max_state_interval_ns) {
+      (t.has("state_window_s") ? t.require("state_window_s") : *f)
+          .fail("state_window_s must be below range.max_state_interval_s (" +
+                std::to_string(static_cast<double>(e.graph.max_state_interval_ns) * 1e-9) + " s)");
+    }
+  } else if (e.with_tdoa.state_window_ns >= e.graph.max_state_interval_ns) {
+    (m.has("range") ? m.require("range") : field)
+        .fail("max_state_interval_s must exceed tdoa.state_window_s (" +
+              std::to_string(static_cast<double>(e.with_tdoa.state_window_ns) * 1e-9) + " s; set it in a tdoa section)");
   }
   m.read("max_outside_anchors_m", e.max_outside_anchors_m, [](const ConfigField& f) {
     const double v = f.number(0.0, std::numeric_limits<double>::infinity(), true);  // as positive(), with .inf

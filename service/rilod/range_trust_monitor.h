@@ -39,6 +39,8 @@ class RangeTrustMonitor {
   std::uint64_t judge(const StateEstimate& latest) noexcept;
   /// Tracking ended: forget the pending ranges.
   void reset() noexcept { pending_.clear(); }
+  /// The tracker's state window (ns; Localizer::trackingStateWindowNs).
+  void setStateWindow(std::int64_t same_state_window_ns) noexcept { group_window_ns_ = same_state_window_ns; }
 
   std::uint64_t rejected() const noexcept { return rejected_; }
   std::uint64_t judged() const noexcept { return judged_; }

@@ -322,6 +322,7 @@ void Service::estimatorLoop() {
     }
     if (!was_tracking && localizer_.tracking()) {
       trust_.reset();
+      trust_.setStateWindow(localizer_.trackingStateWindowNs());
       request_status = true;
       init_attempts_seen_ = 0;
       if (options_.on_event) options_.on_event("initialized: " + localizer_.initStatus().message);

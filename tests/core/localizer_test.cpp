@@ -378,6 +378,22 @@ TEST(Localizer, TrackingFarOutsideTheAnchorsIsAFailure) {
   EXPECT_NO_THROW(p.validate()) << "+inf: off";
 }
 
+TEST(LocalizerParams, TheTdoaStateWindowMustFitBelowTheLongestStateInterval) {
+  LocalizerParams p;
+  EXPECT_NO_THROW(p.validate());
+  p.with_tdoa.state_window_ns = 0;  // the graph's window
+  EXPECT_NO_THROW(p.validate());
+  p.with_tdoa.state_window_ns = p.graph.max_state_interval_ns;  // a state would never close
+  try {
+    p.validate();
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("with_tdoa.state_window_ns"), std::string::npos) << e.what();
+  }
+  p.with_tdoa.state_window_ns = -1;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+}
+
 TEST(Localizer, DropsAHeightBandThatDoesNotFitTheAnchors) {
   sim::ScenarioParams sp;
   sp.duration_s = 2.0;

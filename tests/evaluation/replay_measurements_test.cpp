@@ -78,17 +78,23 @@ TEST(ReplayMeasurements, OnlyTheSelectedKindsReachThePipeline) {
   EXPECT_EQ(ranges_only.measurements.ultrasonic.used, 0u);
   EXPECT_FALSE(ranges_only.measurements.tdoa.selected);
   EXPECT_EQ(ranges_only.measurements.tdoa.recorded, rec.tdoa.size());
-  // Without TDoA rows the graph keeps its 5 ms state window: more states than with them (25 ms).
+  // With TDoA rows the Localizer groups them into 25 ms states (with_tdoa):
+  // the same data in the graph's 5 ms states make more updates.
   const ReplayResult all = replayRecording(rec, ReplaySettings());
-  // (the Localizer's with_tdoa window; the replay leaves both windows to it).
   EXPECT_EQ(localizerParamsFor(rec, s).graph.same_state_window_ns, 5'000'000);
   EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).with_tdoa.state_window_ns, 25'000'000);
-  EXPECT_NE(ranges_only.updates.size(), all.updates.size());
+  ReplaySettings five_ms;
+  five_ms.same_state_window_ms = 5.0;
+  EXPECT_GT(replayRecording(rec, five_ms).updates.size(), all.updates.size() * 3 / 2);
   // Dynamic covariance by default when TDoA is used: the graph stream (the
   // Localizer's with_tdoa) and the EKF alike.
-  EXPECT_FALSE(localizerParamsFor(rec, s).ekf.dynamic_covariance.enabled);
-  EXPECT_TRUE(localizerParamsFor(rec, ReplaySettings()).ekf.dynamic_covariance.enabled);
+  EXPECT_TRUE(localizerParamsFor(rec, ReplaySettings()).with_tdoa.dynamic_covariance);
   EXPECT_TRUE(all.dynamic_covariance);
+  ReplaySettings ekf_run;
+  ekf_run.smoother = "ekf";
+  EXPECT_TRUE(replayRecording(rec, ekf_run).dynamic_covariance);
+  ekf_run.measurements = s.measurements;  // ranges only
+  EXPECT_FALSE(replayRecording(rec, ekf_run).dynamic_covariance);
   EXPECT_FALSE(ranges_only.dynamic_covariance);
   ReplaySettings off;
   off.dynamic_covariance = false;

@@ -81,7 +81,8 @@ int runReplay(const ReplayOptions& o) {
   summary << "{\n  \"recording\": " << jsonString(o.recording)
           << ",\n  \"config\": " << (o.config.empty() ? std::string("null") : jsonString(o.config))
           << ",\n  \"smoother\": " << jsonString(o.settings.smoother)
-          << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"range_hz\": " << o.settings.range_hz
+          << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"lag_s\": " << o.settings.lag_s
+          << ",\n  \"range_hz\": " << o.settings.range_hz
           << ",\n  \"thinning\": " << jsonString(rangeThinningName(o.settings.thinning))
           << ",\n  \"ranges_used\": " << run.ranges_used
           << ",\n  \"measurements\": {\"selected\": " << jsonString(toString(o.settings.measurements))
@@ -203,7 +204,7 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");
   cmd->add_option("--max-height", options->settings.max_height_m, "Highest tag height above the floor (m)");
   cmd->add_option("--vertical-speed-sigma", options->settings.vertical_speed_sigma_m_s,
-                  "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none; default 0.05 when TDoA rows are used, else none)")->check(CLI::Range(0.0, 100.0));
+                  "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none; default 0.05 when TDoA rows are used, else none; with --config: its vertical_speed_sigma_m_s)")->check(CLI::Range(0.0, 100.0));
   cmd->add_option_function<std::string>(
          "--measurements", [options](const std::string& list) { options->settings.measurements = measurementKindsFromString(list); },
          "Measurement kinds fed to the pipeline, comma-separated: range,tdoa,ultrasonic (default: every kind the recording has)")
@@ -220,7 +221,7 @@ void addReplayCommand(CLI::App& app) {
       ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--reception-seed", options->settings.reception_seed, "Seed of the --reception draws")->capture_default_str();
   cmd->add_option("--state-window-ms", options->settings.same_state_window_ms,
-                  "Measurements closer than this share one state (ms; default 5, or 25 when TDoA rows are used)")
+                  "Measurements closer than this share one state, whatever the data (ms; default 5, or 25 once the data hold TDoA rows; with --config: its range.same_state_window_s and tdoa.state_window_s)")
       ->check(CLI::Range(0.0, 1000.0));
   cmd->add_option("--tdoa-sigma", options->settings.tdoa_sigma_m, "LOS std-dev of a TDoA range difference (m)")
       ->check(CLI::Range(0.001, 10.0));
@@ -231,8 +232,8 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--ultrasonic-noise", options->settings.ultrasonic_noise, "Ultrasonic noise model (default huber)")
       ->check(CLI::IsMember(rangeLossNames()));
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
-                  "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on for the graph "
-                  "estimators and the EKF when TDoA rows are used)");
+                  "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on once the data hold TDoA "
+                  "rows; with --config: its tdoa.dynamic_covariance)");
   cmd->callback([options, smoother, noise, lag] {
     int code = 1;
     try {

@@ -28,8 +28,8 @@ void LocalizerParams::validate() const {
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   height_band.validate("LocalizerParams.height_band");
-  if (with_tdoa.state_window_ns < 0 || with_tdoa.state_window_ns > 1'000'000'000) {
-    fail("with_tdoa.state_window_ns", "must be in [0, 1 s] (0: the graph's window)");
+  if (with_tdoa.state_window_ns < 0 || with_tdoa.state_window_ns >= graph.max_state_interval_ns) {
+    fail("with_tdoa.state_window_ns", "must be in [0, graph.max_state_interval_ns) (0: the graph's window)");
   }
   if (vertical_speed_sigma_m_s && !(*vertical_speed_sigma_m_s >= 0.0 && std::isfinite(*vertical_speed_sigma_m_s))) {
     fail("vertical_speed_sigma_m_s", "must be finite and >= 0 (or unset: auto)");
@@ -213,13 +213,19 @@ void Localizer::startTracking() {
                                 [](const Measurement& m) { return m.kind == Measurement::Kind::kTdoa; });
   if (!params_.vertical_speed_sigma_m_s) graph.vertical_speed_sigma_m_s = defaultVerticalSpeedSigma(tdoa);  // "auto"
   if (tdoa && params_.with_tdoa.state_window_ns > 0) graph.same_state_window_ns = params_.with_tdoa.state_window_ns;
-  if (tdoa && params_.with_tdoa.dynamic_covariance) stream.dynamic_covariance.enabled = true;
+  EkfParams ekf = params_.ekf;
+  if (tdoa && params_.with_tdoa.dynamic_covariance) {
+    stream.dynamic_covariance.enabled = true;
+    ekf.dynamic_covariance.enabled = true;
+  }
   tracking_vertical_speed_sigma_m_s_ = graph.vertical_speed_sigma_m_s;
+  tracking_state_window_ns_ = graph.same_state_window_ns;
+  consistency_.setStateWindow(graph.same_state_window_ns);
   tracking_dynamic_covariance_ = params_.estimator == LocalizerParams::Estimator::kEkf
-                                     ? params_.ekf.dynamic_covariance.enabled
+                                     ? ekf.dynamic_covariance.enabled
                                      : stream.dynamic_covariance.enabled;
   if (params_.estimator == LocalizerParams::Estimator::kEkf) {
-    estimator_ = std::make_unique<EkfEstimator>(p_w_anchors_, graph, params_.ekf);
+    estimator_ = std::make_unique<EkfEstimator>(p_w_anchors_, graph, ekf);
   } else if (params_.estimator == LocalizerParams::Estimator::kSlidingWindow) {
     estimator_ = std::make_unique<RangeImuEstimator>(
         p_w_anchors_, graph, std::make_unique<SlidingWindowSmoother>(params_.sliding_window), stream);

@@ -68,11 +68,14 @@ struct LocalizerParams {
     /// graph.same_state_window_ns (ns; 0: keep that). A TDoA round of 8
     /// anchors is 8 packets 6.25 ms apart: 40 states a second instead of
     /// 160. With the graph's 5 ms the office TDoA sims replayed at 3.4x real
-    /// time and 0.46 m online error, against 40x and 0.32 m.
+    /// time and 0.46 m online error, against 27x and 0.35 m. Below
+    /// graph.max_state_interval_ns. The range-consistency monitor follows
+    /// the tracker's window (trackingStateWindowNs).
     std::int64_t state_window_ns = 25'000'000;
     /// Per-link TDoA and ultrasonic sigmas from their residuals
-    /// (stream.dynamic_covariance on; false: as `stream` says): the office
-    /// sims' NLOS TDoA errors are 1.3-1.5 m against a nominal 0.15 m.
+    /// (stream.dynamic_covariance and ekf.dynamic_covariance on; false: as
+    /// they say): the office sims' NLOS TDoA errors are 1.3-1.5 m against a
+    /// nominal 0.15 m.
     bool dynamic_covariance = true;
   };
   WithTdoa with_tdoa;
@@ -164,8 +167,11 @@ class Localizer {
   /// or what "auto" chose when tracking last started.
   double trackingVerticalSpeedSigma() const { return tracking_vertical_speed_sigma_m_s_; }
   /// Whether the tracker started last uses per-link TDoA/ultrasonic sigmas
-  /// (the graph stream's or the EKF's dynamic covariance; with_tdoa).
+  /// (the graph stream's or the EKF's dynamic covariance, as configured or
+  /// by with_tdoa); false before the first tracking.
   bool trackingDynamicCovariance() const { return tracking_dynamic_covariance_; }
+  /// The tracker's state window (ns): graph.same_state_window_ns, or with_tdoa's on TDoA data.
+  std::int64_t trackingStateWindowNs() const { return tracking_state_window_ns_; }
   /// Why tracking last ended ("speed 14.2 m/s at t=12.3 s"), empty if never.
   const std::string& lastFailure() const { return last_failure_; }
 
@@ -190,6 +196,7 @@ class Localizer {
   double flagged_excess_m_ = 0.0;
   double tracking_vertical_speed_sigma_m_s_ = 0.0;
   bool tracking_dynamic_covariance_ = false;
+  std::int64_t tracking_state_window_ns_ = 0;
   Eigen::Vector2d anchors_min_xy_, anchors_max_xy_;  ///< horizontal bounding box of the UWB anchors (m)
   RangingSupport ranging_support_;  ///< when max_outside_anchors_m is judged
   std::int64_t last_imu_ns_ = 0;

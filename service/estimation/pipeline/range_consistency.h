@@ -90,6 +90,8 @@ class RangeConsistencyMonitor {
   bool judge(std::int64_t t_ns, const Pose3& T_w_b) noexcept;
   /// Tracking (re)started: forget everything.
   void reset() noexcept;
+  /// The tracker's state window (ns): ranges up to this after a state are its own.
+  void setStateWindow(std::int64_t same_state_window_ns) noexcept { group_window_ns_ = same_state_window_ns; }
 
   /// Share of short ranges in the current window (0 if nothing judged).
   double shortShare() const noexcept;

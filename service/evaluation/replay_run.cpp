@@ -111,15 +111,16 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.ultrasonic_sigma_m) lp.graph.ultrasonic_sigma_m = *s.ultrasonic_sigma_m;
   if (s.tdoa_noise) lp.graph.tdoa_loss = *s.tdoa_noise;
   if (s.ultrasonic_noise) lp.graph.ultrasonic_loss = *s.ultrasonic_noise;
+  // The EKF baseline needs the per-link sigmas as much as the graph (with_tdoa
+  // gives them to both): at the configured 0.15 m against the office sim's
+  // 1.3-1.5 m NLOS TDoA errors its covariance collapsed to a few cm, its gate
+  // refused 30-70 % of the rows and it diverged (21 re-initializations on the
+  // three office sims).
   if (s.dynamic_covariance) {
     lp.stream.dynamic_covariance.enabled = *s.dynamic_covariance;
+    lp.ekf.dynamic_covariance.enabled = *s.dynamic_covariance;
     lp.with_tdoa.dynamic_covariance = *s.dynamic_covariance;
   }
-  // The EKF baseline gets the per-link sigmas like the graph (with_tdoa): at
-  // the configured 0.15 m against the office sim's 1.3-1.5 m NLOS TDoA errors
-  // its covariance collapsed to a few cm, its gate refused 30-70 % of the
-  // rows and it diverged (21 re-initializations on the three office sims).
-  if (s.dynamic_covariance) lp.ekf.dynamic_covariance.enabled = *s.dynamic_covariance;
   // And, the replay's own choice for the baseline (rilod runs no EKF, so
   // also with service_params), a velocity that may wander
   // (EkfParams::velocity_noise_density): with the IMU's densities alone it

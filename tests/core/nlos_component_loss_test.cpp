@@ -157,9 +157,10 @@ Measurement rangeWithGap(double gap_db) {
   return Measurement::of(s);
 }
 
-TEST(RangeModel, FlaggedRangesGetTheMixtureWithTheLargerNlosPriorByDefault) {
+TEST(RangeModel, FlaggedRangesGetTheMixtureWithTheLargerNlosPriorOnRequest) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;
+  noise.flagged_nlos_component = false;
   const RangeModel model("asymmetric", noise);
   ASSERT_TRUE(model.usesIndicator());
   const RangeTerm flagged = model.term(rangeWithGap(9.0), 0.1);
@@ -187,6 +188,7 @@ TEST(RangeModel, FlaggedRangesTakeTheirOwnExcessScaleWhenGiven) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;
   noise.flagged_nlos_scale_m = 0.5;
+  noise.flagged_nlos_component = false;
   const RangeModel model("asymmetric", noise);
   const auto* flagged = dynamic_cast<const AsymmetricLoss*>(model.term(rangeWithGap(9.0), 0.1).loss.get());
   const auto* clear = dynamic_cast<const AsymmetricLoss*>(model.term(rangeWithGap(3.0), 0.1).loss.get());
@@ -210,21 +212,23 @@ TEST(RangeModel, FlaggedRangesTakeTheirOwnExcessScaleWhenGiven) {
   }
 }
 
-TEST(RangeModel, FlaggedRangesGetTheNlosComponentShiftedAndWidenedOnRequest) {
+TEST(RangeModel, FlaggedRangesGetTheNlosComponentShiftedAndWidenedByDefault) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;
-  noise.flagged_nlos_component = true;
+  ASSERT_TRUE(noise.flagged_nlos_component);
   const RangeModel model("asymmetric", noise);
   ASSERT_TRUE(model.usesIndicator());
   const std::shared_ptr<const NlosComponentLoss> nlos = makeNlosComponentLoss(noise.flagged());
-  EXPECT_DOUBLE_EQ(nlos->gamma(), noise.nlosScaleM() / 0.1) << "unset flagged scale: the shared one";
+  EXPECT_DOUBLE_EQ(nlos->gamma(), RangeNoiseParams::kDefaultFlaggedComponentScaleM / 0.1)
+      << "unset flagged scale: the component's own default, 1 m";
 
   const RangeTerm flagged = model.term(rangeWithGap(9.0), 0.1);
   EXPECT_TRUE(flagged.flagged_nlos);
   EXPECT_EQ(flagged.loss, nlos);
-  EXPECT_DOUBLE_EQ(flagged.range_m, 7.0 - nlos->modeSigmas() * 0.1);
+  EXPECT_DOUBLE_EQ(flagged.range_m, 7.0 - nlos->modeSigmas() * 0.1) << "no excess set: the component's mode";
   EXPECT_DOUBLE_EQ(flagged.sigma_m, 0.1 * nlos->sigmaScale());
   EXPECT_LT(flagged.range_m, 7.0);
+  EXPECT_GT(nlos->sigmaScale(), 2.0) << "a flagged range weighs much less than a clear one";
 
   // At or below the threshold, or without powers: the mixture, untouched.
   for (const Measurement& m : {rangeWithGap(6.0), rangeWithGap(2.0), Measurement::of(RangeSample{})}) {
@@ -235,6 +239,36 @@ TEST(RangeModel, FlaggedRangesGetTheNlosComponentShiftedAndWidenedOnRequest) {
     EXPECT_EQ(t.sigma_m, 0.1);
   }
   EXPECT_TRUE(std::isnan(Measurement::of(RangeSample{}).power_gap_db)) << "no powers: no indicator";
+}
+
+TEST(RangeModel, ASetExcessReplacesTheComponentsModeEvenWhenZero) {
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.1;
+  RangeModel model("asymmetric", noise);
+  const std::shared_ptr<const NlosComponentLoss> nlos = makeNlosComponentLoss(noise.flagged());
+  ASSERT_GT(nlos->modeSigmas(), 0.5);
+  model.setFlaggedExcess(0.0);  // what the Localizer sets before its estimate has enough ranges
+  const RangeTerm zero = model.term(rangeWithGap(9.0), 0.1);
+  EXPECT_DOUBLE_EQ(zero.range_m, 7.0) << "attenuated-only sites: no shift for nothing";
+  EXPECT_DOUBLE_EQ(zero.sigma_m, 0.1 * nlos->sigmaScale()) << "still the component's width";
+  EXPECT_EQ(zero.loss, nlos);
+  model.setFlaggedExcess(0.3);
+  EXPECT_DOUBLE_EQ(model.term(rangeWithGap(9.0), 0.1).range_m, 7.0 - 0.3);
+  EXPECT_DOUBLE_EQ(model.term(rangeWithGap(3.0), 0.1).range_m, 7.0) << "unflagged ranges keep their value";
+}
+
+TEST(RangeModel, TheDefaultComponentScaleStaysWithinTheTableAtSmallSigmas) {
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.02;  // 1 m would be 50 sigmas, beyond NlosComponentLoss::kMaxGamma
+  const RangeModel model("asymmetric", noise);  // must not throw
+  const auto* alone = dynamic_cast<const NlosComponentLoss*>(model.term(rangeWithGap(9.0), 0.02).loss.get());
+  ASSERT_NE(alone, nullptr);
+  EXPECT_DOUBLE_EQ(alone->gamma(), NlosComponentLoss::kMaxGamma);
+  noise.flagged_nlos_scale_m = 1.0;  // given explicitly: refused, naming the limit
+  EXPECT_THROW(RangeModel("asymmetric", noise), std::invalid_argument);
+  noise.flagged_nlos_scale_m.reset();
+  noise.flagged_nlos_component = false;
+  EXPECT_DOUBLE_EQ(noise.flagged().nlosScaleM(), noise.nlosScaleM()) << "the mixture keeps the shared scale";
 }
 
 TEST(RangeModel, OnlyTheConvolvedAsymmetricModelUsesTheIndicator) {

@@ -184,16 +184,19 @@ void addReplayCommand(CLI::App& app) {
                   "this get the asymmetric model's NLOS component (dB; default 6, Decawave APS006; inf: off)")
       ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   cmd->add_option("--flagged-nlos-weight", options->settings.flagged_nlos_weight,
-                  "Prior NLOS probability of a range the receiver flags (--nlos-gap-db; default 0.45)")
+                  "Prior NLOS probability of a range the receiver flags (--nlos-gap-db), with the mixture "
+                  "(--flagged-nlos-component false; default 0.45)")
       ->check(CLI::Range(0.001, 0.499));
   cmd->add_option("--flagged-nlos-component", options->settings.flagged_nlos_component,
-                  "Flagged ranges get the asymmetric model's NLOS component alone instead of the mixture (true/false; "
-                  "default false)");
+                  "Flagged ranges get the asymmetric model's NLOS component alone, shifted by the estimated excess "
+                  "(true, the default), or the mixture at --flagged-nlos-weight (false)");
   cmd->add_option("--flagged-nlos-scale", options->settings.flagged_nlos_scale_m,
-                  "Half-Cauchy scale of the excess of a range the receiver flags (m; default: --nlos-scale)")
+                  "Half-Cauchy scale of the excess of a range the receiver flags (m; default 1 with the NLOS "
+                  "component, at most 20 range sigmas; --nlos-scale with the mixture)")
       ->check(CLI::Range(0.001, 100.0));
   cmd->add_option("--flagged-excess-quantile", options->settings.flagged_excess_quantile,
-                  "Quantile of the flagged ranges' residuals taken as their excess, estimated on line (default 0.25; 0: off)")
+                  "Quantile of the flagged ranges' residuals taken as their excess, estimated on line (default 0.25; 0: "
+                  "off, the NLOS component's mode instead)")
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--max-outside-anchors", options->settings.max_outside_anchors_m,
                   "Re-initialize when the tag is estimated farther than this beyond the anchors' horizontal box while "

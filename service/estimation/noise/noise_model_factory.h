@@ -2,6 +2,7 @@
 // Builds the robust loss of range-like factors from a configuration name.
 // The losses act on the whitened residual r = (measured - predicted) / sigma_m,
 // so every parameter below is given in sigmas except the metric NLOS scale.
+#include <algorithm>
 #include <memory>
 #include <optional>
 #include <string>
@@ -30,19 +31,20 @@ struct RangeNoiseParams {
   /// (nlos_component_loss.h) instead of the mixture. Only with the
   /// "asymmetric" model and ranges that carry both powers; +inf disables.
   double nlos_power_gap_db = 6.0;
-  /// How a flagged range is modelled: the mixture with this larger prior NLOS
-  /// weight (default; a flagged range with a small excess still fits the LOS
-  /// core, as through-wall paths do), or, with flagged_nlos_component, the
-  /// NLOS component alone (nlos_component_loss.h: better under heavy NLOS,
-  /// biased when flagged ranges carry no excess). range_model.h.
+  /// How a flagged range is modelled (range_model.h, docs/noise-models.md):
+  /// the model's NLOS component alone (default, flagged_nlos_component), or
+  /// the mixture with this larger prior NLOS weight (a flagged range with a
+  /// small excess still fits the LOS core, and pulls the tag towards zero
+  /// excess: under heavy NLOS with anchors overhead, 0.3-0.4 m low).
   double flagged_nlos_weight = 0.45;
-  bool flagged_nlos_component = false;
-  /// Half-Cauchy scale of a flagged range's excess [m]; unset: nlos_scale_m.
-  /// A site whose flagged ranges run longer than its unflagged NLOS ranges
-  /// can widen it (office sims: flagged excess median 0.35-0.5 m, unflagged
-  /// NLOS 0.13-0.17 m); on 15 sims 0.5-1.0 m changed the mean error by
-  /// < 0.01 m, so it is no default (docs/noise-models.md).
+  bool flagged_nlos_component = true;
+  /// Half-Cauchy scale of a flagged range's excess [m]; unset: with the
+  /// component, kDefaultFlaggedComponentScaleM (at most
+  /// NlosComponentLoss::kMaxGamma LOS sigmas); with the mixture, nlos_scale_m.
+  /// 0.7 / 1 / 1.5 m: 0.347 / 0.339 / 0.319 m online on the 11 issue-4 sims
+  /// at 40 Hz, 1.5 m worse at 1 Hz (0.629 against 0.615).
   std::optional<double> flagged_nlos_scale_m;
+  static constexpr double kDefaultFlaggedComponentScaleM = 1.0;
 
   /// gamma in metres after applying the default.
   double nlosScaleM() const { return nlos_scale_m.value_or(kGaussianIqrPerSigma * sigma_m); }
@@ -50,7 +52,9 @@ struct RangeNoiseParams {
   RangeNoiseParams flagged() const {
     RangeNoiseParams f = *this;
     f.nlos_weight = flagged_nlos_weight;
-    f.nlos_scale_m = flagged_nlos_scale_m.value_or(nlosScaleM());
+    f.nlos_scale_m = flagged_nlos_scale_m.value_or(
+        flagged_nlos_component ? std::min(kDefaultFlaggedComponentScaleM, NlosComponentLoss::kMaxGamma * sigma_m)
+                               : nlosScaleM());
     return f;
   }
 };

@@ -139,6 +139,7 @@ Initializer::Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params
   params_.tdoa_fix.ultrasonic_sigma_m = g.ultrasonic_sigma_m;
   params_.tdoa_fix.ultrasonic_offset_m = (g.p_b_ultrasonic - g.p_b_tag).norm();
   params_.tdoa_fix.band = params_.height_band;
+  if (params_.batch_flagged_mixture) params_.graph.range_noise.flagged_nlos_component = false;
   params_.validate();
   p_w_fix_sources_ = p_w_anchors_;
   p_w_fix_sources_.insert(p_w_fix_sources_.end(), g.p_w_ultrasonic.begin(), g.p_w_ultrasonic.end());

@@ -109,10 +109,11 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
                    params_.graph.same_state_window_ns, params_.range_consistency,
                    params_.graph.range_noise.nlos_power_gap_db) {
   params_.validate();
-  // Only the mixture's flagged ranges take a shift (range_model.h).
+  // Flagged ranges take the estimated shift, whether modelled by the NLOS
+  // component or the mixture (range_model.h).
   const RangeNoiseParams& n = params_.graph.range_noise;
   estimate_flagged_excess_ = params_.flagged_excess.quantile > 0.0 && params_.graph.range_loss == "asymmetric" &&
-                             std::isfinite(n.nlos_power_gap_db) && !n.flagged_nlos_component;
+                             std::isfinite(n.nlos_power_gap_db);
   if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
   anchors_min_xy_.setConstant(std::numeric_limits<double>::infinity());
   anchors_max_xy_.setConstant(-std::numeric_limits<double>::infinity());
@@ -233,6 +234,10 @@ void Localizer::startTracking() {
     estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, graph,
                                                      std::make_unique<BayesTreeSmoother>(params_.smoother), stream);
   }
+  // The new estimator starts without a shift (not the component's mode)
+  // until the estimate has enough flagged ranges.
+  flagged_excess_m_ = 0.0;
+  if (estimate_flagged_excess_) estimator_->setFlaggedExcess(flagged_excess_m_);
   // Starts at the initializer's state and replays what it buffered after
   // it, so no sample is lost.
   phase_ = Phase::kTracking;
@@ -241,7 +246,6 @@ void Localizer::startTracking() {
   consecutive_rejections_ = 0;
   consistency_.reset();
   ranging_support_.reset();
-  flagged_excess_m_ = 0.0;  // the new estimator starts without a shift
   if (rejection_window_) rejection_window_->reset();
   ++initializations_;
 }

@@ -3,12 +3,20 @@
 // the configured robust loss, or, when the receiver flags it as NLOS
 // (RangeNoiseParams::nlos_power_gap_db, the DW1000/DW3000 RX-level-minus-
 // first-path-power indicator) and the model is "asymmetric", with the
-// mixture at the larger prior NLOS weight flagged_nlos_weight and the wider
-// excess scale flagged_nlos_scale_m, or (option
-// flagged_nlos_component) with the model's NLOS component alone: the range
-// shifted by that component's most likely excess and its sigma widened to
-// the component's curvature (nlos_component_loss.h). Ranges without the
-// powers (NaN) keep the configured mixture.
+// model's NLOS component alone (default, flagged_nlos_component): the range
+// shifted by the expected excess and its sigma widened to the component's
+// curvature (nlos_component_loss.h); or with the mixture at the larger
+// prior NLOS weight flagged_nlos_weight, the range shifted by the site's
+// excess when one was set. Ranges without the powers (NaN) keep the
+// configured mixture.
+//
+// The component's shift: the site's flagged excess once setFlaggedExcess was
+// called (the Localizer's on-line estimate, range_consistency.h, which it
+// sets to 0 before the first update), else the component's own mode. The
+// fixed mode assumes the excess: where walls attenuate the first path
+// without delaying it (rilo sim --nlos-severity 0) it shortened every flagged
+// range by 0.28 m for nothing and the error tripled (0.14 -> 0.55 m), while
+// the estimated shift gave 0.17-0.21 m there (docs/noise-models.md).
 #include <string>
 
 #include "estimation/noise/noise_model_factory.h"
@@ -40,8 +48,12 @@ class RangeModel {
   const RobustLossPtr& loss() const { return loss_; }
   /// Whether the indicator is in use (asymmetric model, finite threshold).
   bool usesIndicator() const { return flagged_loss_ != nullptr; }
-  /// Expected excess of a flagged range (m), taken off it before the mixture (default mode).
-  void setFlaggedExcess(double excess_m) { flagged_excess_m_ = excess_m; }
+  /// The site's excess of a flagged range (m), taken off it before its loss
+  /// (the component's mode no longer applies once this was called).
+  void setFlaggedExcess(double excess_m) {
+    flagged_excess_m_ = excess_m;
+    excess_set_ = true;
+  }
   double flaggedExcess() const { return flagged_excess_m_; }
 
  private:
@@ -50,6 +62,7 @@ class RangeModel {
   std::shared_ptr<const NlosComponentLoss> component_;  ///< set when flagged ranges get the NLOS component
   double gap_db_;
   double flagged_excess_m_ = 0.0;
+  bool excess_set_ = false;  ///< setFlaggedExcess was called: its value replaces the component's mode
 };
 
 }  // namespace rilo

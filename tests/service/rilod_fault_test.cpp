@@ -152,6 +152,7 @@ TEST(RilodFaults, RangingBlackoutDegradesWhileOdometryContinuesThenRecovers) {
     ++n;
   }
   ASSERT_GT(n, 100);
+  std::printf("mean horizontal error over the last %d smoothed poses: %.3f m\n", n, sum / n);
   EXPECT_LT(sum / n, 1.0) << "mean horizontal error over the last " << n << " poses";
   // The log says it too.
   EXPECT_TRUE(contains(out.log, "no ranging for 2.0 s: tracking on the IMU alone")) << out.log;

@@ -46,7 +46,8 @@ struct RangeConsistencyParams {
 };
 
 /// The expected excess of ranges the receiver flags as NLOS, estimated on
-/// line (range_model.h: taken off each flagged range before the mixture):
+/// line (range_model.h: taken off each flagged range before its loss, the
+/// NLOS component or the mixture):
 /// the `quantile` of the flagged ranges' residuals (measured - predicted) at
 /// the tracked newest pose, over the last kFlaggedWindow, clamped to
 /// [0, max_m]. A low quantile: the excess has a heavy tail, and the shift

@@ -102,6 +102,8 @@ void InitializerParams::validate() const {
   if (!(zero_velocity_sigma_m_s > 0.0)) fail("zero_velocity_sigma_m_s", "must be > 0 (+inf disables)");
   if (!(batch_gate_sigma_factor >= 1.0)) fail("batch_gate_sigma_factor", "must be >= 1 (+inf disables)");
   if (!(batch_gate_max_s > 0.0)) fail("batch_gate_max_s", "must be > 0");
+  if (hand_over_later_measurements < 0) fail("hand_over_later_measurements", "must be >= 0 (0: the newest state)");
+  if (!(hand_over_sparse_span_s >= 0.0)) fail("hand_over_sparse_span_s", "must be >= 0");
   if (!(max_hand_over_residual_scale >= 1.0) || !std::isfinite(max_hand_over_residual_scale)) {
     fail("max_hand_over_residual_scale", "must be finite and >= 1 (1 disables)");
   }
@@ -615,17 +617,39 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     return false;
   }
 
+  // The hand-over state: the newest one that at least
+  // hand_over_later_measurements of the window's measurements follow (the
+  // newest with 0). See the parameter for why.
+  std::size_t h = n_states - 1;
+  const std::size_t k_later = static_cast<std::size_t>(P.hand_over_later_measurements);
+  const bool sparse = k_later > 0 && range_vec.size() > k_later &&
+                      range_vec.back().t_ns - range_vec[range_vec.size() - k_later].t_ns > toNs(P.hand_over_sparse_span_s);
+  if (sparse) {
+    std::size_t later = 0, k = range_vec.size();
+    while (h > 0) {
+      while (k > 0 && range_vec[k - 1].t_ns > win.graph.state_t_ns[h]) {
+        --k;
+        ++later;
+      }
+      if (later >= k_later) break;
+      --h;
+    }
+  }
   InitResult res;
-  res.state.index = n_states - 1;
-  res.state.t_ns = win.graph.state_t_ns.back();
-  res.state.T_w_b = T_last;
-  res.state.v_w = out.values.vec3(sym::V(n_states - 1));
-  res.state.bias = out.values.bias(sym::B(n_states - 1));
+  res.state.index = h;
+  res.state.t_ns = win.graph.state_t_ns[h];
+  res.state.T_w_b = out.values.pose(sym::X(h));
+  res.state.v_w = out.values.vec3(sym::V(h));
+  res.state.bias = out.values.bias(sym::B(h));
+  if (h != n_states - 1) {
+    const std::optional<CovarianceBlock> cov_h = lm.marginalCovariance(sym::X(h));
+    if (cov_h && cov_h->rows() == 6) cov = cov_h;
+  }
   res.pose_covariance = *cov;
   if (P.hand_over_covariance) {
     // The tracker starts from these (handOver); without them it falls back to the loose defaults.
-    const std::optional<CovarianceBlock> cov_v = lm.marginalCovariance(sym::V(n_states - 1));
-    const std::optional<CovarianceBlock> cov_b = lm.marginalCovariance(sym::B(n_states - 1));
+    const std::optional<CovarianceBlock> cov_v = lm.marginalCovariance(sym::V(h));
+    const std::optional<CovarianceBlock> cov_b = lm.marginalCovariance(sym::B(h));
     if (cov_v && cov_b && cov_v->rows() == 3 && cov_b->rows() == 6) {
       const double s = std::clamp(std::isfinite(residual_scale) ? residual_scale : 1.0, 1.0,
                                   P.max_hand_over_residual_scale);

@@ -183,11 +183,12 @@ ImuParams readImu(const ConfigField& field) {
 // --- estimator ---------------------------------------------------------------
 
 void readRelinearization(const ConfigField& field, SmootherParams& s) {
-  const ConfigMap m = field.map({"skip", "rotation_rad", "position_m", "velocity_m_s", "anchor_m",
+  const ConfigMap m = field.map({"skip", "interval_s", "rotation_rad", "position_m", "velocity_m_s", "anchor_m",
                                  "accel_bias_m_s2", "gyro_bias_rad_s", "together", "max_variables",
                                  "recent_updates", "wildfire_threshold"});
   auto threshold = [](const ConfigField& f) { return f.number(0.0, 1e3); };
   m.read("skip", s.relinearize_skip, [](const ConfigField& f) { return f.integerAs<int>(1, 1000); });
+  m.read("interval_s", s.relinearize_interval_s, [](const ConfigField& f) { return f.number(0.0, 3600.0); });
   if (auto f = m.get("rotation_rad")) s.default_pose_threshold.head<3>().setConstant(threshold(*f));
   if (auto f = m.get("position_m")) s.default_pose_threshold.tail<3>().setConstant(threshold(*f));
   if (auto f = m.get("velocity_m_s")) s.default_vec3_threshold.setConstant(threshold(*f));

@@ -8,9 +8,11 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "estimation/smoother/bayes_tree_smoother.h"
 #include "estimation/solver/batch_lm.h"
@@ -169,6 +171,60 @@ TEST(BayesTreeIncremental, AllMethodsConvergeToBatchOptimum) {
       EXPECT_NEAR(smoother.error(), smoother.errorFromScratch(), 1e-9 * smoother.error());
     }
   }
+}
+
+// relinearize_interval_s: threshold passes follow data time, not updates.
+// States 25 ms apart (40 Hz ranging), one per update: with a 0.1 s interval a
+// pass runs on every 4th update, with 0 on every one; an update without new
+// variables (an extra iteration) always runs one, so iterating still
+// reaches the batch optimum.
+TEST(BayesTreeIncremental, RelinearizationIntervalSpacesThresholdPassesInDataTime) {
+  RandomGraphOptions go;
+  go.states = 24;
+  go.dt_min_s = go.dt_max_s = 0.025;
+  go.skip_imu_probability = 0.0;
+  go.convex_losses_only = true;
+  const RandomGraph g = makeRandomGraph(41, go);
+  BatchLevenbergMarquardt lm;
+  const auto batch = lm.optimize(g.graph, g.initial);
+  ASSERT_TRUE(batch.result.converged()) << batch.result.message;
+  const double optimum = g.graph.error(batch.values);
+  FeedOptions fo;
+  fo.max_states_per_update = 1;
+  fo.defer_probability = 0.0;
+  fo.loop_update_probability = 0.0;
+
+  // Feeds the graph; returns the smoother and the updates that relinearized.
+  auto feed = [&](double interval_s, std::vector<int>& relinearized_at) {
+    SmootherParams p = testing::relinearizingParams(Method::kGaussNewton, 0.0);  // every moved variable passes
+    p.always_relinearize_recent_updates = 0;  // only threshold passes relinearize
+    p.relinearize_interval_s = interval_s;
+    auto smoother = std::make_unique<BayesTreeSmoother>(p);
+    std::mt19937 rng(41);
+    const auto schedule = makeSchedule(g, rng, fo);
+    for (std::size_t k = 0; k < schedule.size(); ++k) {
+      const UpdateStats st = smoother->update(schedule[k].factors, schedule[k].values, schedule[k].timestamps);
+      if (st.variables_relinearized > 0) relinearized_at.push_back(static_cast<int>(k));
+    }
+    return smoother;
+  };
+  std::vector<int> every, spaced;
+  feed(0.0, every);
+  const auto b = feed(0.1, spaced);
+  ASSERT_GE(every.size(), 20u) << "interval 0 relinearizes at (nearly) every update";
+  ASSERT_GE(spaced.size(), 4u);
+  EXPECT_LE(spaced.size(), every.size() / 3) << "a 0.1 s interval at 25 ms per update";
+  for (std::size_t i = 1; i < spaced.size(); ++i) {
+    EXPECT_GE(spaced[i] - spaced[i - 1], 4) << "passes 0.1 s of data apart, at updates " << spaced[i - 1] << " and "
+                                            << spaced[i];
+  }
+
+  // Extra iterations: each one relinearizes, and they converge to the optimum.
+  const UpdateStats first = b->update({}, {});
+  EXPECT_GT(first.variables_relinearized, 0);
+  for (int i = 0; i < 40; ++i) b->update({}, {});
+  EXPECT_LT(testing::maxLocalDifference(batch.values, b->estimate()), 1e-6);
+  EXPECT_NEAR(b->error(), optimum, 1e-6 * optimum);
 }
 
 // ---------------------------------------------------------------- covariance

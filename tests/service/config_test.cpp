@@ -126,7 +126,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "estimator:\n"
       "  smoother: dogleg\n"
       "  lag_s: 4.5\n"
-      "  relinearization: {skip: 2, rotation_rad: 0.02, position_m: 0.03, velocity_m_s: 0.04, anchor_m: 0.05,\n"
+      "  relinearization: {skip: 2, interval_s: 0.3, rotation_rad: 0.02, position_m: 0.03, velocity_m_s: 0.04, anchor_m: 0.05,\n"
       "                    accel_bias_m_s2: 0.006, gyro_bias_rad_s: 0.0007, together: false, max_variables: 9,\n"
       "                    recent_updates: 2, wildfire_threshold: 0.002}\n"
       "  damping: {lambda_initial: 1e-4, lambda_min: 1e-8, lambda_max: 1e4, lambda_increase: 5,\n"
@@ -171,6 +171,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_EQ(s.method, SmootherParams::Method::kDogleg);
   EXPECT_DOUBLE_EQ(s.lag_s, 4.5);
   EXPECT_EQ(s.relinearize_skip, 2);
+  EXPECT_DOUBLE_EQ(s.relinearize_interval_s, 0.3);
   EXPECT_DOUBLE_EQ(s.default_pose_threshold[0], 0.02);
   EXPECT_DOUBLE_EQ(s.default_pose_threshold[5], 0.03);
   EXPECT_DOUBLE_EQ(s.default_vec3_threshold[1], 0.04);
@@ -629,6 +630,8 @@ std::vector<BadCase> badCases() {
        "expected one of damped_factors, global", 11},
       {"relinearize_skip_zero", valid("estimator:\n  relinearization: {skip: 0}\n"),
        "estimator.relinearization.skip", "[1, 1000]", 11},
+      {"relinearize_interval_negative", valid("estimator:\n  relinearization: {interval_s: -0.1}\n"),
+       "estimator.relinearization.interval_s", "[0, 3600]", 11},
       {"trust_radius_order", valid("estimator:\n  trust_region: {initial: 0.1, min: 1.0}\n"), "estimator.trust_region",
        "trust_radius_min", 11},
       {"height_band_inverted", valid("estimator:\n  height_band: {min_height_m: 1.5, max_height_m: 1.0}\n"),

@@ -333,6 +333,13 @@ void BayesTreeSmoother::noteRecentTime(std::int64_t t_ns) {
   if (recent_times_.size() > keep) recent_times_.pop_front();
 }
 
+bool BayesTreeSmoother::thresholdIntervalElapsed(const UpdateStats& stats) const {
+  // An update without new variables is an extra iteration: it always checks.
+  if (params_.relinearize_interval_s <= 0.0 || !have_time_ || !threshold_checked_ || stats.variables_added == 0) return true;
+  const auto interval_ns = static_cast<std::int64_t>(std::llround(params_.relinearize_interval_s * 1e9));
+  return newest_t_ns_ - last_threshold_check_ns_ >= interval_ns;
+}
+
 void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vector<VarId>& marginalizable,
                                     UpdateStats& stats) {
   // After a rejected D-iSAM2 step every moved variable is relinearized at the
@@ -340,7 +347,12 @@ void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vecto
   const bool all = relinearize_all_pending_;
   relinearize_all_pending_ = false;
   const bool together = params_.relinearize_together || all;
-  const bool threshold_check = all || update_count_ % static_cast<std::uint64_t>(params_.relinearize_skip) == 0;
+  const bool threshold_check =
+      all || (update_count_ % static_cast<std::uint64_t>(params_.relinearize_skip) == 0 && thresholdIntervalElapsed(stats));
+  if (threshold_check) {
+    last_threshold_check_ns_ = newest_t_ns_;
+    threshold_checked_ = true;
+  }
   // About to be marginalized: relinearizing them alone would re-eliminate the
   // path from their leaf to the root for nothing. When everything moves
   // together they move too: a stale state next to a fresh one leaves a large

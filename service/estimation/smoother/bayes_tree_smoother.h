@@ -148,6 +148,9 @@ class BayesTreeSmoother final : public Smoother {
   std::vector<FactorId> insertFactors(const FactorGraph& new_factors, UpdateStats& stats);
   std::vector<VarId> selectMarginalizable() const;
   void noteRecentTime(std::int64_t t_ns);
+  /// Whether relinearize_interval_s of data time passed since the last
+  /// threshold pass (or none ran yet, or this update added no variables).
+  bool thresholdIntervalElapsed(const UpdateStats& stats) const;
   void relinearize(std::vector<VarId>& marked, const std::vector<VarId>& marginalizable, UpdateStats& stats);
   void markForCleanMarginalization(const std::vector<VarId>& marginalizable, std::vector<VarId>& marked,
                                    UpdateStats& stats);
@@ -226,6 +229,8 @@ class BayesTreeSmoother final : public Smoother {
   std::uint64_t stamp_ = 0;
   std::uint64_t update_count_ = 0;
   std::int64_t newest_t_ns_ = 0;
+  std::int64_t last_threshold_check_ns_ = 0;  ///< newest timestamp at the last threshold pass
+  bool threshold_checked_ = false;            ///< a threshold pass has run
   bool have_time_ = false;
   // The newest relinearize_min_recent_times distinct timestamps, oldest first.
   std::deque<std::int64_t> recent_times_;

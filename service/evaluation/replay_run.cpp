@@ -248,6 +248,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.init_attempts = localizer.initStatus().attempts;
   out.height_band_note = localizer.heightBandNote();
   out.flagged_excess_m = localizer.flaggedExcess();
+  out.flagged_scale_m = localizer.trackingFlaggedScaleM();
   out.height_band_in_use = localizer.params().graph.height_band.enabled;
   const RangeModel range_model(params.graph.range_loss, params.graph.range_noise);
   out.nlos = classifyRanges(ranges, out.smoothed, uwbAnchorsById(rec.anchors), params.graph.p_b_tag, range_model,

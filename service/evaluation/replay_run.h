@@ -124,6 +124,7 @@ struct ReplayResult {
   bool height_band_in_use = false;    ///< the tag height band held the tracked states
   std::string height_band_note;       ///< why a configured height band was dropped
   double flagged_excess_m = 0.0;      ///< final estimate of the flagged ranges' excess (Localizer::flaggedExcess)
+  double flagged_scale_m = 0.0;       ///< half-Cauchy scale of flagged ranges when tracking last started (Localizer::trackingFlaggedScaleM)
   double data_s = 0.0;                ///< recording duration (IMU span, s)
   double wall_s = 0.0;                ///< time the run took (s)
   /// Present when the recording has ground truth.

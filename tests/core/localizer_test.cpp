@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "hal/sim/office_scenario.h"
@@ -91,6 +92,35 @@ TEST(Localizer, InitializesFromScratchAndTracks) {
   ASSERT_EQ(v_cov->rows(), 3);
   EXPECT_GT(v_cov->diagonal().minCoeff(), 0.0);
   EXPECT_LT(v_cov->diagonal().maxCoeff(), 1.0);
+}
+
+// Flagged ranges' component scale follows the two-way ranging rate of the
+// data tracking starts on (RangeNoiseParams::flagged_scale_reference_hz):
+// widened at 40 Hz, the default at 4 Hz, and a configured scale is kept.
+TEST(Localizer, FlaggedScaleFollowsTheRangingRateUnlessConfigured) {
+  struct Case {
+    double range_hz;
+    std::optional<double> configured_m;
+    double expected_lo, expected_hi;
+  };
+  for (const Case& c : {Case{40.0, std::nullopt, 1.8, 2.0}, Case{4.0, std::nullopt, 1.0, 1.0},
+                        Case{40.0, 0.7, 0.7, 0.7}}) {
+    SCOPED_TRACE(::testing::Message() << c.range_hz << " Hz, configured " << c.configured_m.value_or(-1.0));
+    sim::ScenarioParams sp;
+    sp.duration_s = 30.0;
+    sp.seed = 3;
+    sp.range_rate_hz = c.range_hz;
+    const sim::Scenario s = sim::simulateScenario(sp);
+    LocalizerParams p = paramsFor(s);
+    p.graph.range_noise.flagged_nlos_scale_m = c.configured_m;
+    Localizer localizer(s.p_w_anchors, p);
+    EXPECT_EQ(localizer.trackingFlaggedScaleM(), 0.0) << "before tracking";
+    feed(s, localizer);
+    ASSERT_TRUE(localizer.tracking()) << localizer.initStatus().message;
+    // 40 Hz less packet loss: sqrt(~36-40 Hz / 10 Hz).
+    EXPECT_GE(localizer.trackingFlaggedScaleM(), c.expected_lo);
+    EXPECT_LE(localizer.trackingFlaggedScaleM(), c.expected_hi);
+  }
 }
 
 TEST(Localizer, ImuBlackoutEndsTrackingAndItRecovers) {

@@ -271,6 +271,29 @@ TEST(RangeModel, TheDefaultComponentScaleStaysWithinTheTableAtSmallSigmas) {
   EXPECT_DOUBLE_EQ(noise.flagged().nlosScaleM(), noise.nlosScaleM()) << "the mixture keeps the shared scale";
 }
 
+TEST(RangeModel, TheDefaultComponentScaleWidensWithTheSquareRootOfTheRangingRateAboveTheReference) {
+  RangeNoiseParams noise;  // sigma 0.15 m: the table allows up to 3 m
+  ASSERT_DOUBLE_EQ(noise.flagged_scale_reference_hz, 10.0);
+  EXPECT_DOUBLE_EQ(noise.flaggedComponentScaleAt(0.0), 1.0) << "rate unknown";
+  EXPECT_DOUBLE_EQ(noise.flaggedComponentScaleAt(1.0), 1.0);
+  EXPECT_DOUBLE_EQ(noise.flaggedComponentScaleAt(10.0), 1.0);
+  EXPECT_DOUBLE_EQ(noise.flaggedComponentScaleAt(40.0), 2.0);
+  EXPECT_DOUBLE_EQ(noise.flaggedComponentScaleAt(20.0), std::sqrt(2.0));
+  EXPECT_DOUBLE_EQ(noise.flaggedComponentScaleAt(1000.0), NlosComponentLoss::kMaxGamma * 0.15) << "capped at the table";
+  EXPECT_DOUBLE_EQ(noise.flagged().nlosScaleM(), 1.0) << "flagged() alone knows no rate";
+  noise.flagged_scale_reference_hz = 0.0;
+  EXPECT_DOUBLE_EQ(noise.flaggedComponentScaleAt(40.0), 1.0) << "0 turns the widening off";
+  for (double bad : {-1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    noise.flagged_scale_reference_hz = bad;
+    try {
+      RangeModel model("asymmetric", noise);
+      FAIL() << "expected std::invalid_argument for " << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("flagged_scale_reference_hz"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(RangeModel, OnlyTheConvolvedAsymmetricModelUsesTheIndicator) {
   RangeNoiseParams noise;
   for (const char* name : {"gaussian", "huber", "cauchy", "asymmetric-half-cauchy"}) {

@@ -133,7 +133,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "            lambda_decrease: 0.5, widen: false, acceptance: global}\n"
       "  trust_region: {initial: 0.5, min: 1e-6}\n"
       "  range: {noise_model: huber, sigma_m: 0.2, huber_k: 2.0, cauchy_c: 3.0, nlos_scale_m: 0.3,\n"
-      "          nlos_weight: 0.1, flagged_nlos_scale_m: 0.6, lever_arm_m: [0.1, -0.2, 0.3], same_state_window_s: 0.004,\n"
+      "          nlos_weight: 0.1, flagged_nlos_scale_m: 0.6, flagged_scale_reference_hz: 20, lever_arm_m: [0.1, -0.2, 0.3], same_state_window_s: 0.004,\n"
       "          max_state_interval_s: 0.25, max_wait_s: 1.5}\n"
       "  anchors_as_variables: false\n"
       "  anchor_sigma_m: 0.05\n"
@@ -203,6 +203,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_DOUBLE_EQ(g.range_noise.nlos_weight, 0.1);
   ASSERT_TRUE(g.range_noise.flagged_nlos_scale_m.has_value());
   EXPECT_DOUBLE_EQ(*g.range_noise.flagged_nlos_scale_m, 0.6);
+  EXPECT_DOUBLE_EQ(g.range_noise.flagged_scale_reference_hz, 20.0);
   EXPECT_TRUE(g.p_b_tag.isApprox(Vec3(0.1, -0.2, 0.3)));
   EXPECT_EQ(g.same_state_window_ns, 4'000'000);
   EXPECT_EQ(g.max_state_interval_ns, 250'000'000);
@@ -618,6 +619,8 @@ std::vector<BadCase> badCases() {
        "expected a number > 0 (m) or .inf, got 0", 11},
       {"max_outside_anchors_negative", valid("estimator:\n  max_outside_anchors_m: -2.5\n"),
        "estimator.max_outside_anchors_m", "expected a number in [0, .inf], got -2.5", 11},
+      {"flagged_scale_reference_negative", valid("estimator:\n  range: {flagged_scale_reference_hz: -5}\n"),
+       "estimator.range.flagged_scale_reference_hz", "[0, 10000]", 11},
       {"flagged_nlos_scale_zero", valid("estimator:\n  range: {flagged_nlos_scale_m: 0}\n"),
        "estimator.range.flagged_nlos_scale_m", "expected a number > 0, got 0", 11},
       {"max_wait_below_interval", valid("estimator:\n  range: {max_state_interval_s: 1.0, max_wait_s: 0.5}\n"),

@@ -99,7 +99,8 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"last_failure\": " << jsonString(run.last_failure)
           << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")
           << ",\n  \"height_band_note\": " << jsonString(run.height_band_note)
-          << ",\n  \"flagged_nlos_excess_m\": " << run.flagged_excess_m;
+          << ",\n  \"flagged_nlos_excess_m\": " << run.flagged_excess_m
+          << ",\n  \"flagged_nlos_scale_m\": " << run.flagged_scale_m;
   const NlosClassification& n = run.nlos;
   summary << ",\n  \"nlos\": {\"ranges\": " << n.ranges << ", \"downweighted\": " << n.downweighted
           << ", \"downweighted_fraction\": " << n.downweightedFraction();
@@ -191,8 +192,9 @@ void addReplayCommand(CLI::App& app) {
                   "Flagged ranges get the asymmetric model's NLOS component alone, shifted by the estimated excess "
                   "(true, the default), or the mixture at --flagged-nlos-weight (false)");
   cmd->add_option("--flagged-nlos-scale", options->settings.flagged_nlos_scale_m,
-                  "Half-Cauchy scale of the excess of a range the receiver flags (m; default 1 with the NLOS "
-                  "component, at most 20 range sigmas; --nlos-scale with the mixture)")
+                  "Half-Cauchy scale of the excess of a range the receiver flags (m; default with the NLOS "
+                  "component 1, widened by sqrt(rate / 10 Hz) for faster two-way ranging, at most 20 range sigmas; "
+                  "--nlos-scale with the mixture). Given, it also applies to the initializer's batch")
       ->check(CLI::Range(0.001, 100.0));
   cmd->add_option("--flagged-excess-quantile", options->settings.flagged_excess_quantile,
                   "Quantile of the flagged ranges' residuals taken as their excess, estimated on line (default 0.25; 0: "

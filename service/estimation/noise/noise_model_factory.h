@@ -3,6 +3,7 @@
 // The losses act on the whitened residual r = (measured - predicted) / sigma_m,
 // so every parameter below is given in sigmas except the metric NLOS scale.
 #include <algorithm>
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <string>
@@ -39,22 +40,41 @@ struct RangeNoiseParams {
   double flagged_nlos_weight = 0.45;
   bool flagged_nlos_component = true;
   /// Half-Cauchy scale of a flagged range's excess [m]; unset: with the
-  /// component, kDefaultFlaggedComponentScaleM (at most
-  /// NlosComponentLoss::kMaxGamma LOS sigmas); with the mixture, nlos_scale_m.
-  /// 0.7 / 1 / 1.5 m: 0.347 / 0.339 / 0.319 m online on the 11 issue-4 sims
-  /// at 40 Hz, 1.5 m worse at 1 Hz (0.629 against 0.615).
+  /// component, kDefaultFlaggedComponentScaleM widened for the ranging rate
+  /// (flaggedComponentScaleAt, at most NlosComponentLoss::kMaxGamma LOS
+  /// sigmas); with the mixture, nlos_scale_m. Fixed 0.7 / 1 / 1.5 / 2 / 3 m:
+  /// 0.347 / 0.339 / 0.319 / 0.316 / 0.317 m online on the 11 issue-4 sims
+  /// at 40 Hz; at 1 Hz 2 m gave 0.629 against 0.599 for 1 m.
   std::optional<double> flagged_nlos_scale_m;
   static constexpr double kDefaultFlaggedComponentScaleM = 1.0;
+  /// Two-way ranging faster than this (Hz) widens the component's default
+  /// scale by sqrt(rate / this) (flaggedComponentScaleAt; the Localizer
+  /// applies it with the rate of the data tracking starts on). Why: an NLOS
+  /// excess persists for seconds, so successive flagged ranges of an anchor
+  /// share most of it, while the factors treat them as independent. At
+  /// 40 Hz (2 m) the 11 issue-4 sims went 0.339 -> 0.316 m online (10
+  /// held-out 0.347 -> 0.337, 6 NLOS-severity sims 0.310 -> 0.287); at 4 Hz
+  /// 2 m was slightly worse (0.435 -> 0.442) and at 1 Hz clearly (0.599 ->
+  /// 0.629), hence no widening up to 10 Hz. 0: off.
+  double flagged_scale_reference_hz = 10.0;
 
   /// gamma in metres after applying the default.
   double nlosScaleM() const { return nlos_scale_m.value_or(kGaussianIqrPerSigma * sigma_m); }
+  /// The component's default scale for two-way ranging at rate_hz (m):
+  /// kDefaultFlaggedComponentScaleM * sqrt(rate_hz / flagged_scale_reference_hz)
+  /// above the reference rate, at most NlosComponentLoss::kMaxGamma LOS sigmas.
+  double flaggedComponentScaleAt(double rate_hz) const {
+    const double widen = flagged_scale_reference_hz > 0.0 && rate_hz > flagged_scale_reference_hz
+                             ? std::sqrt(rate_hz / flagged_scale_reference_hz)
+                             : 1.0;
+    return std::min(kDefaultFlaggedComponentScaleM * widen, NlosComponentLoss::kMaxGamma * sigma_m);
+  }
   /// The parameters a flagged range is modelled with: flagged weight and scale.
   RangeNoiseParams flagged() const {
     RangeNoiseParams f = *this;
     f.nlos_weight = flagged_nlos_weight;
     f.nlos_scale_m = flagged_nlos_scale_m.value_or(
-        flagged_nlos_component ? std::min(kDefaultFlaggedComponentScaleM, NlosComponentLoss::kMaxGamma * sigma_m)
-                               : nlosScaleM());
+        flagged_nlos_component ? flaggedComponentScaleAt(0.0) : nlosScaleM());
     return f;
   }
 };

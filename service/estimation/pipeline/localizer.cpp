@@ -99,6 +99,20 @@ LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors
   return p;
 }
 
+/// Two-way ranges per second in `buffered` (0 with fewer than two, or over less than a second).
+double twoWayRangeRateHz(const std::vector<Measurement>& buffered) {
+  int count = 0;
+  std::int64_t first_ns = 0, last_ns = 0;
+  for (const Measurement& m : buffered) {
+    if (m.kind != Measurement::Kind::kRange) continue;
+    if (count == 0) first_ns = m.t_ns;
+    last_ns = std::max(last_ns, m.t_ns);
+    ++count;
+  }
+  const double span_s = static_cast<double>(last_ns - first_ns) * 1e-9;
+  return count >= 2 && span_s >= 1.0 ? static_cast<double>(count - 1) / span_s : 0.0;
+}
+
 }  // namespace
 
 Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
@@ -214,6 +228,13 @@ void Localizer::startTracking() {
                                 [](const Measurement& m) { return m.kind == Measurement::Kind::kTdoa; });
   if (!params_.vertical_speed_sigma_m_s) graph.vertical_speed_sigma_m_s = defaultVerticalSpeedSigma(tdoa);  // "auto"
   if (tdoa && params_.with_tdoa.state_window_ns > 0) graph.same_state_window_ns = params_.with_tdoa.state_window_ns;
+  // Unless configured, flagged ranges get the component scale for the
+  // two-way ranging rate of those data (flagged_scale_reference_hz).
+  RangeNoiseParams& noise = graph.range_noise;
+  if (noise.flagged_nlos_component && !noise.flagged_nlos_scale_m) {
+    noise.flagged_nlos_scale_m = noise.flaggedComponentScaleAt(twoWayRangeRateHz(buffered));
+  }
+  tracking_flagged_scale_m_ = noise.flagged().nlosScaleM();
   EkfParams ekf = params_.ekf;
   if (tdoa && params_.with_tdoa.dynamic_covariance) {
     stream.dynamic_covariance.enabled = true;

@@ -12,6 +12,10 @@ RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noi
     throw std::invalid_argument("range_noise.flagged_nlos_scale_m must be finite and > 0 (m), got " +
                                 std::to_string(*noise.flagged_nlos_scale_m));
   }
+  if (!(std::isfinite(noise.flagged_scale_reference_hz) && noise.flagged_scale_reference_hz >= 0.0)) {
+    throw std::invalid_argument("range_noise.flagged_scale_reference_hz must be finite and >= 0 (Hz; 0: off), got " +
+                                std::to_string(noise.flagged_scale_reference_hz));
+  }
   if (std::isnan(noise.nlos_power_gap_db)) {
     throw std::invalid_argument("range_noise.nlos_power_gap_db must be a number (dB) or +inf to disable, got NaN");
   }

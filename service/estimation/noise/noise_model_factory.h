@@ -51,11 +51,13 @@ struct RangeNoiseParams {
   /// scale by sqrt(rate / this) (flaggedComponentScaleAt; the Localizer
   /// applies it with the rate of the data tracking starts on). Why: an NLOS
   /// excess persists for seconds, so successive flagged ranges of an anchor
-  /// share most of it, while the factors treat them as independent. At
-  /// 40 Hz (2 m) the 11 issue-4 sims went 0.339 -> 0.316 m online (10
-  /// held-out 0.347 -> 0.337, 6 NLOS-severity sims 0.310 -> 0.287); at 4 Hz
-  /// 2 m was slightly worse (0.435 -> 0.442) and at 1 Hz clearly (0.599 ->
-  /// 0.629), hence no widening up to 10 Hz. 0: off.
+  /// share most of it, while the factors treat them as independent. With
+  /// this rule (about 2 m at 40 Hz) the 11 issue-4 sims at 40 Hz went 0.339
+  /// -> 0.319 m online (10 held-out 0.347 -> 0.325, 6 NLOS-severity sims
+  /// 0.310 -> 0.287), 20 Hz 0.367 -> 0.365; a fixed 2 m was slightly worse
+  /// at 4 Hz (0.435 -> 0.442) and clearly at 1 Hz (0.599 -> 0.629), hence
+  /// no widening up to 10 Hz. Worse on the 24 s golden walk (84 % NLOS,
+  /// 0.56 -> 0.76 m; docs/noise-models.md). 0: off.
   double flagged_scale_reference_hz = 10.0;
 
   /// gamma in metres after applying the default.

@@ -250,7 +250,8 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.flagged_excess_m = localizer.flaggedExcess();
   out.flagged_scale_m = localizer.trackingFlaggedScaleM();
   out.height_band_in_use = localizer.params().graph.height_band.enabled;
-  const RangeModel range_model(params.graph.range_loss, params.graph.range_noise);
+  // Judged with the noise the tracker used (its flagged scale follows the ranging rate).
+  const RangeModel range_model(params.graph.range_loss, localizer.trackingRangeNoise());
   out.nlos = classifyRanges(ranges, out.smoothed, uwbAnchorsById(rec.anchors), params.graph.p_b_tag, range_model,
                             params.graph.range_noise.sigma_m);
   if (!rec.groundtruth.empty()) {

@@ -123,6 +123,7 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
                    params_.graph.same_state_window_ns, params_.range_consistency,
                    params_.graph.range_noise.nlos_power_gap_db) {
   params_.validate();
+  tracking_range_noise_ = params_.graph.range_noise;
   // Flagged ranges take the estimated shift, whether modelled by the NLOS
   // component or the mixture (range_model.h).
   const RangeNoiseParams& n = params_.graph.range_noise;
@@ -234,7 +235,8 @@ void Localizer::startTracking() {
   if (noise.flagged_nlos_component && !noise.flagged_nlos_scale_m) {
     noise.flagged_nlos_scale_m = noise.flaggedComponentScaleAt(twoWayRangeRateHz(buffered));
   }
-  tracking_flagged_scale_m_ = noise.flagged().nlosScaleM();
+  tracking_range_noise_ = noise;
+  tracking_started_ = true;
   EkfParams ekf = params_.ekf;
   if (tdoa && params_.with_tdoa.dynamic_covariance) {
     stream.dynamic_covariance.enabled = true;

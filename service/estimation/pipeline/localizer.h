@@ -172,11 +172,16 @@ class Localizer {
   bool trackingDynamicCovariance() const { return tracking_dynamic_covariance_; }
   /// The tracker's state window (ns): graph.same_state_window_ns, or with_tdoa's on TDoA data.
   std::int64_t trackingStateWindowNs() const { return tracking_state_window_ns_; }
-  /// The half-Cauchy scale (m) the tracker started last gives ranges the
-  /// receiver flags as NLOS: the configured one, or the default for the
-  /// two-way ranging rate it started on (RangeNoiseParams::flaggedComponentScaleAt);
-  /// 0 before the first tracking.
-  double trackingFlaggedScaleM() const { return tracking_flagged_scale_m_; }
+  /// The range noise the tracker started last models two-way ranges with:
+  /// graph.range_noise, with flagged_nlos_scale_m set for the two-way
+  /// ranging rate it started on unless configured
+  /// (RangeNoiseParams::flaggedComponentScaleAt); graph.range_noise before
+  /// the first tracking.
+  const RangeNoiseParams& trackingRangeNoise() const { return tracking_range_noise_; }
+  /// Its half-Cauchy scale (m) for ranges the receiver flags as NLOS; 0 before the first tracking.
+  double trackingFlaggedScaleM() const {
+    return tracking_started_ ? tracking_range_noise_.flagged().nlosScaleM() : 0.0;
+  }
   /// Why tracking last ended ("speed 14.2 m/s at t=12.3 s"), empty if never.
   const std::string& lastFailure() const { return last_failure_; }
 
@@ -202,7 +207,8 @@ class Localizer {
   double tracking_vertical_speed_sigma_m_s_ = 0.0;
   bool tracking_dynamic_covariance_ = false;
   std::int64_t tracking_state_window_ns_ = 0;
-  double tracking_flagged_scale_m_ = 0.0;
+  RangeNoiseParams tracking_range_noise_;
+  bool tracking_started_ = false;
   Eigen::Vector2d anchors_min_xy_, anchors_max_xy_;  ///< horizontal bounding box of the UWB anchors (m)
   RangingSupport ranging_support_;  ///< when max_outside_anchors_m is judged
   std::int64_t last_imu_ns_ = 0;

@@ -93,6 +93,7 @@ TEST(Ape, ConstantOffsetGivesTheOffsetAndNoRelativeError) {
   expectAllStats(ev.ape.ape_3d, 1.3, 1e-12);
   expectAllStats(ev.ape.ape_horizontal, 0.5, 1e-12);
   expectAllStats(ev.ape.ape_vertical, 1.2, 1e-12);
+  EXPECT_NEAR(ev.ape.vertical_bias_m, 1.2, 1e-12);
   EXPECT_EQ(ev.ape.ape_3d.count, truth.size());
   // 1 s at 100 Hz: every pose up to 29 s starts a pair 100 samples on.
   EXPECT_EQ(ev.rpe_time.translation_m.count, truth.size() - 100);
@@ -248,6 +249,21 @@ TEST(Rpe, BadInputIsRejected) {
   EXPECT_THROW(rpePairs(est, truth, a, RpeParams{1.0, RpeDelta::kSeconds, 1.0}), std::invalid_argument);
   std::swap(est[3], est[4]);
   EXPECT_THROW(evaluateTrajectory(est, truth), std::invalid_argument);
+}
+
+TEST(Ape, HeightOffsetIsTheSignedMeanOfTheVerticalErrorWhileTheVerticalStatisticsAreMagnitudes) {
+  const std::vector<Vec3> truth = {Vec3(0, 0, 1.25), Vec3(1, 0, 1.25), Vec3(2, 0, 1.25), Vec3(3, 0, 1.25)};
+  // Noise around the truth: |dz| 0.2 everywhere, no offset.
+  const std::vector<Vec3> noisy = {Vec3(0, 0, 1.45), Vec3(1, 0, 1.05), Vec3(2, 0, 1.45), Vec3(3, 0, 1.05)};
+  const PositionErrorStats n = positionErrorStats(noisy, truth);
+  EXPECT_NEAR(n.ape_vertical.mean, 0.2, 1e-12);
+  EXPECT_NEAR(n.vertical_bias_m, 0.0, 1e-12);
+  // A sunk tag: the same magnitudes, all below, so the offset is -0.2 ... -0.4.
+  const std::vector<Vec3> sunk = {Vec3(0, 0, 1.05), Vec3(1, 0, 0.85), Vec3(2, 0, 1.05), Vec3(3, 0, 0.85)};
+  const PositionErrorStats s = positionErrorStats(sunk, truth);
+  EXPECT_NEAR(s.ape_vertical.mean, 0.3, 1e-12);
+  EXPECT_NEAR(s.vertical_bias_m, -0.3, 1e-12);
+  EXPECT_DOUBLE_EQ(positionErrorStats({}, {}).vertical_bias_m, 0.0);
 }
 
 }  // namespace

@@ -86,6 +86,7 @@ void printEvaluation(const EvalOptions& o, const TrajectoryEvaluation& ev, const
   printStatsRow("APE 3D (m)", ev.ape.ape_3d);
   printStatsRow("APE horizontal (m)", ev.ape.ape_horizontal);
   printStatsRow("APE vertical (m)", ev.ape.ape_vertical);
+  std::printf("  %-22s %+9.4f\n", "height offset (m)", ev.ape.vertical_bias_m);
   char label[64];
   std::snprintf(label, sizeof label, "RPE %g s trans (m)", ev.rpe_time.params.delta);
   printStatsRow(label, ev.rpe_time.translation_m);
@@ -149,7 +150,8 @@ std::string evaluationJson(const EvalOptions& o, const TrajectoryEvaluation& ev)
        ", \"ground_truth\": " + std::to_string(ev.truth_poses) +
        ", \"max_abs_dt_ms\": " + jsonNumber(static_cast<double>(assoc.max_abs_dt_ns) * 1e-6) + "},\n";
   j += "  \"ape_m\": {\n    \"3d\": " + jsonStats(ev.ape.ape_3d) + ",\n    \"horizontal\": " +
-       jsonStats(ev.ape.ape_horizontal) + ",\n    \"vertical\": " + jsonStats(ev.ape.ape_vertical) + "},\n";
+       jsonStats(ev.ape.ape_horizontal) + ",\n    \"vertical\": " + jsonStats(ev.ape.ape_vertical) +
+       ",\n    \"vertical_bias\": " + jsonNumber(ev.ape.vertical_bias_m) + "},\n";
   j += "  \"rpe_time\": " + jsonRpe(ev.rpe_time, "delta_s") + ",\n";
   j += "  \"rpe_distance\": " + jsonRpe(ev.rpe_distance, "delta_m") + "\n";
   j += "}\n";
@@ -200,6 +202,7 @@ void addEvalCommand(CLI::App& app) {
             "Travelled distance (along the ground truth) of the distance-based RPE (m)");
   cmd->footer(
       "APE: |p_est - p_true| in 3D, horizontally (xy) and vertically (z); no alignment (the anchors fix the frame).\n"
+      "Height offset: the mean of (p_est - p_true)_z (m), signed: a vertical error that is an offset, not noise.\n"
       "RPE: for pose pairs (i, j) a delta apart (every pose starts a pair; the partner's separation within 10% of\n"
       "the delta), translation |(T_true_i^-1 T_true_j).p - (T_est_i^-1 T_est_j).p| (m) and the rotation angle of\n"
       "(T_true_i^-1 T_true_j)^-1 (T_est_i^-1 T_est_j) (deg): evo's relative-pose-delta convention.\n"

@@ -26,9 +26,9 @@ std::string statsJson(const PositionErrorStats& s) {
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "{\"poses\": %zu, \"mean_m\": %.4f, \"median_m\": %.4f, \"rmse_m\": %.4f, \"max_m\": %.4f, "
-                "\"horizontal_mean_m\": %.4f, \"vertical_mean_m\": %.4f}",
+                "\"horizontal_mean_m\": %.4f, \"vertical_mean_m\": %.4f, \"vertical_bias_m\": %.4f}",
                 s.ape_3d.count, s.ape_3d.mean, s.ape_3d.median, s.ape_3d.rmse, s.ape_3d.max, s.ape_horizontal.mean,
-                s.ape_vertical.mean);
+                s.ape_vertical.mean, s.vertical_bias_m);
   return buf;
 }
 
@@ -143,8 +143,9 @@ int runReplay(const ReplayOptions& o) {
   }
   if (run.ape_online) {
     for (const auto& [label, e] : {std::pair{"online  ", *run.ape_online}, std::pair{"smoothed", *run.ape_smoothed}}) {
-      std::printf("  APE %s mean %.3f m, median %.3f, rmse %.3f, max %.3f (horizontal %.3f, vertical %.3f)\n", label,
-                  e.ape_3d.mean, e.ape_3d.median, e.ape_3d.rmse, e.ape_3d.max, e.ape_horizontal.mean, e.ape_vertical.mean);
+      std::printf("  APE %s mean %.3f m, median %.3f, rmse %.3f, max %.3f (horizontal %.3f, vertical %.3f, height offset %+.3f)\n",
+                  label, e.ape_3d.mean, e.ape_3d.median, e.ape_3d.rmse, e.ape_3d.max, e.ape_horizontal.mean,
+                  e.ape_vertical.mean, e.vertical_bias_m);
     }
   }
   std::printf("  wrote %s/{online.tum,smoothed.tum,timing.csv,summary.json}\n", o.out.c_str());

@@ -31,6 +31,7 @@ ErrorStats errorStats(std::vector<double> e) {
 PositionErrorStats positionErrorStats(const std::vector<Vec3>& p_est, const std::vector<Vec3>& p_true) {
   if (p_est.size() != p_true.size()) throw std::invalid_argument("positionErrorStats: size mismatch");
   std::vector<double> e3, eh, ev;
+  double sum_dz = 0.0;
   e3.reserve(p_est.size());
   eh.reserve(p_est.size());
   ev.reserve(p_est.size());
@@ -39,8 +40,10 @@ PositionErrorStats positionErrorStats(const std::vector<Vec3>& p_est, const std:
     e3.push_back(d.norm());
     eh.push_back(d.head<2>().norm());
     ev.push_back(std::abs(d.z()));
+    sum_dz += d.z();
   }
-  return {errorStats(std::move(e3)), errorStats(std::move(eh)), errorStats(std::move(ev))};
+  const double bias = p_est.empty() ? 0.0 : sum_dz / static_cast<double>(p_est.size());
+  return {errorStats(std::move(e3)), errorStats(std::move(eh)), errorStats(std::move(ev)), bias};
 }
 
 }  // namespace rilo

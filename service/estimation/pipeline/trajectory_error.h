@@ -16,6 +16,11 @@ struct PositionErrorStats {
   ErrorStats ape_3d;          ///< |p_est - p_true| (m)
   ErrorStats ape_horizontal;  ///< |(p_est - p_true)_xy| (m)
   ErrorStats ape_vertical;    ///< |(p_est - p_true)_z| (m)
+  /// Mean of (p_est - p_true)_z (m; 0 without pairs): the signed height
+  /// offset. With anchors at similar heights a common NLOS excess moves the
+  /// tag vertically (docs/noise-models.md, "What bounds the height"); a
+  /// vertical mean error that equals |bias| is an offset, not noise.
+  double vertical_bias_m = 0.0;
 };
 
 ErrorStats errorStats(std::vector<double> errors);

@@ -421,6 +421,13 @@ std::string statOr(const ReportRun* run, bool smoothed, int which) {
   return strf("%.2f/%.2f", e.mean, e.max);
 }
 
+/// The signed height offset (trajectory_error.h) of a run's online or smoothed estimate, or why there is none.
+std::string heightOffsetOr(const ReportRun* run, bool smoothed) {
+  if (run == nullptr || run->threw || !run->has_truth) return "–";
+  const PositionErrorStats& s = smoothed ? run->ape_smoothed : run->ape_online;
+  return s.ape_3d.count == 0 ? "–" : strf("%+.2f", s.vertical_bias_m);
+}
+
 }  // namespace
 
 std::string fileSafeLabel(const std::string& label) {
@@ -495,7 +502,7 @@ std::string resultsCsv(const std::vector<ReportRecording>& recordings, const Rep
     out += num(online, 4, r.ape_online.ape_3d.mean) + "," + num(online, 4, r.ape_online.ape_3d.max) + "," +
            num(smoothed, 4, r.ape_smoothed.ape_3d.mean) + "," + num(smoothed, 4, r.ape_smoothed.ape_3d.max) +
            "," + num(online, 4, r.ape_online.ape_horizontal.mean) + "," +
-           num(online, 4, r.ape_online.ape_vertical.mean) + ",";
+           num(online, 4, r.ape_online.ape_vertical.mean) + "," + num(online, 4, r.ape_online.vertical_bias_m) + ",";
     const bool ran = !r.threw;
     out += num(ran && r.updates > 0, 4, r.update_mean_ms) + "," + num(ran && r.updates > 0, 4, r.update_max_ms) +
            "," + (ran ? std::to_string(r.updates) : "") + "," + num(ran, 2, r.realtime_factor) + "," +
@@ -650,14 +657,16 @@ std::string reportMarkdown(const std::vector<ReportRecording>& recordings, const
 
   // Headline configuration: horizontal vs vertical, re-initializations.
   md += "## Headline configuration (" + headlineName(o) + "): horizontal vs vertical APE (m, mean/max)\n\n";
-  md += "| Recording | Online 3D | Online horizontal | Online vertical | Smoothed 3D | Smoothed horizontal | "
-        "Smoothed vertical | Initializations | Re-initializations | First estimate (s) | Last tracking failure |\n"
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+  md += "| Recording | Online 3D | Online horizontal | Online vertical | Online height offset | Smoothed 3D | "
+        "Smoothed horizontal | Smoothed vertical | Smoothed height offset | Initializations | Re-initializations | "
+        "First estimate (s) | Last tracking failure |\n"
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   for (std::size_t i = 0; i < recordings.size(); ++i) {
     const ReportRun* r = headlineRun(results, i);
     md += "| " + cellText(recordings[i].label);
     for (const bool smoothed : {false, true}) {
       for (int which = 0; which < 3; ++which) md += " | " + statOr(r, smoothed, which);
+      md += " | " + heightOffsetOr(r, smoothed);
     }
     if (r == nullptr || r->threw) {
       md += " | – | – | – | " + cellText(r ? "threw: " + r->error : std::string("not run")) + " |\n";

@@ -41,8 +41,9 @@ inline constexpr const char* kReportCsvFile = "results.csv";
 inline constexpr const char* kReportFiguresDir = "figures";
 inline constexpr const char* kResultsCsvHeader =
     "recording,smoother,noise,rate_hz,all_ranges,status,ape_online_mean_m,ape_online_max_m,ape_smoothed_mean_m,"
-    "ape_smoothed_max_m,ape_online_horizontal_mean_m,ape_online_vertical_mean_m,update_mean_ms,update_max_ms,"
-    "updates,realtime_factor,initializations,reinitializations,ranges_used,wall_s,error,last_failure";
+    "ape_smoothed_max_m,ape_online_horizontal_mean_m,ape_online_vertical_mean_m,ape_online_vertical_bias_m,"
+    "update_mean_ms,update_max_ms,updates,realtime_factor,initializations,reinitializations,ranges_used,wall_s,error,"
+    "last_failure";
 
 /// results.csv. status: ok | fail (no estimate or mean APE above the
 /// threshold) | error (the run threw; message in `error`) | no-truth. Numbers

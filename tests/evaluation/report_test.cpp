@@ -340,6 +340,11 @@ TEST(ReportMatrix, QuickMatrixOnASimulatedWalkWritesConsistentReport) {
               std::stod(csv_head->at("ape_online_horizontal_mean_m")), 0.0051);
   EXPECT_NEAR(meanMax(sim_row[head.column("Online vertical")]).first,
               std::stod(csv_head->at("ape_online_vertical_mean_m")), 0.0051);
+  // The height offset is signed and no larger than the vertical mean error.
+  const double offset = std::stod(csv_head->at("ape_online_vertical_bias_m"));
+  EXPECT_NEAR(std::stod(sim_row[head.column("Online height offset")]), offset, 0.0051);
+  EXPECT_LE(std::abs(offset), std::stod(csv_head->at("ape_online_vertical_mean_m")) + 1e-4);  // both rounded to 4 decimals
+  EXPECT_EQ(head.row({"no-ranges"})[head.column("Online height offset")], "–");
   EXPECT_EQ(sim_row[head.column("Re-initializations")], csv_head->at("reinitializations"));
   EXPECT_EQ(head.row({"no-ranges"})[head.column("Online 3D")], "Fail");
 

@@ -32,6 +32,12 @@ struct TdoaSample {
   std::uint32_t anchor_a = 0;  ///< reference anchor
   std::uint32_t anchor_b = 0;
   double diff_m = 0.0;         ///< range difference (m)
+  /// The tag's receive diagnostics of the two packets (DW1000/DW3000 RX level
+  /// and first-path power, dBm, as RangeSample's); NaN when not reported.
+  double rssi_a_dbm = std::numeric_limits<double>::quiet_NaN();
+  double fp_power_a_dbm = std::numeric_limits<double>::quiet_NaN();
+  double rssi_b_dbm = std::numeric_limits<double>::quiet_NaN();
+  double fp_power_b_dbm = std::numeric_limits<double>::quiet_NaN();
   int los = -1;                ///< ground truth: 1 LOS, 0 NLOS, -1 unknown. Estimators never read it.
 };
 

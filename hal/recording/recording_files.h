@@ -29,7 +29,8 @@ inline constexpr std::array<std::string_view, 3> kRangeRequired{"t_ns", "anchor_
 inline constexpr std::array<std::string_view, 4> kRangeOptional{"tag_id", "rssi_dbm", "fp_power_dbm", "los"};
 
 inline constexpr std::array<std::string_view, 4> kTdoaRequired{"t_ns", "anchor_a", "anchor_b", "diff_m"};
-inline constexpr std::array<std::string_view, 1> kTdoaOptional{"los"};
+inline constexpr std::array<std::string_view, 5> kTdoaOptional{"rssi_a_dbm", "fp_power_a_dbm", "rssi_b_dbm",
+                                                                 "fp_power_b_dbm", "los"};
 
 inline constexpr std::array<std::string_view, 3> kUltrasonicRequired{"t_ns", "anchor_id", "range_m"};
 inline constexpr std::array<std::string_view, 1> kUltrasonicOptional{"los"};

@@ -275,6 +275,8 @@ std::vector<TdoaSample> parseTdoa(std::string_view text, const std::string& file
   CsvReader csv = openCsv(text, file, kTdoaRequired, kTdoaOptional, false, report);
   const int c_t = csv.column("t_ns"), c_a = csv.column("anchor_a"), c_b = csv.column("anchor_b");
   const int c_diff = csv.column("diff_m"), c_los = csv.column("los");
+  const int c_rssi_a = csv.column("rssi_a_dbm"), c_fp_a = csv.column("fp_power_a_dbm");
+  const int c_rssi_b = csv.column("rssi_b_dbm"), c_fp_b = csv.column("fp_power_b_dbm");
   const AnchorLookup lookup(anchors);
   std::vector<TdoaSample> out;
   EventOrder<TdoaSample> order;
@@ -284,6 +286,10 @@ std::vector<TdoaSample> parseTdoa(std::string_view text, const std::string& file
     s.anchor_a = csv.requiredUint32(c_a);
     s.anchor_b = csv.requiredUint32(c_b);
     s.diff_m = csv.requiredDouble(c_diff);
+    s.rssi_a_dbm = csv.optionalDouble(c_rssi_a).value_or(kNaN);
+    s.fp_power_a_dbm = csv.optionalDouble(c_fp_a).value_or(kNaN);
+    s.rssi_b_dbm = csv.optionalDouble(c_rssi_b).value_or(kNaN);
+    s.fp_power_b_dbm = csv.optionalDouble(c_fp_b).value_or(kNaN);
     s.los = parseLos(csv, c_los);
     lookup.check(csv, c_a, s.anchor_a, AnchorKind::kUwb);
     lookup.check(csv, c_b, s.anchor_b, AnchorKind::kUwb);
@@ -291,7 +297,11 @@ std::vector<TdoaSample> parseTdoa(std::string_view text, const std::string& file
     const bool keep = order.admit(
         csv, c_t, out, s,
         [](const TdoaSample& a, const TdoaSample& b) { return a.anchor_a == b.anchor_a && a.anchor_b == b.anchor_b; },
-        [](const TdoaSample& a, const TdoaSample& b) { return a.diff_m == b.diff_m && a.los == b.los; });
+        [](const TdoaSample& a, const TdoaSample& b) {
+          return a.diff_m == b.diff_m && sameDouble(a.rssi_a_dbm, b.rssi_a_dbm) &&
+                 sameDouble(a.fp_power_a_dbm, b.fp_power_a_dbm) && sameDouble(a.rssi_b_dbm, b.rssi_b_dbm) &&
+                 sameDouble(a.fp_power_b_dbm, b.fp_power_b_dbm) && a.los == b.los;
+        });
     if (!keep) return;
     out.push_back(s);
     order.pushed(csv.line());

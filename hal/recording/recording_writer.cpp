@@ -271,6 +271,10 @@ void RecordingWriter::write(const TdoaSample& s) {
   checkOpen();
   if (!anchors_written_) throw std::logic_error("RecordingWriter: write anchors before tdoa samples");
   requireFinite(s.diff_m, "TdoaSample.diff_m");
+  requireFiniteOrNaN(s.rssi_a_dbm, "TdoaSample.rssi_a_dbm");
+  requireFiniteOrNaN(s.fp_power_a_dbm, "TdoaSample.fp_power_a_dbm");
+  requireFiniteOrNaN(s.rssi_b_dbm, "TdoaSample.rssi_b_dbm");
+  requireFiniteOrNaN(s.fp_power_b_dbm, "TdoaSample.fp_power_b_dbm");
   requireLos(s.los, "TdoaSample.los");
   for (const std::uint32_t id : {s.anchor_a, s.anchor_b}) {
     const auto a = std::find_if(anchors_.begin(), anchors_.end(), [&](const Anchor& x) { return x.id == id; });
@@ -288,6 +292,10 @@ void RecordingWriter::write(const TdoaSample& s) {
   line_ += ',';
   appendInt(line_, s.anchor_b);
   addField(line_, s.diff_m);
+  addOptionalField(line_, s.rssi_a_dbm);
+  addOptionalField(line_, s.fp_power_a_dbm);
+  addOptionalField(line_, s.rssi_b_dbm);
+  addOptionalField(line_, s.fp_power_b_dbm);
   addLos(line_, s.los);
   line_ += '\n';
   commitEventKey(tdoa_.any, tdoa_.last_t_ns, s.t_ns, tdoa_keys_, key);

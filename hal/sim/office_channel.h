@@ -21,6 +21,8 @@
 //    behind a wall, indefinitely while standing), rather than being drawn
 //    afresh per range.
 // Deterministic given the seed; no state changes on evaluation (thread-safe).
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -72,6 +74,15 @@ struct LinkState {
   double rssi_mean_dbm = 0.0;  ///< path loss, obstructions and shadowing; no fast fading
   double excess_m = 0.0;       ///< NLOS range excess (0 when LOS)
 };
+
+/// The receiver's NLOS indicator for a packet over link L: RX level minus
+/// first-path power (dB; the DW1000/DW3000 diagnostics). Small under LOS
+/// (~2 dB), growing with the obstruction loss and the excess under NLOS.
+/// unit_normal: one standard normal draw of the caller's stream.
+inline double firstPathGapDb(const LinkState& L, double unit_normal) {
+  return L.los ? 1.5 + std::abs(unit_normal)
+               : 1.5 + 0.6 * L.loss_db + 2.5 * std::min(L.excess_m, 4.0) + 2.0 * std::abs(unit_normal);
+}
 
 class OfficeChannel {
  public:

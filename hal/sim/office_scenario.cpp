@@ -216,8 +216,7 @@ bool OfficeRangeStream::next(RangeSample& sample, RangeTruth& truth) {
       }
     }
     const double rssi = L.rssi_mean_dbm + p_.rssi_fading_db * rng_.normal();
-    const double gap = L.los ? 1.5 + std::abs(rng_.normal())
-                             : 1.5 + 0.6 * L.loss_db + 2.5 * std::min(L.excess_m, 4.0) + 2.0 * std::abs(rng_.normal());
+    const double gap = firstPathGapDb(L, rng_.normal());
 
     sample = RangeSample{};
     sample.t_ns = p_.t0_ns + toNs(t);

@@ -12,6 +12,9 @@ namespace {
 // Random stream of the TDoA measurements (office_random.h; the office
 // scenario uses 0x1a0 IMU, 0x2a0 ranging, 0x3a0 channel fields).
 constexpr std::uint64_t kTdoaStream = 0x4a0;
+// The receive diagnostics have their own stream, so adding them left the
+// TDoA values of a seed as they were.
+constexpr std::uint64_t kTdoaDiagnosticsStream = 0x5a0;
 
 void require(bool ok, const char* field, const char* what) {
   if (!ok) throw std::invalid_argument(std::string("TdoaParams.") + field + " " + what);
@@ -56,7 +59,8 @@ OfficeTdoaStream::OfficeTdoaStream(const OfficeScenarioParams& p, const OfficeSe
       t0_ns_(p.t0_ns),
       setup_(setup),
       anchors_(setup.p_w_anchors.size()),
-      rng_(streamSeed(p.seed, kTdoaStream)) {
+      rng_(streamSeed(p.seed, kTdoaStream)),
+      diagnostics_rng_(streamSeed(p.seed, kTdoaDiagnosticsStream)) {
   validate(p);
   if (anchors_ < 2) throw std::invalid_argument("OfficeTdoaStream: TDoA needs at least 2 UWB anchors");
   if (!setup_.channel || !setup_.walk || !setup_.plan) throw std::invalid_argument("OfficeTdoaStream: incomplete setup");
@@ -71,6 +75,8 @@ OfficeTdoaStream::OfficeTdoaStream(const OfficeScenarioParams& p, const OfficeSe
     }
   }
   last_rx_s_.assign(anchors_, -std::numeric_limits<double>::infinity());
+  last_rssi_dbm_.assign(anchors_, 0.0);
+  last_gap_db_.assign(anchors_, 0.0);
   stats_.duration_s = duration_s_;
   stats_.measurements_per_anchor.assign(anchors_, 0);
 }
@@ -116,6 +122,8 @@ bool OfficeTdoaStream::next(TdoaSample& sample, TdoaTruth& truth) {
       }
     }
     last_rx_s_[b] = t;
+    last_rssi_dbm_[b] = link_b.rssi_mean_dbm + fading_db;
+    last_gap_db_[b] = firstPathGapDb(link_b, diagnostics_rng_.normal());
     if (a == anchors_) {
       ++stats_.no_reference;
       continue;
@@ -142,6 +150,10 @@ bool OfficeTdoaStream::next(TdoaSample& sample, TdoaTruth& truth) {
     sample.anchor_a = static_cast<std::uint32_t>(a);
     sample.anchor_b = static_cast<std::uint32_t>(b);
     sample.diff_m = true_diff + error;
+    sample.rssi_a_dbm = last_rssi_dbm_[a];  // the reference packet's, as received at t_a
+    sample.fp_power_a_dbm = last_rssi_dbm_[a] - last_gap_db_[a];
+    sample.rssi_b_dbm = last_rssi_dbm_[b];
+    sample.fp_power_b_dbm = last_rssi_dbm_[b] - last_gap_db_[b];
     sample.los = los ? 1 : 0;
 
     truth = TdoaTruth{};

@@ -25,6 +25,10 @@
 //    large multipath error on one path (long, sometimes early), which enters
 //    with + on b's path and - on a's. So a blocked anchor_b makes the
 //    difference longer, a blocked reference shorter.
+//  - Each row carries the tag's receive diagnostics of both packets, RX level
+//    and first-path power (firstPathGapDb, as the SS-TWR ranges'), the
+//    reference's as it was received: what a DW1000/DW3000 TDoA tag reads out
+//    of every packet and what the estimator's NLOS indicator works on.
 //  - los = 1 only if both paths are LOS (ground truth).
 // Anchor clock drift and the anchors' own NLOS to each other are not
 // modelled beyond audibility. Random draws come from their own stream of the
@@ -74,9 +78,11 @@ class OfficeTdoaStream {
   OfficeSetup setup_;
   std::size_t anchors_ = 0;
   SimRng rng_;
+  SimRng diagnostics_rng_;  ///< the packets' first-path gaps
   std::vector<double> bias_m_;
   std::vector<char> audible_;      ///< anchors_ x anchors_
   std::vector<double> last_rx_s_;  ///< time of each anchor's last received packet (-inf: none)
+  std::vector<double> last_rssi_dbm_, last_gap_db_;  ///< that packet's RX level and first-path gap
   std::size_t slot_ = 0;
   double t_s_ = 0.0;
   bool done_ = false;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <tuple>
 #include <vector>
 
 #include "hal/sim/office.h"
@@ -157,6 +158,33 @@ TEST(OfficeTdoa, NlosBiasHasTheSignOfTheBlockedAnchor) {
   EXPECT_GT(static_cast<double>(a_negative) / a_rows, 0.75);
   EXPECT_LE(run.stats.nlos_b_only + run.stats.nlos_a_only, run.stats.nlos);
   EXPECT_GT(run.stats.meanNlosPathExcess(), 0.1);
+}
+
+TEST(OfficeTdoa, EveryRowCarriesBothPacketsDiagnosticsAndTheGapFlagsNlosPaths) {
+  const TdoaRun run = runTdoa(tdoaParams(3, 120.0));
+  ASSERT_GT(run.samples.size(), 5000u);
+  const double sensitivity_dbm = run.setup.channel->params().sensitivity_dbm;
+  int los_paths = 0, los_flagged = 0, nlos_paths = 0, nlos_flagged = 0;
+  for (std::size_t i = 0; i < run.samples.size(); ++i) {
+    const TdoaSample& s = run.samples[i];
+    const TdoaTruth& t = run.truth[i];
+    for (const auto& [rssi, fp, los] : {std::tuple{s.rssi_a_dbm, s.fp_power_a_dbm, t.los_a},
+                                        std::tuple{s.rssi_b_dbm, s.fp_power_b_dbm, t.los_b}}) {
+      ASSERT_TRUE(std::isfinite(rssi) && std::isfinite(fp)) << "row " << i;
+      EXPECT_GT(rssi, sensitivity_dbm - 30.0);  // heard: mean level plus fading reached the sensitivity
+      const double gap_db = rssi - fp;
+      EXPECT_GE(gap_db, 1.5);
+      const bool flagged = gap_db > 6.0;  // RangeNoiseParams::nlos_power_gap_db
+      (los ? los_paths : nlos_paths) += 1;
+      (los ? los_flagged : nlos_flagged) += flagged ? 1 : 0;
+    }
+  }
+  // The reference's diagnostics are those of its own packet, a round earlier,
+  // so a path that just changed state is rare but possible on either side.
+  ASSERT_GT(los_paths, 1000);
+  ASSERT_GT(nlos_paths, 1000);
+  EXPECT_LT(static_cast<double>(los_flagged) / los_paths, 0.05);
+  EXPECT_GT(static_cast<double>(nlos_flagged) / nlos_paths, 0.6);
 }
 
 TEST(OfficeTdoa, PacketReceptionMatchesTheOption) {

@@ -183,6 +183,46 @@ TEST(RecordingReader, EventFilesShareTimestampsButNotIds) {
   EXPECT_EQ(us.size(), 1u);
 }
 
+TEST(RecordingReader, TdoaReceiveDiagnosticsAreOptionalAndChecked) {
+  ReadReport rep;
+  const auto anchors = anchorsFixture();
+  const auto rows = parseTdoa(
+      "t_ns,anchor_a,anchor_b,diff_m,rssi_a_dbm,fp_power_a_dbm,rssi_b_dbm,fp_power_b_dbm,los\n"
+      "1,1,2,0.5,-80.5,-83,-90,-101.25,0\n"
+      "2,2,1,-0.5,,,-85,-87,\n",
+      "tdoa.csv", anchors, rep);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].rssi_a_dbm, -80.5);
+  EXPECT_EQ(rows[0].fp_power_a_dbm, -83.0);
+  EXPECT_EQ(rows[0].rssi_b_dbm, -90.0);
+  EXPECT_EQ(rows[0].fp_power_b_dbm, -101.25);
+  EXPECT_EQ(rows[0].los, 0);
+  EXPECT_TRUE(std::isnan(rows[1].rssi_a_dbm));  // empty field: not reported
+  EXPECT_TRUE(std::isnan(rows[1].fp_power_a_dbm));
+  EXPECT_EQ(rows[1].fp_power_b_dbm, -87.0);
+  EXPECT_EQ(rows[1].los, -1);
+  // Without the columns (older recordings, UTIL imports) every value is NaN.
+  const auto bare = parseTdoa("t_ns,anchor_a,anchor_b,diff_m\n1,1,2,0.5\n", "tdoa.csv", anchors, rep);
+  ASSERT_EQ(bare.size(), 1u);
+  EXPECT_TRUE(std::isnan(bare[0].rssi_b_dbm));
+
+  RecordingError e = expectRecordingError([&] {
+    parseTdoa("t_ns,anchor_a,anchor_b,diff_m,rssi_b_dbm\n1,1,2,0.5,-80\n2,1,2,0.5,loud\n", "tdoa.csv", anchors, rep);
+  });
+  EXPECT_EQ(e.line(), 3u);
+  EXPECT_EQ(e.column(), "rssi_b_dbm");
+  e = expectRecordingError([&] {
+    parseTdoa("t_ns,anchor_a,anchor_b,diff_m,fp_power_a_dbm\n1,1,2,0.5,nan\n", "tdoa.csv", anchors, rep);
+  });
+  EXPECT_EQ(e.line(), 2u);
+  EXPECT_EQ(e.column(), "fp_power_a_dbm");
+  // Same time and pair with other diagnostics is a conflict, not a duplicate.
+  e = expectRecordingError([&] {
+    parseTdoa("t_ns,anchor_a,anchor_b,diff_m,rssi_a_dbm\n1,1,2,0.5,-80\n1,1,2,0.5,-81\n", "tdoa.csv", anchors, rep);
+  });
+  EXPECT_EQ(e.line(), 3u);
+}
+
 TEST(RecordingReader, UnknownOrWrongKindAnchorIsAnError) {
   ReadReport rep;
   const auto anchors = anchorsFixture();

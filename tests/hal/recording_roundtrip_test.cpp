@@ -88,6 +88,10 @@ void expectSame(const Recording& a, const Recording& b) {
     EXPECT_EQ(a.tdoa[i].anchor_a, b.tdoa[i].anchor_a);
     EXPECT_EQ(a.tdoa[i].anchor_b, b.tdoa[i].anchor_b);
     EXPECT_TRUE(same(a.tdoa[i].diff_m, b.tdoa[i].diff_m));
+    EXPECT_TRUE(same(a.tdoa[i].rssi_a_dbm, b.tdoa[i].rssi_a_dbm));
+    EXPECT_TRUE(same(a.tdoa[i].fp_power_a_dbm, b.tdoa[i].fp_power_a_dbm));
+    EXPECT_TRUE(same(a.tdoa[i].rssi_b_dbm, b.tdoa[i].rssi_b_dbm));
+    EXPECT_TRUE(same(a.tdoa[i].fp_power_b_dbm, b.tdoa[i].fp_power_b_dbm));
     EXPECT_EQ(a.tdoa[i].los, b.tdoa[i].los);
   }
   ASSERT_EQ(a.ultrasonic.size(), b.ultrasonic.size());
@@ -182,6 +186,10 @@ Recording makeRecording(std::uint32_t seed) {
     d.anchor_a = 100;
     d.anchor_b = 101 + static_cast<std::uint32_t>(k) % 3;
     d.diff_m = trickyDouble(rng);
+    d.rssi_a_dbm = k % 5 == 1 ? kNaN : -80.0 + u(rng);
+    d.fp_power_a_dbm = k % 5 == 1 ? kNaN : -85.0 + u(rng);
+    d.rssi_b_dbm = k % 7 == 2 ? kNaN : -80.0 + trickyDouble(rng);
+    d.fp_power_b_dbm = k % 3 == 0 ? kNaN : -85.0 + u(rng);
     d.los = k % 3 - 1;
     r.tdoa.push_back(d);
     UltrasonicSample us;
@@ -255,7 +263,8 @@ TEST(RecordingRoundTrip, WriterHeadersUseTheFormatColumns) {
   EXPECT_EQ(firstLine(recording::kTagsFile), "id,x,y,z");
   EXPECT_EQ(firstLine(recording::kImuFile), "t_ns,wx,wy,wz,ax,ay,az,temp_c");
   EXPECT_EQ(firstLine(recording::kRangeFile), "t_ns,anchor_id,range_m,tag_id,rssi_dbm,fp_power_dbm,los");
-  EXPECT_EQ(firstLine(recording::kTdoaFile), "t_ns,anchor_a,anchor_b,diff_m,los");
+  EXPECT_EQ(firstLine(recording::kTdoaFile),
+            "t_ns,anchor_a,anchor_b,diff_m,rssi_a_dbm,fp_power_a_dbm,rssi_b_dbm,fp_power_b_dbm,los");
   EXPECT_EQ(firstLine(recording::kUltrasonicFile), "t_ns,anchor_id,range_m,los");
   EXPECT_EQ(firstLine(recording::kGroundTruthFile), "t_ns,px,py,pz,qw,qx,qy,qz,vx,vy,vz");
 }

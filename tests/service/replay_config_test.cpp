@@ -99,7 +99,7 @@ TEST(ReplayWithServiceParams, TakesTheServicesModelInsteadOfTheRecordingsSensorP
 
 TEST(ReplayWithServiceParams, TdoaSettingsComeFromTheConfigurationUnlessGiven) {
   Recording rec = demo();
-  rec.tdoa.push_back(TdoaSample{rec.imu.front().t_ns, 0, 1, 0.5, -1});
+  rec.tdoa.push_back(TdoaSample{rec.imu.front().t_ns, 0, 1, 0.5});
   // The replay's own vertical speed default for TDoA data...
   EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
 

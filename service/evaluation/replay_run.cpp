@@ -111,6 +111,10 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.ultrasonic_sigma_m) lp.graph.ultrasonic_sigma_m = *s.ultrasonic_sigma_m;
   if (s.tdoa_noise) lp.graph.tdoa_loss = *s.tdoa_noise;
   if (s.ultrasonic_noise) lp.graph.ultrasonic_loss = *s.ultrasonic_noise;
+  if (s.tdoa_nlos_indicator) lp.graph.tdoa_nlos_indicator = *s.tdoa_nlos_indicator;
+  if (s.tdoa_flagged_noise) lp.graph.tdoa_flagged_loss = *s.tdoa_flagged_noise;
+  if (s.tdoa_both_flagged_factor) lp.graph.tdoa_both_flagged_sigma_factor = *s.tdoa_both_flagged_factor;
+  if (s.tdoa_one_flagged_factor) lp.graph.tdoa_one_flagged_sigma_factor = *s.tdoa_one_flagged_factor;
   // The EKF baseline needs the per-link sigmas as much as the graph (with_tdoa
   // gives them to both): at the configured 0.15 m against the office sim's
   // 1.3-1.5 m NLOS TDoA errors its covariance collapsed to a few cm, its gate
@@ -192,6 +196,14 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   const std::vector<UltrasonicSample>& ultrasonic = kinds.ultrasonic ? rec.ultrasonic : no_ultrasonic;
   out.ranges_used = counts.range.used = ranges.size();
   counts.tdoa.used = tdoa.size();
+  {
+    const TdoaModel tdoa_model(tdoaModelParams(params.graph), params.graph.range_noise);
+    for (const TdoaSample& row : tdoa) {
+      const int n = tdoa_model.flaggedPackets(Measurement::of(row));
+      counts.tdoa.flagged_one += n == 1 ? 1 : 0;
+      counts.tdoa.flagged_both += n == 2 ? 1 : 0;
+    }
+  }
   counts.ultrasonic.used = ultrasonic.size();
 
   // One time order over the measurement kinds (the graph stream needs it);

@@ -87,6 +87,12 @@ struct ReplaySettings {
   // TDoA and ultrasonic noise models (unset: RangeImuGraphParams defaults).
   std::optional<double> tdoa_sigma_m, ultrasonic_sigma_m;  ///< LOS std-dev (m)
   std::optional<std::string> tdoa_noise, ultrasonic_noise;  ///< loss names (makeRangeLoss)
+  /// TDoA rows' receive diagnostics (tdoa_model.h; unset: RangeImuGraphParams
+  /// defaults): whether they are used, the loss of a row with one packet
+  /// flagged, and the sigma factors of the flagged rows.
+  std::optional<bool> tdoa_nlos_indicator;
+  std::optional<std::string> tdoa_flagged_noise;
+  std::optional<double> tdoa_both_flagged_factor, tdoa_one_flagged_factor;
   /// Called now and then with the fraction of samples consumed (progress bars).
   std::function<void(double)> progress;
 };
@@ -103,6 +109,9 @@ struct MeasurementCount {
   std::size_t used = 0;      ///< fed to the Localizer
   std::size_t dropped = 0;   ///< dropped by the simulated reception (ReplaySettings::reception)
   bool selected = true;      ///< in ReplaySettings::measurements (else none used, none dropped)
+  /// TDoA: used rows with one / both packets flagged NLOS by their receive
+  /// diagnostics (TdoaModel::flaggedPackets; 0 without diagnostics or with the indicator off).
+  std::size_t flagged_one = 0, flagged_both = 0;
 };
 
 struct MeasurementCounts {

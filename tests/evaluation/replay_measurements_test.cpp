@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
 #include <set>
 #include <string>
 
@@ -144,6 +145,35 @@ TEST(ReplayMeasurements, RangeCsvIsOptionalButSomeSelectedKindIsNeeded) {
   ReplaySettings bad;
   bad.reception = 1.5;
   EXPECT_THROW(replayRecording(hallRecording(), bad), std::invalid_argument);
+}
+
+TEST(ReplayMeasurements, TdoaRowsFlaggedByTheirDiagnosticsAreCountedAndChangeTheEstimate) {
+  Recording rec = hallRecording();
+  rec.ranges.clear();
+  ReplaySettings s;
+  s.measurements = measurementKindsFromString("tdoa,ultrasonic");
+  const ReplayResult on = replayRecording(rec, s);
+  const MeasurementCount& t = on.measurements.tdoa;
+  EXPECT_GT(t.flagged_one, 0u);
+  EXPECT_GT(t.flagged_both, 0u);
+  EXPECT_LT(t.flagged_one + t.flagged_both, t.used);  // the hall has LOS rows
+  // Truly LOS rows are rarely flagged: the flags follow the truth.
+  std::size_t los_rows = 0;
+  for (const TdoaSample& row : rec.tdoa) los_rows += row.los == 1 ? 1 : 0;
+  EXPECT_GE(t.used - t.flagged_one - t.flagged_both, los_rows * 9 / 10);
+
+  s.tdoa_nlos_indicator = false;
+  const ReplayResult off = replayRecording(rec, s);
+  EXPECT_EQ(off.measurements.tdoa.flagged_one + off.measurements.tdoa.flagged_both, 0u);
+  ASSERT_FALSE(on.online.empty());
+  ASSERT_FALSE(off.online.empty());
+  EXPECT_FALSE(on.online.back().T_w_b.p.isApprox(off.online.back().T_w_b.p, 1e-9));
+
+  // Rows without diagnostics (UTIL imports, older recordings) are never flagged.
+  for (TdoaSample& row : rec.tdoa) row.fp_power_b_dbm = row.fp_power_a_dbm = std::numeric_limits<double>::quiet_NaN();
+  s.tdoa_nlos_indicator.reset();
+  const ReplayResult bare = replayRecording(rec, s);
+  EXPECT_EQ(bare.measurements.tdoa.flagged_one + bare.measurements.tdoa.flagged_both, 0u);
 }
 
 TEST(ReplayMeasurements, ReceptionDropsWholeTdoaEpochsAndSingleRangesFromItsSeed) {

@@ -97,9 +97,12 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_EQ(parse(valid("estimator:\n  max_outside_anchors_m: 4.5\n")).estimator.max_outside_anchors_m, 4.5);
   EXPECT_EQ(c.estimator.with_tdoa.state_window_ns, LocalizerParams().with_tdoa.state_window_ns);
   EXPECT_TRUE(c.estimator.with_tdoa.dynamic_covariance);
-  const ServiceConfig tdoa = parse(valid("estimator:\n  tdoa:\n    state_window_s: 0\n    dynamic_covariance: false\n"));
+  EXPECT_TRUE(c.estimator.graph.tdoa_nlos_indicator);
+  const ServiceConfig tdoa = parse(valid(
+      "estimator:\n  tdoa:\n    state_window_s: 0\n    dynamic_covariance: false\n    nlos_indicator: false\n"));
   EXPECT_EQ(tdoa.estimator.with_tdoa.state_window_ns, 0);
   EXPECT_FALSE(tdoa.estimator.with_tdoa.dynamic_covariance);
+  EXPECT_FALSE(tdoa.estimator.graph.tdoa_nlos_indicator);
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_EQ(c.dds.topics.odometry, "rt/rilo/odometry");
   EXPECT_EQ(c.dds.frames.world, "map");

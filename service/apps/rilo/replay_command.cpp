@@ -32,11 +32,16 @@ std::string statsJson(const PositionErrorStats& s) {
   return buf;
 }
 
-std::string countJson(const MeasurementCount& c) {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, "{\"recorded\": %zu, \"used\": %zu, \"dropped\": %zu, \"selected\": %s}", c.recorded,
+std::string countJson(const MeasurementCount& c, bool with_flags = false) {
+  char buf[224];
+  std::snprintf(buf, sizeof buf, "{\"recorded\": %zu, \"used\": %zu, \"dropped\": %zu, \"selected\": %s", c.recorded,
                 c.used, c.dropped, c.selected ? "true" : "false");
-  return buf;
+  std::string out = buf;
+  if (with_flags) {
+    std::snprintf(buf, sizeof buf, ", \"flagged_one\": %zu, \"flagged_both\": %zu", c.flagged_one, c.flagged_both);
+    out += buf;
+  }
+  return out + "}";
 }
 
 }  // namespace
@@ -88,7 +93,7 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"measurements\": {\"selected\": " << jsonString(toString(o.settings.measurements))
           << ", \"reception\": " << o.settings.reception << ", \"reception_seed\": " << o.settings.reception_seed
           << ",\n    \"range\": " << countJson(run.measurements.range)
-          << ",\n    \"tdoa\": " << countJson(run.measurements.tdoa)
+          << ",\n    \"tdoa\": " << countJson(run.measurements.tdoa, true)
           << ",\n    \"ultrasonic\": " << countJson(run.measurements.ultrasonic) << "}"
           << ",\n  \"dynamic_covariance\": " << (run.dynamic_covariance ? "true" : "false")
           << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": {\"mean\": " << mean_ms
@@ -129,6 +134,9 @@ int runReplay(const ReplayOptions& o) {
         std::printf(" %s not selected (%zu recorded);", name, c.recorded);
       } else {
         std::printf(" %s %zu of %zu (%zu);", name, c.used, c.recorded, c.dropped);
+        if (c.flagged_one + c.flagged_both > 0) {
+          std::printf(" flagged NLOS: one packet %zu, both %zu;", c.flagged_one, c.flagged_both);
+        }
       }
     }
     std::printf("\n");
@@ -237,6 +245,19 @@ void addReplayCommand(CLI::App& app) {
       ->check(CLI::IsMember(rangeLossNames()));
   cmd->add_option("--ultrasonic-noise", options->settings.ultrasonic_noise, "Ultrasonic noise model (default huber)")
       ->check(CLI::IsMember(rangeLossNames()));
+  cmd->add_option("--tdoa-nlos-indicator", options->settings.tdoa_nlos_indicator,
+                  "Use the TDoA rows' receive diagnostics (rssi/fp columns of tdoa.csv): a packet whose RX level "
+                  "minus first-path power exceeds the NLOS gap is flagged (true/false; default true)");
+  cmd->add_option("--tdoa-flagged-noise", options->settings.tdoa_flagged_noise,
+                  "Loss of a TDoA row with one packet flagged, oriented so the flagged path is the long side "
+                  "(default asymmetric)")
+      ->check(CLI::IsMember(rangeLossNames()));
+  cmd->add_option("--tdoa-both-flagged-factor", options->settings.tdoa_both_flagged_factor,
+                  "Sigma factor of a TDoA row with both packets flagged (default 3)")
+      ->check(CLI::Range(1.0, 100.0));
+  cmd->add_option("--tdoa-one-flagged-factor", options->settings.tdoa_one_flagged_factor,
+                  "EKF: sigma factor of a TDoA row with one packet flagged (default 2)")
+      ->check(CLI::Range(1.0, 100.0));
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
                   "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on once the data hold TDoA "
                   "rows; with --config: its tdoa.dynamic_covariance)");

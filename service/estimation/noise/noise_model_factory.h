@@ -86,6 +86,14 @@ struct RangeNoiseParams {
 /// std::invalid_argument naming a bad parameter.
 std::shared_ptr<const NlosComponentLoss> makeNlosComponentLoss(const RangeNoiseParams& params);
 
+/// params for another kind of measurement at sigma_m (TDoA, ultrasonic):
+/// the same shape parameters, the NLOS scale back to its IQR default at sigma_m.
+inline RangeNoiseParams withSigma(RangeNoiseParams params, double sigma_m) {
+  params.sigma_m = sigma_m;
+  params.nlos_scale_m.reset();
+  return params;
+}
+
 /// Names accepted by makeRangeLoss, in documentation order.
 const std::vector<std::string>& rangeLossNames();
 

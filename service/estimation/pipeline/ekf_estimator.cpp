@@ -6,12 +6,6 @@
 namespace rilo {
 namespace {
 
-RangeNoiseParams withSigma(RangeNoiseParams p, double sigma_m) {
-  p.sigma_m = sigma_m;
-  p.nlos_scale_m.reset();
-  return p;
-}
-
 EkfParams withImu(EkfParams p, const ImuParams& imu) {
   p.imu = imu;
   return p;
@@ -24,7 +18,7 @@ EkfEstimator::EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphPar
       graph_(graph),
       ekf_(withImu(ekf, graph.imu)),
       range_model_(graph.range_loss, graph.range_noise),
-      tdoa_loss_(makeRangeLoss(graph.tdoa_loss, withSigma(graph.range_noise, graph.tdoa_sigma_m))),
+      tdoa_model_(tdoaModelParams(graph), graph.range_noise),
       ultrasonic_loss_(makeRangeLoss(graph.ultrasonic_loss, withSigma(graph.range_noise, graph.ultrasonic_sigma_m))),
       noise_(p_w_anchors_, graph_, ekf.dynamic_covariance) {
   if (graph_.same_state_window_ns < 0) throw std::invalid_argument("EkfEstimator: same_state_window_ns must be >= 0");
@@ -129,14 +123,15 @@ void EkfEstimator::apply(const Measurement& m) {
       if (ekf_.params().tdoa_group_update) {
         if (!group_open_) openGroup(m.t_ns);
         if (tdoa_n_ == kEkfMaxGroupRows) flushTdoaGroup();
-        tdoa_rows_[tdoa_n_] = {p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], m.anchor, m.anchor_b, m.value_m, sigma_m};
+        tdoa_rows_[tdoa_n_] = {p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], m.anchor, m.anchor_b, m.value_m,
+                               tdoa_model_.symmetricSigma(m, sigma_m)};
         tdoa_meas_[tdoa_n_++] = m;
         ++group_size_;
         group_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         return;
       }
-      r = ekf_.updateTdoa(p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], graph_.p_b_tag, m.value_m, sigma_m,
-                          tdoa_loss_.get());
+      r = ekf_.updateTdoa(p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], graph_.p_b_tag, m.value_m,
+                          tdoa_model_.symmetricSigma(m, sigma_m), tdoa_model_.loss().get());
       break;
     case Measurement::Kind::kUltrasonic:
       if (m.anchor >= graph_.p_w_ultrasonic.size()) return;
@@ -177,7 +172,7 @@ void EkfEstimator::applyHeightBand() {
 void EkfEstimator::flushTdoaGroup() {
   if (tdoa_n_ == 0) return;
   const auto t0 = std::chrono::steady_clock::now();
-  const EkfGroupResult r = ekf_.updateTdoaGroup(tdoa_rows_, tdoa_n_, graph_.p_b_tag, tdoa_loss_.get());
+  const EkfGroupResult r = ekf_.updateTdoaGroup(tdoa_rows_, tdoa_n_, graph_.p_b_tag, tdoa_model_.loss().get());
   for (int i = 0; i < tdoa_n_; ++i) {
     noise_.noteInnovation(tdoa_meas_[i], r.innovation[i], r.predicted_variance_m2[i]);
   }

@@ -85,7 +85,8 @@ class EkfEstimator final : public TrackingEstimator {
   RangeImuGraphParams graph_;
   ErrorStateEkf ekf_;
   RangeModel range_model_;  ///< two-way ranges (range_model.h)
-  RobustLossPtr tdoa_loss_, ultrasonic_loss_;
+  TdoaModel tdoa_model_;  ///< TDoA rows: the configured symmetric loss, the sigma widened when flagged
+  RobustLossPtr ultrasonic_loss_;
   MeasurementNoise noise_;
 
   bool have_imu_ = false;

@@ -13,6 +13,17 @@ namespace rilo {
 // first-state priors, the IMU factors, the measurement factors in time order,
 // the anchor priors in anchor order, the motion priors (height band, vertical
 // speed) in state order.
+TdoaModelParams tdoaModelParams(const RangeImuGraphParams& params) {
+  TdoaModelParams t;
+  t.loss = params.tdoa_loss;
+  t.flagged_loss = params.tdoa_flagged_loss;
+  t.sigma_m = params.tdoa_sigma_m;
+  t.both_flagged_sigma_factor = params.tdoa_both_flagged_sigma_factor;
+  t.one_flagged_sigma_factor = params.tdoa_one_flagged_sigma_factor;
+  t.use_indicator = params.tdoa_nlos_indicator;
+  return t;
+}
+
 RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::vector<RangeSample>& ranges,
                                  const std::vector<Vec3>& p_w_anchors, const Pose3& T_w_b0_guess,
                                  const Vec3& v_w0_guess, const RangeImuGraphParams& params) {

@@ -15,6 +15,7 @@
 #include "estimation/noise/noise_model_factory.h"
 #include "estimation/pipeline/init_height_band.h"
 #include "estimation/pipeline/measurement.h"
+#include "estimation/pipeline/tdoa_model.h"
 #include "hal/samples.h"
 
 namespace rilo {
@@ -49,6 +50,13 @@ struct RangeImuGraphParams {
   /// either anchor of the pair biases the difference, with opposite signs.
   std::string tdoa_loss = "huber";
   double tdoa_sigma_m = 0.15;         ///< std-dev of a LOS range difference (m)
+  /// Rows with receive diagnostics (tdoa_model.h): one packet flagged NLOS
+  /// gets this loss, oriented; both flagged, tdoa_loss at the sigma times
+  /// tdoa_both_flagged_sigma_factor. tdoa_nlos_indicator false: rows as unflagged.
+  std::string tdoa_flagged_loss = "asymmetric";
+  double tdoa_both_flagged_sigma_factor = 3.0;
+  double tdoa_one_flagged_sigma_factor = 2.0;  ///< the EKF's (symmetric loss, no orientation)
+  bool tdoa_nlos_indicator = true;
   /// Loss of ultrasonic ranges: the asymmetric model, because reflections
   /// off furniture and people only ever lengthen the path (seed 002 uses
   /// Huber; on the hall sim the asymmetric loss took TDoA + ultrasonic
@@ -60,6 +68,9 @@ struct RangeImuGraphParams {
   /// finite filler. Empty: no ultrasonic ranging.
   std::vector<Vec3> p_w_ultrasonic;
 };
+
+/// The TDoA model of params (tdoa_model.h).
+TdoaModelParams tdoaModelParams(const RangeImuGraphParams& params);
 
 struct RangeImuGraph {
   FactorGraph graph;

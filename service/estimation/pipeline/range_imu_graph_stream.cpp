@@ -17,12 +17,6 @@ constexpr double kNsToS = 1e-9;
 
 std::string ns(std::int64_t t_ns) { return std::to_string(t_ns); }
 
-RangeNoiseParams withSigma(RangeNoiseParams p, double sigma_m) {
-  p.sigma_m = sigma_m;
-  p.nlos_scale_m.reset();  // the IQR default at this sigma
-  return p;
-}
-
 /// Integrates the zero-order-held IMU samples over [t_a, t_b] into pim,
 /// advancing `cursor` (index of the sample in effect at t_a, or 0 if the first
 /// sample is later: it is then held backwards) to the sample in effect at t_b.
@@ -56,7 +50,7 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
       params_(std::move(params)),
       options_(options),
       range_model_(params_.range_loss, params_.range_noise),
-      tdoa_loss_(makeRangeLoss(params_.tdoa_loss, withSigma(params_.range_noise, params_.tdoa_sigma_m))),
+      tdoa_model_(tdoaModelParams(params_), params_.range_noise),
       ultrasonic_loss_(makeRangeLoss(params_.ultrasonic_loss, withSigma(params_.range_noise, params_.ultrasonic_sigma_m))),
       pim_(params_.imu, ImuBias(), PreintegratedImu::CovarianceMode::kCombined),
       noise_(p_w_anchors_, params_, options_.dynamic_covariance),
@@ -350,16 +344,18 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
         }
         break;
       }
-      case Measurement::Kind::kTdoa:
+      case Measurement::Kind::kTdoa: {
+        const TdoaTerm t = tdoa_model_.term(m, sigma_m);
         if (vars) {
-          const Key a = uwbAnchorKey(m.anchor, inc);
-          inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(m.anchor_b, inc), m.value_m, sigma_m, params_.p_b_tag,
-                                          tdoa_loss_);
+          const Key a = uwbAnchorKey(t.anchor_a, inc);
+          inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(t.anchor_b, inc), t.value_m, t.sigma_m, params_.p_b_tag,
+                                          t.loss);
         } else {
-          inc.factors.emplace<TdoaFactor>(x, p_w_anchors_[m.anchor], p_w_anchors_[m.anchor_b], m.value_m, sigma_m,
-                                          params_.p_b_tag, tdoa_loss_);
+          inc.factors.emplace<TdoaFactor>(x, p_w_anchors_[t.anchor_a], p_w_anchors_[t.anchor_b], t.value_m, t.sigma_m,
+                                          params_.p_b_tag, t.loss);
         }
         break;
+      }
       case Measurement::Kind::kUltrasonic:
         inc.factors.emplace<UltrasonicFactor>(x, params_.p_w_ultrasonic[m.anchor], m.value_m, sigma_m,
                                               params_.p_b_ultrasonic, std::nullopt, ultrasonic_loss_);

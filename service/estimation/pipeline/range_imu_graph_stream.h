@@ -242,7 +242,8 @@ class RangeImuGraphStream {
   RangeImuGraphParams params_;
   RangeImuStreamOptions options_;
   RangeModel range_model_;  ///< two-way ranges: the configured loss, or the NLOS component when flagged
-  RobustLossPtr tdoa_loss_, ultrasonic_loss_;
+  TdoaModel tdoa_model_;  ///< TDoA: the configured loss, oriented NLOS tail or widened when flagged
+  RobustLossPtr ultrasonic_loss_;
   PreintegratedImu pim_;  ///< scratch, reset per state
   MeasurementNoise noise_;
 

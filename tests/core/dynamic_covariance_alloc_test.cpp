@@ -27,6 +27,7 @@ TEST(DynamicCovarianceAllocation, NotesAndSigmasDoNotAllocate) {
   DynamicCovarianceOptions options;
   options.enabled = true;
   options.range = true;  // every kind
+  options.ultrasonic = true;
   MeasurementNoise noise(kAnchors, twoBeacons(), options);
   const Pose3 T(Mat3::Identity(), Vec3(3, 4, 1.2));
   std::uint64_t news = 0;

@@ -45,9 +45,11 @@ const DynamicCovariance& covarianceOf(const MeasurementNoise& noise) {
   return *noise.covariance();
 }
 
+/// On, for TDoA and (unlike the default) ultrasonic beacons too.
 DynamicCovarianceOptions on() {
   DynamicCovarianceOptions o;
   o.enabled = true;
+  o.ultrasonic = true;
   return o;
 }
 
@@ -190,6 +192,21 @@ TEST(MeasurementNoise, TwoWayRangesKeepTheirSigmaUnlessAsked) {
   const Measurement u{Measurement::Kind::kUltrasonic, 0, 1, 0, 2.0};
   with_ranges.notePrediction(3, u, Pose3());
   EXPECT_EQ(with_ranges.pending(), 0u);
+}
+
+TEST(MeasurementNoise, ByDefaultOnlyTdoaPairsGetEstimatedSigmas) {
+  // Ranges and ultrasonic ranges have the asymmetric loss, which models their
+  // NLOS / reflection tail itself (DynamicCovarianceOptions::ultrasonic).
+  DynamicCovarianceOptions options;
+  options.enabled = true;
+  MeasurementNoise noise(anchors(), geometryParams(), options);
+  EXPECT_TRUE(noise.dynamicKind(Measurement::Kind::kTdoa));
+  EXPECT_FALSE(noise.dynamicKind(Measurement::Kind::kRange));
+  EXPECT_FALSE(noise.dynamicKind(Measurement::Kind::kUltrasonic));
+  const Measurement u{Measurement::Kind::kUltrasonic, 0, 1, 0, 2.0};
+  for (int k = 0; k < 200; ++k) noise.noteInnovation(u, k % 2 == 0 ? 0.3 : -0.3, 0.0);
+  EXPECT_EQ(noise.sigma(u), geometryParams().ultrasonic_sigma_m);
+  EXPECT_EQ(noise.residualsFed(), 0u);
 }
 
 TEST(MeasurementNoise, PendingNotesOfAnotherStateAreDroppedAndTheBufferIsBounded) {

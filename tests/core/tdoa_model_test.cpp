@@ -143,6 +143,24 @@ TEST(TdoaModel, ThresholdIsTheRangeNoiseGap) {
   EXPECT_TRUE(model.term(tdoaRow(11.0, 9.0), 0.15).reversed);
 }
 
+TEST(TdoaModel, OnlyRowsWithBothDiagnosticsUnflaggedAreVouchedLos) {
+  const TdoaModel model = defaultModel();
+  EXPECT_TRUE(model.vouchedLos(tdoaRow(2.0, 3.0)));
+  EXPECT_TRUE(model.vouchedLos(tdoaRow(6.0, 6.0)));  // at the threshold: not above it
+  EXPECT_FALSE(model.vouchedLos(tdoaRow(2.0, 9.0)));
+  EXPECT_FALSE(model.vouchedLos(tdoaRow(9.0, 2.0)));
+  EXPECT_FALSE(model.vouchedLos(tdoaRow(9.0, 9.0)));
+  EXPECT_FALSE(model.vouchedLos(tdoaRow(2.0, kNaN)));  // one packet unreported: not vouched for
+  EXPECT_FALSE(model.vouchedLos(tdoaRow(kNaN, kNaN)));
+  TdoaModelParams off;
+  off.use_indicator = false;
+  EXPECT_FALSE(TdoaModel(off, RangeNoiseParams{}).vouchedLos(tdoaRow(2.0, 3.0)));
+  RangeSample r;
+  r.rssi_dbm = -80.0;
+  r.fp_power_dbm = -81.0;
+  EXPECT_FALSE(model.vouchedLos(Measurement::of(r)));
+}
+
 TEST(TdoaModel, BadParametersThrowNamingThem) {
   TdoaModelParams p;
   p.both_flagged_sigma_factor = 0.5;

@@ -109,7 +109,9 @@ void EkfEstimator::propagateTo(std::int64_t t_ns, const ImuSample& next) {
 void EkfEstimator::apply(const Measurement& m) {
   const auto t0 = std::chrono::steady_clock::now();
   EkfUpdateResult r;
-  const double sigma_m = noise_.sigma(m);  // the kind's configured sigma unless dynamic covariance is on
+  // The kind's configured sigma unless dynamic covariance is on (and for TDoA
+  // rows the receiver vouches for as LOS even then: tdoa_model.h).
+  const double sigma_m = tdoa_model_.vouchedLos(m) ? noise_.nominalSigma(m.kind) : noise_.sigma(m);
   switch (m.kind) {
     case Measurement::Kind::kRange: {
       if (m.anchor >= p_w_anchors_.size()) return;

@@ -332,7 +332,7 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
   const bool vars = params_.anchors_as_variables;
   for (std::size_t k = first; k < first + n; ++k) {
     const Measurement& m = ranges_[k];
-    const double sigma_m = noise_.sigma(m);
+    const double sigma_m = tdoa_model_.vouchedLos(m) ? noise_.nominalSigma(m.kind) : noise_.sigma(m);
     switch (m.kind) {
       case Measurement::Kind::kRange: {
         const RangeTerm t = range_model_.term(m, sigma_m);

@@ -5,7 +5,9 @@
 // power indicator, as for two-way ranges, range_model.h). Seed 002 weights
 // its TDoA "based on real-time channel conditions"; this is that, per packet:
 //  - neither packet flagged (gap <= range_noise.nlos_power_gap_db), or no
-//    diagnostics: the configured TDoA loss at the TDoA sigma;
+//    diagnostics: the configured TDoA loss at the TDoA sigma (with both
+//    packets' diagnostics, the configured sigma even under dynamic
+//    covariance: vouchedLos);
 //  - one packet flagged: its path is the late one, so the difference has a
 //    one-sided error: positive when b's packet is flagged, negative when a's.
 //    The row is oriented so that the flagged path is b's (anchors swapped,
@@ -14,6 +16,7 @@
 //    receiver's flagged NLOS weight (flagged_nlos_weight, 0.45);
 //  - both flagged: the two excesses partly cancel and the sign is unknown: the
 //    configured loss at tdoa_both_flagged_sigma_factor times the sigma.
+#include <cmath>
 #include <string>
 
 #include "estimation/noise/noise_model_factory.h"
@@ -51,6 +54,16 @@ class TdoaModel {
 
   /// Packets of m flagged as NLOS (0, 1, 2); 0 without diagnostics.
   int flaggedPackets(const Measurement& m) const;
+  /// Whether m is a TDoA row the receiver vouches for: both packets'
+  /// diagnostics reported, neither flagged. Such a row keeps the configured
+  /// LOS sigma even when dynamic covariance is on (the estimators ask this
+  /// before MeasurementNoise::sigma): its pair's residual statistics are
+  /// mostly those of the pair's NLOS rows, and widened the LOS rows with them
+  /// (six TDoA sims, sliding window 0.220 -> 0.208 m online RMSE).
+  bool vouchedLos(const Measurement& m) const {
+    return use_indicator_ && m.kind == Measurement::Kind::kTdoa && !std::isnan(m.power_gap_db) &&
+           !std::isnan(m.power_gap_b_db) && !flagged(m.power_gap_db) && !flagged(m.power_gap_b_db);
+  }
   /// m (a TDoA measurement) as a term at the row's std-dev sigma_m
   /// (MeasurementNoise::sigma; params.sigma_m unless dynamic covariance is on).
   TdoaTerm term(const Measurement& m, double sigma_m) const;

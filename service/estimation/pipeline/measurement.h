@@ -26,7 +26,7 @@ struct Measurement {
     return {Kind::kRange, s.t_ns, s.anchor_id, 0, s.range_m, s.rssi_dbm - s.fp_power_dbm};
   }
   static Measurement of(const TdoaSample& s) {
-    return {Kind::kTdoa,     s.t_ns, s.anchor_a, s.anchor_b, s.diff_m, s.rssi_a_dbm - s.fp_power_a_dbm,
+    return {Kind::kTdoa, s.t_ns, s.anchor_a, s.anchor_b, s.diff_m, s.rssi_a_dbm - s.fp_power_a_dbm,
             s.rssi_b_dbm - s.fp_power_b_dbm};
   }
   static Measurement of(const UltrasonicSample& s) { return {Kind::kUltrasonic, s.t_ns, s.anchor_id, 0, s.range_m}; }

@@ -619,6 +619,31 @@ TEST(Initializer, SparseRanging1HzUsesLongerWindows) {
   EXPECT_GE(t.vel, t.runs - 2) << "velocity < 0.3 m/s";
 }
 
+TEST(Initializer, AGrownWindowStartsAfterSecondsThatGaveNoFix) {
+  // The smooth walk needs a window longer than window_s for yaw (the moving
+  // starts above initialize at ~17 s). For the first 14 s only two anchors
+  // are heard: no fix there. A grown window must start after those seconds
+  // instead of staying pinned to the data's first sample, which deferred the
+  // start until the 45 s window slid past them (office TDoA sim, seed 7:
+  // 68.8 s of data).
+  Tally t;
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    sim::Scenario s = movingScenario(seed, 40.0, 50.0);
+    const std::int64_t t_blind_end = s.t0_ns + 14'000'000'000;
+    std::erase_if(s.ranges, [&](const RangeSample& r) { return r.t_ns < t_blind_end && r.anchor_id > 1; });
+    Initializer init(s.p_w_anchors, paramsFor(s));
+    const InitRun r = runInit(s, init);
+    printRun("blind start", seed, r);
+    t.add(r, 0.3);
+    ASSERT_TRUE(r.initialized) << r.status;
+    EXPECT_LT(r.time_s, 40.0);
+    EXPECT_GE(init.result().window_start_ns, t_blind_end - 4'000'000'000);
+  }
+  EXPECT_GE(t.h, t.runs - 1) << "horizontal < 0.3 m";
+  EXPECT_EQ(t.tilt, t.runs) << "roll/pitch < 2 deg";
+  EXPECT_GE(t.yaw, t.runs - 1) << "yaw < 10 deg";
+}
+
 // ---------------------------------------------------------------------------
 // Garbage in: never a crash, never a wrong initialization, a reason.
 

@@ -20,6 +20,8 @@ using init_detail::strprintf;
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
+/// Fix starts a window tries, fix_window_s apart from its first measurement (step 1 of alignWindow).
+constexpr int kFixStarts = 4;
 constexpr double kTdoaGateCostCap = 0.5 * 3.0 * 3.0;  ///< cost of a 3-sigma residual (see solveBatch)
 
 std::int64_t toNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
@@ -162,6 +164,7 @@ void Initializer::reset() {
   attempted_ = false;
   interval_s_ = params_.attempt_interval_s;
   grow_window_ = false;
+  no_fix_before_ns_ = 0;
   dropped_imu_ = dropped_meas_ = 0;
   status_ = InitStatus();
   batch_stage_reached_ = false;
@@ -286,14 +289,31 @@ bool Initializer::runAttempt() {
   }
   AlignedWindow aligned;
   if (!grow_window_ || W >= W_max) {
-    aligned = alignWindow(W, t_now, end);
+    aligned = alignWindow(W, t_now, end, P.fix_max_window_s);
     if (!aligned.ok && aligned.state == InitState::kYawUnobservable && W >= toNs(P.window_s) && W < toNs(P.max_window_s)) {
       grow_window_ = true;  // the motion is too gentle for this window: take longer ones from now on
     }
   }
   if (grow_window_ && !aligned.ok && W < W_max) {
-    aligned = alignWindow(W_max, t_now, end);
-    if (!aligned.ok) aligned.message += strprintf(" (window %.1f s)", toS(W_max));
+    // The longest window that does not start where the fix is known to fail.
+    // Without this a grown window stayed pinned to the data's first seconds
+    // while they gave no fix (office TDoA sim, seed 7: 4 of 6 anchors NLOS
+    // there), and the start waited 68 s for the window to slide past them.
+    // Once a start failed, a later one needs a fix from its own first
+    // fix_window_s: a fix window grown into the good seconds dates their
+    // fix back into the bad ones, and the batch then holds seconds that
+    // only two anchors or NLOS paths saw (a 2-anchor start: yaw 23 deg off
+    // at a claimed 3.3).
+    std::int64_t Wg = std::min(W_max, t_now - no_fix_before_ns_);
+    for (;;) {
+      Wg = std::max(Wg, W);
+      const bool after_failure = no_fix_before_ns_ > t_now - W_max;
+      aligned = alignWindow(Wg, t_now, end, after_failure && Wg > W ? P.fix_window_s : P.fix_max_window_s);
+      if (aligned.ok || !aligned.fix_failed || Wg == W) break;
+      no_fix_before_ns_ = aligned.fix_search_ns + toNs(kFixStarts * P.fix_window_s);
+      Wg = t_now - no_fix_before_ns_;
+    }
+    if (!aligned.ok) aligned.message += strprintf(" (window %.1f s)", toS(Wg));
   }
   if (!aligned.ok) {
     setStatus(aligned.state, aligned.message);
@@ -361,7 +381,8 @@ TagFix Initializer::fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns,
   return tagFixOf(locateTdoa(tdoa, ultrasonic, t_fix_ns, p_w_fix_sources_, params_.tdoa_fix));
 }
 
-Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std::int64_t t_now, std::size_t end) const {
+Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std::int64_t t_now, std::size_t end,
+                                                   double fix_max_window_s) const {
   const InitializerParams& P = params_;
   AlignedWindow w;
   w.end = end;
@@ -401,20 +422,22 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
   };
   TagFix first_fix;
   bool have_fix = false;
-  for (int k = 0; k < 4 && !have_fix; ++k) {
+  for (int k = 0; k < kFixStarts && !have_fix; ++k) {
     const std::size_t f0 = rangeIndexFrom(meas_, t_w0 + toNs(k * P.fix_window_s));
     if (f0 >= end) break;
     const std::int64_t t_fix = meas_[f0].t_ns;
     std::size_t f1 = f0;
-    for (double len = P.fix_window_s;; len = std::min(P.fix_max_window_s, 1.5 * len)) {
+    for (double len = P.fix_window_s;; len = std::min(fix_max_window_s, 1.5 * len)) {
       f1 = std::min(end, rangeIndexFrom(meas_, t_fix + toNs(len)));
-      if (enough_for_fix(f0, f1) || len >= P.fix_max_window_s || f1 >= end) break;
+      if (enough_for_fix(f0, f1) || len >= fix_max_window_s || f1 >= end) break;
     }
     w.fix = fixOf(f0, f1, t_fix, &w.fix_from_tdoa);
     if (k == 0) first_fix = w.fix;
     have_fix = w.fix.valid;
   }
   if (!have_fix) {
+    w.fix_failed = true;
+    w.fix_search_ns = t_w0;
     w.state = first_fix.anchors_heard < needed ? InitState::kTooFewAnchors : InitState::kPoorFix;
     w.message = "waiting: " + first_fix.message;
     return w;

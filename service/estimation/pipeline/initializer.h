@@ -324,6 +324,10 @@ class Initializer {
     std::size_t begin = 0, end = 0;  ///< meas_[begin, end)
     TagFix fix;
     bool fix_from_tdoa = false;
+    /// No fix at any of the kFixStarts starts from `fix_search_ns` on (the
+    /// window failed at step 1; its data will not change).
+    bool fix_failed = false;
+    std::int64_t fix_search_ns = 0;
     GravityAlignment gravity;
     AlignmentResult alignment;
   };
@@ -331,7 +335,9 @@ class Initializer {
   void setStatus(InitState s, std::string message);
   void trim();
   bool runAttempt();
-  AlignedWindow alignWindow(std::int64_t window_ns, std::int64_t t_now_ns, std::size_t end) const;
+  /// fix_max_window_s: how far the fix's own window may grow (step 1).
+  AlignedWindow alignWindow(std::int64_t window_ns, std::int64_t t_now_ns, std::size_t end,
+                            double fix_max_window_s) const;
   /// Fix from meas_[f0, f1): multilateration of its two-way ranges, else the TDoA fix.
   TagFix fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns, bool* from_tdoa) const;
   /// Distinct UWB anchors and ultrasonic beacons in meas_[begin, end).
@@ -351,6 +357,9 @@ class Initializer {
   bool attempted_ = false;
   double interval_s_ = 0.5;   ///< current attempt interval (see max_attempt_interval_s)
   bool grow_window_ = false;  ///< window_s was not enough for yaw: use up to max_window_s
+  /// Grown windows start no earlier than this (ns): the fix failed at every
+  /// start before it, so a window starting there fails the same way.
+  std::int64_t no_fix_before_ns_ = 0;
   std::size_t dropped_imu_ = 0, dropped_meas_ = 0;
 
   /// What an attempt saw: the newest IMU time and the measurement buffer's size and newest time.

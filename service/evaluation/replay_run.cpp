@@ -252,6 +252,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   std::sort(out.smoothed.begin(), out.smoothed.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
 
   out.data_s = static_cast<double>(rec.imu.back().t_ns - rec.imu.front().t_ns) * 1e-9;
+  out.online_tracked_share = trackedShare(out.online, rec.imu.front().t_ns, rec.imu.back().t_ns);
   out.initializations = localizer.initializations();
   out.reinitializations = localizer.reinitializations();
   out.dynamic_covariance = localizer.trackingDynamicCovariance();

@@ -135,6 +135,9 @@ struct ReplayResult {
   double flagged_excess_m = 0.0;      ///< final estimate of the flagged ranges' excess (Localizer::flaggedExcess)
   double flagged_scale_m = 0.0;       ///< half-Cauchy scale of flagged ranges when tracking last started (Localizer::trackingFlaggedScaleM)
   double data_s = 0.0;                ///< recording duration (IMU span, s)
+  /// Share of the IMU span the online estimate covered (trackedShare): the
+  /// APE figures are over those poses only.
+  double online_tracked_share = 0.0;
   double wall_s = 0.0;                ///< time the run took (s)
   /// Present when the recording has ground truth.
   std::optional<PositionErrorStats> ape_online, ape_smoothed;

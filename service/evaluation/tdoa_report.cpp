@@ -49,6 +49,7 @@ TdoaRun runOne(const Recording& rec, const TdoaRunSpec& spec, const TdoaReportOp
                                                                           : r.last_failure;
     run.measurements = r.measurements;
     run.data_s = r.data_s;
+    run.tracked_share = r.online_tracked_share;
     run.wall_s = r.wall_s;
   } catch (const std::exception& e) {
     run.threw = true;

@@ -63,6 +63,7 @@ struct TdoaRun {
   std::string last_failure;
   MeasurementCounts measurements;
   double data_s = 0.0, wall_s = 0.0;
+  double tracked_share = 0.0;  ///< ReplayResult::online_tracked_share
 
   /// Threw, never produced a pose matched to the truth, or mean online APE
   /// above fail_mean_m (diverged). Needs has_truth (else false).

@@ -72,6 +72,25 @@ PositionErrorStats positionErrorAgainst(const std::vector<RangeImuEstimator::Tim
   return absolutePositionError(poses, truth, associateByTime(poses, truth, max_dt_ns));
 }
 
+double trackedShare(const std::vector<RangeImuEstimator::TimedPose>& poses, std::int64_t t0_ns, std::int64_t t1_ns,
+                    std::int64_t max_age_ns) {
+  if (max_age_ns < 0) throw std::invalid_argument("trackedShare: max_age_ns must be >= 0");
+  if (t1_ns <= t0_ns) return 0.0;
+  std::int64_t covered = 0;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    if (k > 0 && poses[k].t_ns < poses[k - 1].t_ns) {
+      throw std::invalid_argument("trackedShare: poses out of time order at index " + std::to_string(k));
+    }
+    // Pose k is the newest from its time until the next pose (or for ever).
+    const std::int64_t from = std::max(poses[k].t_ns, t0_ns);
+    std::int64_t to = poses[k].t_ns + max_age_ns;
+    if (k + 1 < poses.size()) to = std::min(to, poses[k + 1].t_ns);
+    to = std::min(to, t1_ns);
+    if (to > from) covered += to - from;
+  }
+  return static_cast<double>(covered) / static_cast<double>(t1_ns - t0_ns);
+}
+
 std::vector<double> groundTruthPathLength(const std::vector<GroundTruthPose>& truth) {
   std::vector<double> s(truth.size(), 0.0);
   for (std::size_t k = 1; k < truth.size(); ++k) s[k] = s[k - 1] + (truth[k].p_w_b - truth[k - 1].p_w_b).norm();

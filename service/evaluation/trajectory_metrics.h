@@ -73,6 +73,18 @@ PositionErrorStats positionErrorAgainst(const std::vector<RangeImuEstimator::Tim
                                         const std::vector<GroundTruthPose>& truth,
                                         std::int64_t max_dt_ns = kDefaultAssociationMaxDtNs);
 
+/// Pose age up to which the online estimate counts as tracking (trackedShare).
+inline constexpr std::int64_t kDefaultTrackedMaxAgeNs = 1'000'000'000;
+
+/// Share of [t0_ns, t1_ns] in which the newest pose at or before the time is
+/// at most `max_age_ns` old: how much of a recording an online estimate
+/// covered. APE is taken over the poses that exist, so a run that starts late
+/// or drops out scores on its easy seconds alone; this says how many those
+/// were. `poses` in non-decreasing time order. 0 for an empty interval.
+/// Throws std::invalid_argument if max_age_ns < 0 or the poses are out of order.
+double trackedShare(const std::vector<RangeImuEstimator::TimedPose>& poses, std::int64_t t0_ns, std::int64_t t1_ns,
+                    std::int64_t max_age_ns = kDefaultTrackedMaxAgeNs);
+
 enum class RpeDelta {
   kSeconds,  ///< delta is a time (s) between estimate stamps
   kMeters,   ///< delta is a ground-truth travelled distance (m)

@@ -118,6 +118,30 @@ TEST(Ape, UnmatchedPosesAreNotInTheStatistics) {
   EXPECT_EQ(ev.ape.ape_3d.count, truth.size());
 }
 
+TEST(TrackedShare, CountsTheTimeAPoseIsAtMostMaxAgeOld) {
+  constexpr std::int64_t kS = 1'000'000'000;
+  // Poses at 10 Hz over 2-5 s and 8-9 s of a 0-10 s recording, then one at 9.5 s.
+  TumTrajectory poses;
+  for (std::int64_t t = 2 * kS; t <= 5 * kS; t += kS / 10) poses.push_back({t, Pose3()});
+  for (std::int64_t t = 8 * kS; t <= 9 * kS; t += kS / 10) poses.push_back({t, Pose3()});
+  poses.push_back({9 * kS + kS / 2, Pose3()});
+  // Covered: [2, 6) (the last pose at 5 s stays fresh 1 s) and [8, 10): 6 s of 10.
+  EXPECT_NEAR(trackedShare(poses, 0, 10 * kS), 0.6, 1e-12);
+  // With a 0.2 s limit: [2, 5.2), [8, 9.2) and [9.5, 9.7): 3.2 + 1.2 + 0.2 = 4.6 s.
+  EXPECT_NEAR(trackedShare(poses, 0, 10 * kS, kS / 5), 0.46, 1e-12);
+  // Only the interval counts: [3, 4] is all covered, [6, 7] none.
+  EXPECT_NEAR(trackedShare(poses, 3 * kS, 4 * kS), 1.0, 1e-12);
+  EXPECT_EQ(trackedShare(poses, 6 * kS, 7 * kS), 0.0);
+  EXPECT_EQ(trackedShare({}, 0, 10 * kS), 0.0);
+  EXPECT_EQ(trackedShare(poses, 5 * kS, 5 * kS), 0.0);
+}
+
+TEST(TrackedShare, BadInputIsRejected) {
+  TumTrajectory poses{{2, Pose3()}, {1, Pose3()}};
+  EXPECT_THROW(trackedShare(poses, 0, 10), std::invalid_argument);
+  EXPECT_THROW(trackedShare({}, 0, 10, -1), std::invalid_argument);
+}
+
 TEST(Rpe, ConstantRotationDriftGivesTheDriftPerSecond) {
   // Standing still, the estimate's yaw drifts at 3 deg/s: each 1 s pair has
   // a relative rotation error of exactly 3 deg and no translation error.

@@ -98,6 +98,7 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"dynamic_covariance\": " << (run.dynamic_covariance ? "true" : "false")
           << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": {\"mean\": " << mean_ms
           << ", \"p99\": " << p99_ms << ", \"max\": " << max_ms << "},\n  \"realtime_factor\": " << run.realtimeFactor()
+          << ",\n  \"online_tracked_share\": " << run.online_tracked_share
           << ",\n  \"initializations\": " << run.initializations
           << ",\n  \"reinitializations\": " << run.reinitializations
           << ",\n  \"init_attempts\": " << run.init_attempts << ",\n  \"init_status\": " << jsonString(run.init_status)
@@ -122,9 +123,11 @@ int runReplay(const ReplayOptions& o) {
   if (!summary) throw std::runtime_error("cannot write " + (dir / "summary.json").string());
 
   if (!o.config.empty()) std::printf("rilo replay: estimator of %s (lag %g s)\n", o.config.c_str(), o.settings.lag_s);
-  std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations\n",
+  std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations, "
+              "tracking %.0f%% of the time\n",
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
-              max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations));
+              max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations),
+              100.0 * run.online_tracked_share);
   {
     const MeasurementCounts& m = run.measurements;
     std::printf("  measurements used (dropped by --reception %.2f):", o.settings.reception);

@@ -262,8 +262,10 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
           strf(" | %llu | %zu |\n", static_cast<unsigned long long>(reinits), fails));
     }
   }
-  md += "\nThe p99 column is the largest of the recordings' p99. Tracked: the share of the recordings' time the "
-        "online estimate covered (a pose at most 1 s old); the RMSE columns are over those poses only.\n";
+  md += strf("\nThe p99 column is the largest of the recordings' p99. Tracked: the share of the recordings' time the "
+              "online estimate covered (a pose at most %g s old), failed runs included; the RMSE columns are over the "
+              "poses there are.\n",
+              static_cast<double>(kDefaultTrackedMaxAgeNs) * 1e-9);
 
   for (double p : o.receptions) {
     if (p == full) continue;

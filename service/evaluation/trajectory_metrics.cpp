@@ -83,7 +83,8 @@ double trackedShare(const std::vector<RangeImuEstimator::TimedPose>& poses, std:
     }
     // Pose k is the newest from its time until the next pose (or for ever).
     const std::int64_t from = std::max(poses[k].t_ns, t0_ns);
-    std::int64_t to = poses[k].t_ns + max_age_ns;
+    // (no overflow for any max_age_ns: the sum is formed only when below t1)
+    std::int64_t to = t1_ns - poses[k].t_ns <= max_age_ns ? t1_ns : poses[k].t_ns + max_age_ns;
     if (k + 1 < poses.size()) to = std::min(to, poses[k + 1].t_ns);
     to = std::min(to, t1_ns);
     if (to > from) covered += to - from;

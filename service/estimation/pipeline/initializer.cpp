@@ -164,7 +164,7 @@ void Initializer::reset() {
   attempted_ = false;
   interval_s_ = params_.attempt_interval_s;
   grow_window_ = false;
-  no_fix_before_ns_ = 0;
+  no_fix_before_ns_.reset();
   dropped_imu_ = dropped_meas_ = 0;
   status_ = InitStatus();
   batch_stage_reached_ = false;
@@ -300,18 +300,28 @@ bool Initializer::runAttempt() {
     // while they gave no fix (office TDoA sim, seed 7: 4 of 6 anchors NLOS
     // there), and the start waited 68 s for the window to slide past them.
     // Once a start failed, a later one needs a fix from its own first
-    // fix_window_s: a fix window grown into the good seconds dates their
-    // fix back into the bad ones, and the batch then holds seconds that
-    // only two anchors or NLOS paths saw (a 2-anchor start: yaw 23 deg off
-    // at a claimed 3.3).
-    std::int64_t Wg = std::min(W_max, t_now - no_fix_before_ns_);
+    // seconds, no longer than the data's rate needs for one (twice the
+    // count, at least fix_window_s): a fix window grown far into the good
+    // seconds dates their fix back into the bad ones, and the batch then
+    // holds seconds that only two anchors or NLOS paths saw (a 2-anchor
+    // start at 40 Hz: yaw 23 deg off at a claimed 3.3). Capped at
+    // fix_window_s alone, 4 Hz ranging never had enough for a fix after
+    // one failure and kept the seed's window for good.
+    double short_fix_s = P.fix_max_window_s;
+    if (end >= 2 && meas_[end - 1].t_ns > meas_.front().t_ns) {
+      const double rate_hz = static_cast<double>(end - 1) / toS(meas_[end - 1].t_ns - meas_.front().t_ns);
+      const int count = std::max(P.fix.min_ranges, P.tdoa_fix.min_measurements);
+      short_fix_s = std::clamp(2.0 * count / rate_hz, P.fix_window_s, P.fix_max_window_s);
+    }
+    const std::int64_t step_ns = std::max<std::int64_t>(1, toNs(kFixStarts * P.fix_window_s));
+    std::int64_t Wg = no_fix_before_ns_ ? std::min(W_max, t_now - *no_fix_before_ns_) : W_max;
     for (;;) {
       Wg = std::max(Wg, W);
-      const bool after_failure = no_fix_before_ns_ > t_now - W_max;
-      aligned = alignWindow(Wg, t_now, end, after_failure && Wg > W ? P.fix_window_s : P.fix_max_window_s);
+      const bool after_failure = no_fix_before_ns_ && *no_fix_before_ns_ > t_now - W_max;
+      aligned = alignWindow(Wg, t_now, end, after_failure && Wg > W ? short_fix_s : P.fix_max_window_s);
       if (aligned.ok || !aligned.fix_failed || Wg == W) break;
-      no_fix_before_ns_ = aligned.fix_search_ns + toNs(kFixStarts * P.fix_window_s);
-      Wg = t_now - no_fix_before_ns_;
+      no_fix_before_ns_ = aligned.fix_search_ns + step_ns;
+      Wg = t_now - *no_fix_before_ns_;
     }
     if (!aligned.ok) aligned.message += strprintf(" (window %.1f s)", toS(Wg));
   }

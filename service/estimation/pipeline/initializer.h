@@ -325,7 +325,7 @@ class Initializer {
     TagFix fix;
     bool fix_from_tdoa = false;
     /// No fix at any of the kFixStarts starts from `fix_search_ns` on (the
-    /// window failed at step 1; its data will not change).
+    /// window failed at step 1).
     bool fix_failed = false;
     std::int64_t fix_search_ns = 0;
     GravityAlignment gravity;
@@ -358,8 +358,8 @@ class Initializer {
   double interval_s_ = 0.5;   ///< current attempt interval (see max_attempt_interval_s)
   bool grow_window_ = false;  ///< window_s was not enough for yaw: use up to max_window_s
   /// Grown windows start no earlier than this (ns): the fix failed at every
-  /// start before it, so a window starting there fails the same way.
-  std::int64_t no_fix_before_ns_ = 0;
+  /// start before it (with the fix window that attempt allowed).
+  std::optional<std::int64_t> no_fix_before_ns_;
   std::size_t dropped_imu_ = 0, dropped_meas_ = 0;
 
   /// What an attempt saw: the newest IMU time and the measurement buffer's size and newest time.

@@ -619,6 +619,15 @@ TEST(Initializer, SparseRanging1HzUsesLongerWindows) {
   EXPECT_GE(t.vel, t.runs - 2) << "velocity < 0.3 m/s";
 }
 
+/// The moving walk with only anchors 0 and 1 heard for its first 14 s (no fix there).
+constexpr std::int64_t kBlindNs = 14'000'000'000;
+sim::Scenario blindStartScenario(std::uint64_t seed, double range_hz, double duration_s) {
+  sim::Scenario s = movingScenario(seed, range_hz, duration_s);
+  const std::int64_t t_blind_end = s.t0_ns + kBlindNs;
+  std::erase_if(s.ranges, [&](const RangeSample& r) { return r.t_ns < t_blind_end && r.anchor_id > 1; });
+  return s;
+}
+
 TEST(Initializer, AGrownWindowStartsAfterSecondsThatGaveNoFix) {
   // The smooth walk needs a window longer than window_s for yaw (the moving
   // starts above initialize at ~17 s). For the first 14 s only two anchors
@@ -628,16 +637,14 @@ TEST(Initializer, AGrownWindowStartsAfterSecondsThatGaveNoFix) {
   // 68.8 s of data).
   Tally t;
   for (std::uint64_t seed = 1; seed <= 3; ++seed) {
-    sim::Scenario s = movingScenario(seed, 40.0, 50.0);
-    const std::int64_t t_blind_end = s.t0_ns + 14'000'000'000;
-    std::erase_if(s.ranges, [&](const RangeSample& r) { return r.t_ns < t_blind_end && r.anchor_id > 1; });
+    const sim::Scenario s = blindStartScenario(seed, 40.0, 50.0);
     Initializer init(s.p_w_anchors, paramsFor(s));
     const InitRun r = runInit(s, init);
     printRun("blind start", seed, r);
     t.add(r, 0.3);
     ASSERT_TRUE(r.initialized) << r.status;
     EXPECT_LT(r.time_s, 40.0);
-    EXPECT_GE(init.result().window_start_ns, t_blind_end - 4'000'000'000);
+    EXPECT_GE(init.result().window_start_ns, s.t0_ns + kBlindNs - 4'000'000'000);
   }
   EXPECT_GE(t.h, t.runs - 1) << "horizontal < 0.3 m";
   EXPECT_EQ(t.tilt, t.runs) << "roll/pitch < 2 deg";
@@ -652,9 +659,7 @@ TEST(Initializer, AGrownWindowAfterSecondsWithoutAFixAtSparseRanging) {
   // the restart: a normal window holding two-anchor seconds, a known limit.
   int yaw_ok = 0;
   for (std::uint64_t seed = 1; seed <= 3; ++seed) {
-    sim::Scenario s = movingScenario(seed, 4.0, 70.0);
-    const std::int64_t t_blind_end = s.t0_ns + 14'000'000'000;
-    std::erase_if(s.ranges, [&](const RangeSample& r) { return r.t_ns < t_blind_end && r.anchor_id > 1; });
+    const sim::Scenario s = blindStartScenario(seed, 4.0, 70.0);
     Initializer init(s.p_w_anchors, paramsFor(s));
     const InitRun r = runInit(s, init);
     printRun("blind 4 Hz", seed, r);

@@ -320,7 +320,7 @@ bool Initializer::runAttempt() {
       const bool after_failure = no_fix_before_ns_ && *no_fix_before_ns_ > t_now - W_max;
       aligned = alignWindow(Wg, t_now, end, after_failure && Wg > W ? short_fix_s : P.fix_max_window_s);
       if (aligned.ok || !aligned.fix_failed || Wg == W) break;
-      no_fix_before_ns_ = aligned.fix_search_ns + step_ns;
+      no_fix_before_ns_ = meas_[aligned.begin].t_ns + step_ns;
       Wg = t_now - *no_fix_before_ns_;
     }
     if (!aligned.ok) aligned.message += strprintf(" (window %.1f s)", toS(Wg));
@@ -447,7 +447,6 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
   }
   if (!have_fix) {
     w.fix_failed = true;
-    w.fix_search_ns = t_w0;
     w.state = first_fix.anchors_heard < needed ? InitState::kTooFewAnchors : InitState::kPoorFix;
     w.message = "waiting: " + first_fix.message;
     return w;

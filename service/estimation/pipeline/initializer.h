@@ -324,10 +324,9 @@ class Initializer {
     std::size_t begin = 0, end = 0;  ///< meas_[begin, end)
     TagFix fix;
     bool fix_from_tdoa = false;
-    /// No fix at any of the kFixStarts starts from `fix_search_ns` on (the
-    /// window failed at step 1).
+    /// No fix at any of the kFixStarts starts from the window's first
+    /// measurement, meas_[begin], on (the window failed at step 1).
     bool fix_failed = false;
-    std::int64_t fix_search_ns = 0;
     GravityAlignment gravity;
     AlignmentResult alignment;
   };

@@ -309,7 +309,8 @@ std::string formatGoldenTrace(const Recording& rec, const ReplaySettings& settin
          " nlos_weight=" + optionalText(settings.nlos_weight) + " height_band=" + optionalText(settings.height_band) +
          " floor_z_m=" + optionalText(settings.floor_z_m) + " min_height_m=" + optionalText(settings.min_height_m) +
          " max_height_m=" + optionalText(settings.max_height_m) +
-         " vertical_speed_sigma_m_s=" + optionalText(settings.vertical_speed_sigma_m_s) + "\n";
+         " vertical_speed_sigma_m_s=" + optionalText(settings.vertical_speed_sigma_m_s) +
+         " zero_velocity_sigma_m_s=" + optionalText(settings.zero_velocity_sigma_m_s) + "\n";
   out += "counts initializations=" + std::to_string(run.initializations) +
          " reinitializations=" + std::to_string(run.reinitializations) +
          " ranges_used=" + std::to_string(run.ranges_used) + " updates=" + std::to_string(run.updates.size()) +

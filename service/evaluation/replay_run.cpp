@@ -103,6 +103,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   } else if (!from_service) {
     lp.vertical_speed_sigma_m_s = defaultVerticalSpeedSigma(tdoa_used);
   }
+  if (s.zero_velocity_sigma_m_s) lp.zero_velocity_sigma_m_s = *s.zero_velocity_sigma_m_s;
   if (s.same_state_window_ms) {
     lp.graph.same_state_window_ns = static_cast<std::int64_t>(std::llround(*s.same_state_window_ms * 1e6));
     lp.with_tdoa.state_window_ns = 0;

@@ -66,6 +66,9 @@ struct ReplaySettings {
   /// Vertical speed prior (m/s; 0 none). Unset: kTdoaVerticalSpeedSigmaMs
   /// when TDoA rows are used, else none.
   std::optional<double> vertical_speed_sigma_m_s;
+  /// Zero-velocity prior at standstills (m/s per second still; 0 none).
+  /// Unset: LocalizerParams' (or the service's) default.
+  std::optional<double> zero_velocity_sigma_m_s;
   // Second system (seed 002): TDoA, ultrasonic, packet reception.
   /// Kinds fed to the Localizer (default: every kind the recording has).
   MeasurementKinds measurements;

@@ -277,7 +277,8 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
 EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
   const ConfigMap m = field.map({"smoother", "lag_s", "relinearization", "damping", "trust_region", "range",
                                  "anchors_as_variables", "anchor_sigma_m", "init", "height_band",
-                                 "vertical_speed_sigma_m_s", "max_outside_anchors_m", "tdoa"});
+                                 "vertical_speed_sigma_m_s", "zero_velocity_sigma_m_s", "max_outside_anchors_m",
+                                 "tdoa"});
   m.read("smoother", e.smoother.method, [](const ConfigField& f) {
     return f.choice<SmootherParams::Method>({{"d-isam2", SmootherParams::Method::kDamped},
                                              {"isam2", SmootherParams::Method::kGaussNewton},
@@ -340,6 +341,7 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     }
     return f.number(0.0, 100.0);
   });
+  m.read("zero_velocity_sigma_m_s", e.zero_velocity_sigma_m_s, [](const ConfigField& f) { return f.number(0.0, 100.0); });
   try {
     e.smoother.validate();
   } catch (const std::invalid_argument& ex) {

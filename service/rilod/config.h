@@ -138,6 +138,9 @@ struct EstimatorConfig {
   /// unset ("auto"): on the tracked states when the ranging is TDoA
   /// (LocalizerParams::vertical_speed_sigma_m_s).
   std::optional<double> vertical_speed_sigma_m_s;
+  /// Zero-velocity prior on each tracked state the IMU shows still (m/s per
+  /// second of standstill; 0 = none; LocalizerParams::zero_velocity_sigma_m_s).
+  double zero_velocity_sigma_m_s = LocalizerParams().zero_velocity_sigma_m_s;
   /// Tracking ends (and initialization restarts) when the tag is estimated
   /// farther than this beyond the anchors' horizontal bounding box while
   /// ranging holds the estimate (ranging_support.h) (m; .inf: off).

@@ -34,6 +34,7 @@ LocalizerParams localizerParams(const ServiceConfig& cfg) {
   lp.init.window_s = cfg.estimator.init_window_s;
   lp.height_band = cfg.estimator.height_band;
   lp.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
+  lp.zero_velocity_sigma_m_s = cfg.estimator.zero_velocity_sigma_m_s;
   lp.max_outside_anchors_m = cfg.estimator.max_outside_anchors_m;
   lp.flagged_excess.quantile = cfg.estimator.flagged_excess_quantile;
   lp.with_tdoa = cfg.estimator.with_tdoa;

@@ -4,8 +4,12 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+#include <limits>
+
 #include "hal/sim/range_imu_scenario.h"
 #include "support/online_run.h"
+#include "support/resting_imu.h"
 #include "support/tdoa_row.h"
 
 namespace rilo {
@@ -140,6 +144,68 @@ TEST(EkfEstimator, VerticalSpeedPriorPullsOnlyTheVerticalVelocity) {
   ekf.applyVerticalSpeedPrior(0.1);
   EXPECT_LT(ekf.state().v_w.z(), 1.0);
   EXPECT_THROW(ekf.applyVerticalSpeedPrior(0.0), std::invalid_argument);
+}
+
+TEST(EkfEstimator, ZeroVelocityPriorPullsEveryAxisAsOneUpdate) {
+  ErrorStateEkf ekf;
+  EkfState x;
+  x.v_w = Vec3(1.0, -0.5, 0.8);
+  Mat15 P = Mat15::Identity() * 0.25;
+  P(6, 3) = P(3, 6) = 0.1;  // v_x correlated with p_x: the position follows
+  ekf.initialize(0, x, P);
+  ekf.applyZeroVelocityPrior(0.1);
+  // Each axis keeps 0.01 / 0.26 of its speed (uncorrelated axes, diagonal noise).
+  EXPECT_NEAR(ekf.state().v_w.x(), 1.0 * 0.01 / 0.26, 1e-9);
+  EXPECT_NEAR(ekf.state().v_w.y(), -0.5 * 0.01 / 0.26, 1e-9);
+  EXPECT_NEAR(ekf.state().v_w.z(), 0.8 * 0.01 / 0.26, 1e-9);
+  EXPECT_NEAR(ekf.state().p_w_b.x(), 0.1 / 0.26 * -1.0, 1e-9) << "the correlated position moves with it";
+  EXPECT_NEAR(ekf.state().p_w_b.y(), 0.0, 1e-12);
+  for (int k = 6; k < 9; ++k) EXPECT_NEAR(ekf.covariance()(k, k), 0.25 * 0.01 / 0.26, 1e-9);
+  EXPECT_EQ(ekf.counters().zero_velocity.accepted, 1u);
+  EXPECT_EQ(ekf.counters().vertical_speed.accepted, 0u);
+  // The same as three vertical-style scalar updates: symmetric, positive definite.
+  EXPECT_LT((ekf.covariance() - ekf.covariance().transpose()).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Mat15>(ekf.covariance()).eigenvalues().minCoeff(), 0.0);
+  EXPECT_THROW(ekf.applyZeroVelocityPrior(0.0), std::invalid_argument);
+  EXPECT_THROW(ekf.applyZeroVelocityPrior(std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+  ErrorStateEkf uninitialized;
+  EXPECT_THROW(uninitialized.applyZeroVelocityPrior(0.1), std::logic_error);
+}
+
+// The graph's standstill prior, once per group, for groups the IMU shows still.
+TEST(EkfEstimator, ZeroVelocityPriorOnGroupsTheImuShowsStill) {
+  sim::ScenarioParams sp;
+  sp.duration_s = 12.0;
+  sp.seed = 3;
+  const sim::Scenario s = testing::withRestingImu(sim::simulateScenario(sp), 4.0, 8.0);
+  for (const double sigma : {0.0, 0.05}) {
+    RangeImuGraphParams gp = testing::graphParamsFor(s, "asymmetric");
+    gp.zero_velocity_sigma_m_s = sigma;
+    gp.standstill.max_speed_m_s = std::numeric_limits<double>::infinity();  // only the IMU rests, not the truth
+    EkfEstimator ekf(s.p_w_anchors, gp);
+    std::uint64_t groups = 0, still_groups = 0, priors_in_walk = 0, priors_before = 0;
+    feed(ekf, s, Vec3::Zero(), [&](const std::vector<UpdateStats>& st) {
+      const std::uint64_t priors = ekf.filter().counters().zero_velocity.accepted;
+      const double t = 1e-9 * static_cast<double>(ekf.latest().t_ns - s.t0_ns);
+      groups += st.size();
+      if (t > 4.6 && t < 8.0) still_groups += st.size();
+      if ((t < 4.0 || t > 8.6) && priors > priors_before) ++priors_in_walk;
+      priors_before = priors;
+      return true;
+    });
+    const std::uint64_t priors = ekf.filter().counters().zero_velocity.accepted;
+    EXPECT_GT(groups, 300u);
+    if (sigma == 0.0) {
+      EXPECT_EQ(priors, 0u);
+    } else {
+      EXPECT_GE(priors, still_groups) << "every still group";
+      EXPECT_LE(priors, still_groups + 30) << "and the window's edges, no more";
+      EXPECT_EQ(priors_in_walk, 0u);
+    }
+  }
+  RangeImuGraphParams bad = testing::graphParamsFor(s, "asymmetric");
+  bad.zero_velocity_sigma_m_s = -1.0;
+  EXPECT_THROW(EkfEstimator(s.p_w_anchors, bad), std::invalid_argument);
 }
 
 // TDoA rows within same_state_window_ns are one joint update when the group

@@ -21,6 +21,7 @@
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/solver/batch_lm.h"
 #include "hal/sim/range_imu_scenario.h"
+#include "support/resting_imu.h"
 
 namespace rilo {
 namespace {
@@ -723,6 +724,102 @@ TEST(RangeImuGraphStream, RejectsBadMotionPriors) {
   gp.vertical_speed_sigma_m_s = 0.0;
   gp.height_band = HeightBand();
   gp.height_band.max_height_m = 0.1;  // below min_height_m
+  EXPECT_THROW(RangeImuGraphStream(s.p_w_anchors, gp), std::invalid_argument);
+}
+
+// The zero-velocity prior: on each state whose interval the IMU shows still
+// (a stop, turning on the spot, from 4 to 8 s), none while walking, weighted
+// per second of standstill whatever the state spacing.
+TEST(RangeImuGraphStream, ZeroVelocityPriorOnStatesTheImuShowsStill) {
+  const sim::Scenario s = testing::withRestingImu(makeScenario(12.0), 4.0, 8.0);
+  for (const double sigma : {0.0, 0.05}) {
+    RangeImuGraphParams gp = graphParams(s);
+    gp.zero_velocity_sigma_m_s = sigma;
+    gp.standstill.max_speed_m_s = std::numeric_limits<double>::infinity();  // only the IMU rests, not the truth
+    std::size_t still_states = 0, walking_states = 0, priors = 0;
+    std::int64_t t_prev_ns = 0;
+    const IncrementHook hook = [&](const GraphIncrement& inc, const RangeImuGraphStream&) {
+      if (!inc.new_state) return;
+      const double t = 1e-9 * static_cast<double>(inc.t_ns - s.t0_ns);
+      const double t_prev = 1e-9 * static_cast<double>(t_prev_ns - s.t0_ns);
+      const bool inside = t_prev >= 4.0 + gp.standstill.window_s && t <= 8.0;  // the whole window rests
+      const bool outside = t < 4.0 || t_prev > 8.0;  // steps in the interval or its window
+      int found = 0;
+      for (const FactorPtr& f : inc.factors) {
+        const auto* v = dynamic_cast<const PriorVec3Factor*>(f.get());
+        if (v == nullptr || f->keys()[0] != sym::V(inc.state_index) || inc.state_index == 0) continue;
+        ++found;
+        EXPECT_TRUE(v->prior().isZero());
+        const double dt_s = 1e-9 * static_cast<double>(inc.t_ns - t_prev_ns);
+        for (int a = 0; a < 3; ++a) EXPECT_NEAR(v->sqrtInformation()(a, a), 1.0 / (sigma / std::sqrt(dt_s)), 1e-9);
+      }
+      priors += found;
+      if (inside) {
+        ++still_states;
+        EXPECT_EQ(found, sigma > 0.0 ? 1 : 0) << "still state at " << t << " s";
+      } else if (outside && inc.state_index > 0) {
+        ++walking_states;
+        EXPECT_EQ(found, 0) << "walking state at " << t << " s";
+      }
+      t_prev_ns = inc.t_ns;
+    };
+    feedStream(s, s.ranges, gp, RangeImuStreamOptions(), Feed(), hook);
+    EXPECT_GT(still_states, 100u);  // 3.5 s at 40 Hz less dropouts
+    EXPECT_GT(walking_states, 200u);
+    if (sigma == 0.0) {
+      EXPECT_EQ(priors, 0u);
+    }
+  }
+}
+
+// A glide (the analytic walk has no gait, so its accelerometer is as still
+// as a stop's at times): no prior on a state whose predecessor moves faster
+// than standstill.max_speed_m_s.
+TEST(RangeImuGraphStream, NoZeroVelocityPriorWhileGliding) {
+  const sim::Scenario s = makeScenario(12.0);
+  RangeImuGraphParams gp = graphParams(s);
+  gp.zero_velocity_sigma_m_s = 0.05;
+  for (const double max_speed : {std::numeric_limits<double>::infinity(), 0.5}) {
+    gp.standstill.max_speed_m_s = max_speed;
+    std::size_t fast_priors = 0, priors = 0;
+    double v_prev = 0.0;
+    const IncrementHook hook = [&](const GraphIncrement& inc, const RangeImuGraphStream&) {
+      if (!inc.new_state) return;
+      for (const FactorPtr& f : inc.factors) {
+        const auto* v = dynamic_cast<const PriorVec3Factor*>(f.get());
+        if (v == nullptr || f->keys()[0] != sym::V(inc.state_index) || inc.state_index == 0) continue;
+        ++priors;
+        fast_priors += v_prev >= 0.5;
+      }
+      v_prev = s.truthAt(inc.t_ns).v_w.norm();  // feedStream's previous estimate is the truth
+    };
+    feedStream(s, s.ranges, gp, RangeImuStreamOptions(), Feed(), hook);
+    if (std::isinf(max_speed)) {
+      EXPECT_GT(fast_priors, 0u) << "the IMU alone takes the glide for a stop";
+    } else {
+      EXPECT_EQ(fast_priors, 0u);
+    }
+    EXPECT_LE(priors, 200u);
+  }
+}
+
+TEST(RangeImuGraphStream, RejectsABadZeroVelocityPrior) {
+  const sim::Scenario s = makeScenario(1.0);
+  RangeImuGraphParams gp = graphParams(s);
+  for (const double bad : {-0.1, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    gp.zero_velocity_sigma_m_s = bad;
+    try {
+      RangeImuGraphStream stream(s.p_w_anchors, gp);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("zero_velocity_sigma_m_s"), std::string::npos) << e.what();
+    }
+  }
+  gp.zero_velocity_sigma_m_s = 0.05;
+  gp.standstill.window_s = 0.0;
+  EXPECT_THROW(RangeImuGraphStream(s.p_w_anchors, gp), std::invalid_argument);
+  gp.standstill = StandstillParams();
+  gp.standstill.max_speed_m_s = 0.0;
   EXPECT_THROW(RangeImuGraphStream(s.p_w_anchors, gp), std::invalid_argument);
 }
 

@@ -113,6 +113,13 @@ TEST(ReplayMeasurements, OnlyTheSelectedKindsReachThePipeline) {
   ekf.smoother = "ekf";
   const Localizer with_ekf(uwbAnchorsById(rec.anchors), localizerParamsFor(rec, ekf));
   EXPECT_EQ(with_ekf.params().graph.vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
+  // The standstill prior: LocalizerParams' default unless given; the tracker's graph gets it, the initializer's not.
+  EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).zero_velocity_sigma_m_s, LocalizerParams().zero_velocity_sigma_m_s);
+  EXPECT_GT(with_ekf.params().graph.zero_velocity_sigma_m_s, 0.0);
+  EXPECT_EQ(with_ekf.params().init.graph.zero_velocity_sigma_m_s, 0.0);
+  ReplaySettings no_standstill;
+  no_standstill.zero_velocity_sigma_m_s = 0.0;
+  EXPECT_EQ(localizerParamsFor(rec, no_standstill).zero_velocity_sigma_m_s, 0.0);
   // The ultrasonic beacons and the receiver's lever arm come from the recording.
   const LocalizerParams lp = localizerParamsFor(rec, ReplaySettings());
   EXPECT_EQ(lp.graph.p_b_ultrasonic, rec.meta.ultrasonic_lever_arm_m);

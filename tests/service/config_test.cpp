@@ -10,6 +10,7 @@
 
 #include "estimation/pipeline/localizer.h"
 #include "rilod/config_reader.h"
+#include "rilod/service_setup.h"
 #include "service/service_test_support.h"
 
 namespace rilo {
@@ -91,6 +92,10 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_FALSE(c.estimator.vertical_speed_sigma_m_s.has_value());  // auto: decided by the ranging in use
   EXPECT_FALSE(parse(valid("estimator:\n  vertical_speed_sigma_m_s: auto\n")).estimator.vertical_speed_sigma_m_s);
   EXPECT_EQ(parse(valid("estimator:\n  vertical_speed_sigma_m_s: 0\n")).estimator.vertical_speed_sigma_m_s, 0.0);
+  EXPECT_EQ(c.estimator.zero_velocity_sigma_m_s, LocalizerParams().zero_velocity_sigma_m_s);
+  EXPECT_EQ(parse(valid("estimator:\n  zero_velocity_sigma_m_s: 0\n")).estimator.zero_velocity_sigma_m_s, 0.0);
+  EXPECT_EQ(localizerParams(parse(valid("estimator:\n  zero_velocity_sigma_m_s: 0.02\n"))).zero_velocity_sigma_m_s,
+            0.02);
   EXPECT_EQ(c.estimator.max_outside_anchors_m, LocalizerParams().max_outside_anchors_m);
   EXPECT_EQ(parse(valid("estimator:\n  max_outside_anchors_m: .inf\n")).estimator.max_outside_anchors_m,
             std::numeric_limits<double>::infinity());
@@ -599,6 +604,10 @@ std::vector<BadCase> badCases() {
       {"lag_not_a_number", valid("estimator:\n  lag_s: abc\n"), "estimator.lag_s", "expected a number", 11},
       {"vertical_speed_neither_auto_nor_a_number", valid("estimator:\n  vertical_speed_sigma_m_s: automatic\n"),
        "estimator.vertical_speed_sigma_m_s", "expected a number (m/s) or auto, got 'automatic'", 11},
+      {"zero_velocity_negative", valid("estimator:\n  zero_velocity_sigma_m_s: -0.05\n"),
+       "estimator.zero_velocity_sigma_m_s", "expected a number in [0, 100], got -0.05", 11},
+      {"zero_velocity_not_a_number", valid("estimator:\n  zero_velocity_sigma_m_s: still\n"),
+       "estimator.zero_velocity_sigma_m_s", "expected a number", 11},
       {"lag_zero", valid("estimator:\n  lag_s: 0\n"), "estimator.lag_s", "the service must bound its memory", 11},
       {"lag_negative", valid("estimator:\n  lag_s: -1\n"), "estimator.lag_s", "expected a number in [0, 3600], got -1",
        11},

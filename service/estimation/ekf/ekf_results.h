@@ -71,6 +71,7 @@ struct EkfCounters {
   EkfUpdateCounts ultrasonic;
   EkfUpdateCounts height_band;  ///< applyHeightBand updates
   EkfUpdateCounts vertical_speed;  ///< applyVerticalSpeedPrior updates
+  EkfUpdateCounts zero_velocity;   ///< applyZeroVelocityPrior updates
   std::uint64_t tdoa_recovered = 0;  ///< TDoA rows the gate refused that gate recovery applied (also in tdoa.accepted)
 
   std::uint64_t updates() const { return range.accepted + tdoa.accepted + ultrasonic.accepted; }

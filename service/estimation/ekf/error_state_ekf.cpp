@@ -497,23 +497,35 @@ bool ErrorStateEkf::applyHeightBand(double z_min_m, double z_max_m, double sigma
 void ErrorStateEkf::applyVerticalSpeedPrior(double sigma_m_s) {
   requireInitialized("applyVerticalSpeedPrior");
   requireSigma(sigma_m_s, "applyVerticalSpeedPrior", "sigma_m_s");
-  // Scalar update of the error state's dv_z (EkfPrediction covers the pose
-  // block only): H = e_{vz}, y = 0 - v_z, Joseph form, then the usual
-  // injection and reset.
-  constexpr int kVz = ekf_index::kVel + 2;
+  updateVelocityAxis(2, sigma_m_s * sigma_m_s);
+  ++counters_.vertical_speed.accepted;
+}
+
+void ErrorStateEkf::applyZeroVelocityPrior(double sigma_m_s) {
+  requireInitialized("applyZeroVelocityPrior");
+  requireSigma(sigma_m_s, "applyZeroVelocityPrior", "sigma_m_s");
+  // With a diagonal noise, three scalar updates in turn are the 3-D update.
   const double r = sigma_m_s * sigma_m_s;
-  const Vec15 PHt = P_.col(kVz);
-  const double S = PHt(kVz) + r;
+  for (int axis = 0; axis < 3; ++axis) updateVelocityAxis(axis, r);
+  ++counters_.zero_velocity.accepted;
+}
+
+void ErrorStateEkf::updateVelocityAxis(int axis, double r) {
+  // Scalar update of the error state's dv_axis (EkfPrediction covers the pose
+  // block only): H = e_v, y = 0 - v, Joseph form, then the usual injection
+  // and reset.
+  const int k = ekf_index::kVel + axis;
+  const Vec15 PHt = P_.col(k);
+  const double S = PHt(k) + r;
   const Vec15 K = PHt / S;
-  const Vec15 dx = K * (0.0 - x_.v_w.z());
+  const Vec15 dx = K * (0.0 - x_.v_w(axis));
   Mat15 X = P_;
   X.noalias() -= K * PHt.transpose();  // (I - K H) P
-  const Vec15 XHt = X.col(kVz);
+  const Vec15 XHt = X.col(k);
   P_ = X;
   P_.noalias() -= XHt * K.transpose();
   P_.noalias() += r * K * K.transpose();
   injectAndReset(dx);
-  ++counters_.vertical_speed.accepted;
 }
 
 EkfUpdateResult ErrorStateEkf::updateUltrasonic(const Vec3& p_w_anchor, const Vec3& p_b_us, double range_m,

@@ -184,6 +184,10 @@ class ErrorStateEkf {
   /// (the graph's per-state PriorVec3Factor of vertical_speed_sigma_m_s, once
   /// per state): a pseudo-measurement, never gated.
   void applyVerticalSpeedPrior(double sigma_m_s);
+  /// Zero-mean prior on the whole velocity v_w with std-dev sigma_m_s per
+  /// axis (the graph's standstill PriorVec3Factor,
+  /// RangeImuGraphParams::zero_velocity_sigma_m_s): never gated.
+  void applyZeroVelocityPrior(double sigma_m_s);
 
   bool initialized() const { return initialized_; }
   std::int64_t t_ns() const { return t_ns_; }          ///< time of the state (ns)
@@ -213,6 +217,8 @@ class ErrorStateEkf {
   /// Injects the error estimate dx into the nominal state and resets the
   /// covariance to the new error's chart (rotation block through Jr(dtheta)).
   void injectAndReset(const Vec15& dx);
+  /// Scalar zero-mean update of velocity axis `axis` (0..2) with variance r.
+  void updateVelocityAxis(int axis, double r);
 
   EkfParams params_;
   Vec3 g_w_;

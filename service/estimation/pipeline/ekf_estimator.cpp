@@ -1,6 +1,8 @@
 #include "estimation/pipeline/ekf_estimator.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 namespace rilo {
@@ -20,8 +22,12 @@ EkfEstimator::EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphPar
       range_model_(graph.range_loss, graph.range_noise),
       tdoa_model_(tdoaModelParams(graph), graph.range_noise),
       ultrasonic_loss_(makeRangeLoss(graph.ultrasonic_loss, withSigma(graph.range_noise, graph.ultrasonic_sigma_m))),
-      noise_(p_w_anchors_, graph_, ekf.dynamic_covariance) {
+      noise_(p_w_anchors_, graph_, ekf.dynamic_covariance),
+      standstill_(graph.standstill) {
   if (graph_.same_state_window_ns < 0) throw std::invalid_argument("EkfEstimator: same_state_window_ns must be >= 0");
+  if (!(graph_.zero_velocity_sigma_m_s >= 0.0 && std::isfinite(graph_.zero_velocity_sigma_m_s))) {
+    throw std::invalid_argument("EkfEstimator: zero_velocity_sigma_m_s must be finite and >= 0");
+  }
   pending_.reserve(64);
   ready_.reserve(16);
 }
@@ -55,6 +61,8 @@ UpdateStats EkfEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0, const V
   x.v_w = v_w0;
   x.bias = bias0;
   ekf_.initialize(t0_ns, x, P);
+  last_group_t0_ns_ = t0_ns;
+  standstill_.dropBefore(t0_ns);
   latest_ = ekf_.estimate();
   filtered_.push_back({t0_ns, latest_.T_w_b});
   return UpdateStats();
@@ -62,6 +70,7 @@ UpdateStats EkfEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0, const V
 
 void EkfEstimator::addImu(const ImuSample& sample) {
   if (!started()) throw std::logic_error("EkfEstimator::addImu: call start() first");
+  if (graph_.zero_velocity_sigma_m_s > 0.0) standstill_.add(sample);
   drainPending(&sample, false);
   if (group_open_ && sample.t_ns - group_t0_ns_ > graph_.same_state_window_ns) closeGroup();
   if (sample.t_ns > ekf_.t_ns() || !have_imu_) ekf_.propagate(sample);
@@ -159,7 +168,21 @@ void EkfEstimator::openGroup(std::int64_t t_ns) {
   // prior once (RangeImuGraphParams::vertical_speed_sigma_m_s): the same
   // motion knowledge for the baseline.
   if (graph_.vertical_speed_sigma_m_s > 0.0) ekf_.applyVerticalSpeedPrior(graph_.vertical_speed_sigma_m_s);
+  applyStandstill(t_ns);
   group_state_ = ekf_.estimate();
+}
+
+void EkfEstimator::applyStandstill(std::int64_t t_ns) {
+  // As RangeImuGraphStream::addStandstillPrior on the state this group is:
+  // the interval since the previous one still, sigma * sqrt(1 s / interval).
+  const std::int64_t t_prev_ns = last_group_t0_ns_;
+  last_group_t0_ns_ = t_ns;
+  if (graph_.zero_velocity_sigma_m_s <= 0.0) return;
+  const bool still = standstill_.stillFor(t_prev_ns, t_ns, ekf_.state().v_w);
+  standstill_.dropBefore(t_ns);
+  if (!still) return;
+  const double dt_s = std::max(1e-3, static_cast<double>(t_ns - t_prev_ns) * 1e-9);
+  ekf_.applyZeroVelocityPrior(graph_.zero_velocity_sigma_m_s * std::sqrt(1.0 / dt_s));
 }
 
 void EkfEstimator::applyHeightBand() {

@@ -39,6 +39,7 @@
 #include "estimation/pipeline/measurement_noise.h"
 #include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/pipeline/range_imu_graph_stream.h"  // StateEstimate
+#include "estimation/pipeline/standstill.h"
 #include "estimation/pipeline/tracking_estimator.h"
 
 namespace rilo {
@@ -78,6 +79,8 @@ class EkfEstimator final : public TrackingEstimator {
   void flushTdoaGroup();
   /// After any update: the tag height band (graph_.height_band), when on.
   void applyHeightBand();
+  /// The graph's standstill prior for a group opening at t_ns (openGroup).
+  void applyStandstill(std::int64_t t_ns);
   /// Applies the pending measurements up to t_ns (all with `all`), IMU `next` bounding them.
   void drainPending(const ImuSample* next, bool all);
 
@@ -92,11 +95,13 @@ class EkfEstimator final : public TrackingEstimator {
   bool have_imu_ = false;
   ImuSample last_imu_;
   std::vector<Measurement> pending_;  // time order, not yet applied
+  StandstillDetector standstill_;     // IMU back to one window before the last group
   std::size_t pending_head_ = 0;
 
   // The open update group.
   bool group_open_ = false;
   std::int64_t group_t0_ns_ = 0;
+  std::int64_t last_group_t0_ns_ = 0;  ///< the previous group's (or the start's) time
   int group_size_ = 0, group_accepted_ = 0;
   double group_time_s_ = 0.0;
   StateEstimate group_state_;

@@ -34,6 +34,9 @@ void LocalizerParams::validate() const {
   if (vertical_speed_sigma_m_s && !(*vertical_speed_sigma_m_s >= 0.0 && std::isfinite(*vertical_speed_sigma_m_s))) {
     fail("vertical_speed_sigma_m_s", "must be finite and >= 0 (or unset: auto)");
   }
+  if (!(zero_velocity_sigma_m_s >= 0.0 && std::isfinite(zero_velocity_sigma_m_s))) {
+    fail("zero_velocity_sigma_m_s", "must be finite and >= 0 (0: off)");
+  }
   smoother.validate();
   sliding_window.validate();
   init.validate();
@@ -94,7 +97,9 @@ LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors
   p.graph.vertical_speed_sigma_m_s = p.vertical_speed_sigma_m_s.value_or(0.0);  // auto: see startTracking
   // The initializer's batch window and small solvers use the estimator's
   // graph (IMU model, noise, lever arms, TDoA and ultrasonic settings).
+  p.graph.zero_velocity_sigma_m_s = p.zero_velocity_sigma_m_s;
   p.init.graph = p.graph;
+  p.init.graph.zero_velocity_sigma_m_s = 0.0;  // its batch has its own (InitializerParams)
   p.init.tdoa_state_window_ns = p.with_tdoa.state_window_ns;
   return p;
 }

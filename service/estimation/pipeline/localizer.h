@@ -60,6 +60,12 @@ struct LocalizerParams {
   /// tracked states kTdoaVerticalSpeedSigmaMs when the data that started
   /// tracking hold TDoA rows, else none (defaultVerticalSpeedSigma).
   std::optional<double> vertical_speed_sigma_m_s;
+  /// Zero-velocity prior on each tracked state the IMU shows still (m/s per
+  /// second of standstill; 0: none), RangeImuGraphParams::zero_velocity_sigma_m_s
+  /// (overrides graph's; the initializer keeps its own). The initializer's
+  /// value: wearers stop, and their stops held 23-63 % of the squared online
+  /// error on the office sims (docs/noise-models.md, "Standstill").
+  double zero_velocity_sigma_m_s = 0.05;
   /// Settings for data with UWB TDoA rows (seed 002's system), applied when
   /// the data a batch window (initializer) or the tracker starts on hold
   /// TDoA rows, so that one configuration serves both ranging schemes.

@@ -15,6 +15,7 @@
 #include "estimation/noise/noise_model_factory.h"
 #include "estimation/pipeline/init_height_band.h"
 #include "estimation/pipeline/measurement.h"
+#include "estimation/pipeline/standstill.h"
 #include "estimation/pipeline/tdoa_model.h"
 #include "hal/samples.h"
 
@@ -43,6 +44,12 @@ struct RangeImuGraphParams {
   HeightBand height_band = HeightBand::off();
   /// Std-dev of a zero-mean prior on each state's vertical velocity (m/s); 0: none.
   double vertical_speed_sigma_m_s = 0.0;
+  /// Zero-velocity prior on each state that closes an interval the IMU shows
+  /// still (StandstillDetector with `standstill`), sigma * sqrt(1 s / the
+  /// interval) per state: the same weight per second at any ranging rate, as
+  /// the initializer's (InitializerParams::zero_velocity_sigma_m_s). 0: none.
+  double zero_velocity_sigma_m_s = 0.0;
+  StandstillParams standstill;
 
   // UWB TDoA and ultrasonic ranging (seed 002). TDoA uses the UWB anchors
   // (as variables or constants, like ranges); ultrasonic beacons are constants.

@@ -55,6 +55,7 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
       pim_(params_.imu, ImuBias(), PreintegratedImu::CovarianceMode::kCombined),
       noise_(p_w_anchors_, params_, options_.dynamic_covariance),
       anchor_in_graph_(p_w_anchors_.size(), false),
+      standstill_(params_.standstill, options.initial_imu_capacity),
       imu_(options.initial_imu_capacity),
       ranges_(64),
       plan_(64) {
@@ -85,6 +86,9 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
   params_.height_band.validate("RangeImuGraphStream: height_band");
   if (!(std::isfinite(params_.vertical_speed_sigma_m_s) && params_.vertical_speed_sigma_m_s >= 0.0)) {
     throw std::invalid_argument(where + "vertical_speed_sigma_m_s must be finite and >= 0");
+  }
+  if (!(std::isfinite(params_.zero_velocity_sigma_m_s) && params_.zero_velocity_sigma_m_s >= 0.0)) {
+    throw std::invalid_argument(where + "zero_velocity_sigma_m_s must be finite and >= 0");
   }
   if (params_.anchors_as_variables && !(std::isfinite(params_.anchor_sigma_m) && params_.anchor_sigma_m > 0.0)) {
     throw std::invalid_argument(where + "anchor_sigma_m must be positive and finite");
@@ -131,6 +135,7 @@ GraphIncrement RangeImuGraphStream::start(std::int64_t t0_ns, const Pose3& T_w_b
   last_t_ns_ = t0_ns;
   newest_state_t_ns_ = t0_ns;
   while (imu_.size() >= 2 && imu_[1].t_ns <= t0_ns) imu_.pop_front();
+  standstill_.dropBefore(t0_ns);
   // Re-plan the warm-up ranges from t0 on (each pass moves one to the back).
   for (std::size_t n = ranges_.size(); n > 0; --n) {
     const Measurement r = ranges_.front();
@@ -155,6 +160,7 @@ void RangeImuGraphStream::addImu(const ImuSample& s) {
     throw std::invalid_argument("RangeImuGraphStream::addImu: IMU sample at t_ns=" + ns(s.t_ns) + " is not finite");
   }
   imu_.push_back(s);
+  if (params_.zero_velocity_sigma_m_s > 0.0) standstill_.add(s);
   have_imu_ = true;
   newest_imu_t_ns_ = s.t_ns;
   if (!started_) return;
@@ -274,6 +280,7 @@ GraphIncrement RangeImuGraphStream::emitState(const StateEstimate& previous) {
   addRangeFactors(carry_ranges_, s.n_ranges, sym::X(i), inc);
   addAnchorPriors(inc);
   addMotionPriors(i, inc);
+  const bool still = addStandstillPrior(i, last_t_ns_, s.t_ns, previous.v_w, inc);
 
   const PreintegratedImu::NavState nav = pim_.predict(previous.T_w_b, previous.v_w, previous.bias);
   inc.values.insert(sym::X(i), nav.T_w_b);
@@ -289,6 +296,8 @@ GraphIncrement RangeImuGraphStream::emitState(const StateEstimate& previous) {
   carry_ranges_ = 0;
   plan_.pop_front();
   imu_.pop_front(cursor);  // keep the sample in effect at the new state
+  standstill_.dropBefore(s.t_ns);
+  standstill_states_ += still;
   last_index_ = i;
   last_t_ns_ = s.t_ns;
   return inc;
@@ -317,6 +326,15 @@ void RangeImuGraphStream::addMotionPriors(std::uint64_t i, GraphIncrement& inc) 
     // Horizontal speed is free (1e4 m/s std-dev); only v_z is held near zero.
     inc.factors.emplace<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(1e4, 1e4, params_.vertical_speed_sigma_m_s));
   }
+}
+
+bool RangeImuGraphStream::addStandstillPrior(std::uint64_t i, std::int64_t t_prev_ns, std::int64_t t_ns,
+                                             const Vec3& v_w_prev, GraphIncrement& inc) const {
+  if (params_.zero_velocity_sigma_m_s <= 0.0 || !standstill_.stillFor(t_prev_ns, t_ns, v_w_prev)) return false;
+  const double dt_s = std::max(1e-3, static_cast<double>(t_ns - t_prev_ns) * kNsToS);
+  const double sigma = params_.zero_velocity_sigma_m_s * std::sqrt(1.0 / dt_s);
+  inc.factors.emplace<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(Vec3::Constant(sigma)));
+  return true;
 }
 
 Key RangeImuGraphStream::uwbAnchorKey(std::uint32_t id, GraphIncrement& inc) const {

@@ -75,7 +75,8 @@ struct GraphIncrement {
   /// combined IMU factor into the new state (new states i > 0); `range_factors`
   /// range factors in arrival order (late ones on the previous state first);
   /// one survey prior per new_anchor_keys entry (anchors as variables only);
-  /// the new state's motion priors (height band, vertical speed) when enabled.
+  /// the new state's motion priors (height band, vertical speed, zero
+  /// velocity at a standstill) when enabled.
   FactorGraph factors;
   Values values;  ///< initial values of every new key (new state's X, V, B; new anchors)
   std::vector<std::pair<Key, std::int64_t>> key_times_ns;  ///< time of every new state key (X, V, B); anchors have none
@@ -163,6 +164,8 @@ class RangeImuGraphStream {
   std::size_t pendingRanges() const { return ranges_.size(); }   ///< measurements not yet emitted
   std::size_t pendingStates() const { return plan_.size(); }     ///< planned states not yet emitted
   std::size_t droppedRanges() const { return dropped_ranges_; }  ///< measurements before t0, dropped by start()
+  /// States emitted with a zero-velocity prior (RangeImuGraphParams::zero_velocity_sigma_m_s).
+  std::size_t standstillStates() const { return standstill_states_; }
   const RangeImuGraphParams& params() const { return params_; }
   /// The sigmas given to measurement factors (and the dynamic estimate, if on).
   const MeasurementNoise& measurementNoise() const { return noise_; }
@@ -182,6 +185,10 @@ class RangeImuGraphStream {
   GraphIncrement emitCarriedRanges();
   /// Adds state i's height band and vertical speed priors (when enabled).
   void addMotionPriors(std::uint64_t i, GraphIncrement& inc) const;
+  /// Adds state i's zero-velocity prior if the IMU was still over (t_prev_ns,
+  /// t_ns] and the previous state's estimate v_w_prev is slow (StandstillDetector::stillFor); true if it did.
+  bool addStandstillPrior(std::uint64_t i, std::int64_t t_prev_ns, std::int64_t t_ns, const Vec3& v_w_prev,
+                          GraphIncrement& inc) const;
   /// Adds the factors of ranges_[first, first + n) on state key x, noting anchors new to the graph.
   void addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const;
   /// The anchor key of a UWB anchor (adding its value if new to the graph).
@@ -202,6 +209,7 @@ class RangeImuGraphStream {
   bool finished_ = false;
   std::vector<bool> anchor_in_graph_;  ///< anchor key and prior already emitted
 
+  StandstillDetector standstill_;  ///< IMU back to one window before the last emitted state
   detail::GrowingRing<ImuSample> imu_;      ///< front: the sample in effect at the last emitted state
   detail::GrowingRing<Measurement> ranges_; ///< [carried measurements][plan_[0]'s][plan_[1]'s]...
   detail::GrowingRing<PlannedState> plan_;  ///< decided states not yet emitted, in time order
@@ -213,6 +221,7 @@ class RangeImuGraphStream {
   bool have_imu_ = false, have_range_ = false;
   std::int64_t newest_imu_t_ns_ = 0, newest_range_t_ns_ = 0;
   std::size_t dropped_ranges_ = 0;
+  std::size_t standstill_states_ = 0;
 };
 
 }  // namespace rilo

@@ -12,6 +12,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "support/new_counter.h"
+
 namespace rilo {
 namespace {
 
@@ -137,6 +139,33 @@ TEST(StandstillDetector, DropBeforeKeepsOneWindow) {
   EXPECT_TRUE(d.stillOver(2 * kS, 2 * kS + 25'000'000)) << "what later intervals need is kept";
   d.dropBefore(10 * kS);
   EXPECT_EQ(d.size(), 0u);
+}
+
+// On the IMU-rate path: once the ring has grown to a window and a state
+// interval, adding, testing and dropping never allocate.
+TEST(StandstillDetector, SteadyStateNeverAllocates) {
+  StandstillDetector d(StandstillParams(), 16);
+  ImuSample s;
+  s.accel_m_s2 = Vec3(0.0, 0.0, 9.81);
+  std::int64_t t = 0;
+  auto state_interval = [&] {  // 40 Hz states: 20 samples, a test, a drop
+    for (int k = 0; k < 20; ++k, t += kDtNs) {
+      s.t_ns = t;
+      s.accel_m_s2.x() = 0.01 * std::sin(static_cast<double>(k));
+      d.add(s);
+    }
+    (void)d.stillOver(t - 25'000'000, t);
+    d.dropBefore(t);
+  };
+  for (int i = 0; i < 40; ++i) state_interval();  // 1 s: grown
+  std::uint64_t news = 0;
+  {
+    testing::NewCounter counter;
+    for (int i = 0; i < 400; ++i) state_interval();
+    news = counter.count();
+  }
+  EXPECT_EQ(news, 0u);
+  EXPECT_LE(d.size(), 450u);
 }
 
 TEST(StandstillDetector, RejectsMalformedParameters) {

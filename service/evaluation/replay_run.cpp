@@ -256,6 +256,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.online_tracked_share = trackedShare(out.online, rec.imu.front().t_ns, rec.imu.back().t_ns);
   out.initializations = localizer.initializations();
   out.reinitializations = localizer.reinitializations();
+  out.standstill_priors = localizer.standstillPriors();
   out.dynamic_covariance = localizer.trackingDynamicCovariance();
   out.last_failure = localizer.lastFailure();
   out.init_status = localizer.initStatus().message;

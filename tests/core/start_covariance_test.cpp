@@ -242,6 +242,7 @@ class StartSpy final : public TrackingEstimator {
   void drainSmoothed(std::vector<TimedPose>&, bool = false) override {}
   std::optional<CovarianceBlock> latestPoseCovariance() override { return std::nullopt; }
   std::optional<CovarianceBlock> latestVelocityCovariance() override { return std::nullopt; }
+  std::uint64_t standstillPriors() const override { return 0; }
 
   std::optional<StartCovariance> covariance_;
 

@@ -120,6 +120,8 @@ TEST(ReplayMeasurements, OnlyTheSelectedKindsReachThePipeline) {
   ReplaySettings no_standstill;
   no_standstill.zero_velocity_sigma_m_s = 0.0;
   EXPECT_EQ(localizerParamsFor(rec, no_standstill).zero_velocity_sigma_m_s, 0.0);
+  EXPECT_EQ(replayRecording(rec, no_standstill).standstill_priors, 0u);
+  EXPECT_GT(replayRecording(rec, ReplaySettings()).standstill_priors, 0u) << "the sim's wearer stops";
   // The ultrasonic beacons and the receiver's lever arm come from the recording.
   const LocalizerParams lp = localizerParamsFor(rec, ReplaySettings());
   EXPECT_EQ(lp.graph.p_b_ultrasonic, rec.meta.ultrasonic_lever_arm_m);

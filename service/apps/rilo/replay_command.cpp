@@ -101,6 +101,7 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"online_tracked_share\": " << run.online_tracked_share
           << ",\n  \"initializations\": " << run.initializations
           << ",\n  \"reinitializations\": " << run.reinitializations
+          << ",\n  \"standstill_priors\": " << run.standstill_priors
           << ",\n  \"init_attempts\": " << run.init_attempts << ",\n  \"init_status\": " << jsonString(run.init_status)
           << ",\n  \"last_failure\": " << jsonString(run.last_failure)
           << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")

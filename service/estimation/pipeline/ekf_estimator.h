@@ -65,6 +65,7 @@ class EkfEstimator final : public TrackingEstimator {
   void drainSmoothed(std::vector<TimedPose>& out, bool all = false) override;
   std::optional<CovarianceBlock> latestPoseCovariance() override;
   std::optional<CovarianceBlock> latestVelocityCovariance() override;
+  std::uint64_t standstillPriors() const override { return ekf_.counters().zero_velocity.accepted; }
 
   const ErrorStateEkf& filter() const { return ekf_; }
   const MeasurementNoise& measurementNoise() const { return noise_; }

@@ -341,6 +341,7 @@ void Localizer::fail(std::string why) {
   last_failure_ = std::move(why);
   if (phase_ == Phase::kTracking) ++reinitializations_;
   phase_ = Phase::kInitializing;
+  if (estimator_) standstill_priors_ended_ += estimator_->standstillPriors();
   estimator_.reset();
   initializer_.reset();
 }

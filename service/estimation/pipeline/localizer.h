@@ -165,6 +165,10 @@ class Localizer {
 
   std::uint64_t initializations() const { return initializations_; }
   std::uint64_t reinitializations() const { return reinitializations_; }
+  /// Tracked states given the zero-velocity prior, over every tracking run.
+  std::uint64_t standstillPriors() const {
+    return standstill_priors_ended_ + (estimator_ ? estimator_->standstillPriors() : 0);
+  }
   /// Why the configured height band was dropped (empty when in use or never configured).
   const std::string& heightBandNote() const { return height_band_note_; }
   /// The parameters in effect (after the height band was resolved).
@@ -211,6 +215,7 @@ class Localizer {
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
   double tracking_vertical_speed_sigma_m_s_ = 0.0;
+  std::uint64_t standstill_priors_ended_ = 0;  ///< of the tracking runs that ended
   bool tracking_dynamic_covariance_ = false;
   std::int64_t tracking_state_window_ns_ = 0;
   RangeNoiseParams tracking_range_noise_;

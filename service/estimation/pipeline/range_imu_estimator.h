@@ -50,6 +50,7 @@ class RangeImuEstimator final : public TrackingEstimator {
   /// Marginal covariances of the newest state from the smoother.
   std::optional<CovarianceBlock> latestPoseCovariance() override;
   std::optional<CovarianceBlock> latestVelocityCovariance() override;
+  std::uint64_t standstillPriors() const override { return stream_.standstillStates(); }
   Smoother& smoother() { return *smoother_; }
   const Smoother& smoother() const { return *smoother_; }
   const RangeImuGraphStream& stream() const { return stream_; }

@@ -61,6 +61,9 @@ class TrackingEstimator {
   virtual std::optional<CovarianceBlock> latestPoseCovariance() = 0;
   /// Covariance of the newest velocity (world, m^2/s^2), if available.
   virtual std::optional<CovarianceBlock> latestVelocityCovariance() = 0;
+  /// States (EKF: groups) given the zero-velocity prior at a standstill since
+  /// start (RangeImuGraphParams::zero_velocity_sigma_m_s).
+  virtual std::uint64_t standstillPriors() const = 0;
 };
 
 }  // namespace rilo

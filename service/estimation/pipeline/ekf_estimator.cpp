@@ -1,6 +1,5 @@
 #include "estimation/pipeline/ekf_estimator.h"
 
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -174,15 +173,14 @@ void EkfEstimator::openGroup(std::int64_t t_ns) {
 
 void EkfEstimator::applyStandstill(std::int64_t t_ns) {
   // As RangeImuGraphStream::addStandstillPrior on the state this group is:
-  // the interval since the previous one still, sigma * sqrt(1 s / interval).
+  // the interval since the previous group still, the same sigma.
   const std::int64_t t_prev_ns = last_group_t0_ns_;
   last_group_t0_ns_ = t_ns;
   if (graph_.zero_velocity_sigma_m_s <= 0.0) return;
   const bool still = standstill_.stillFor(t_prev_ns, t_ns, ekf_.state().v_w);
   standstill_.dropBefore(t_ns);
   if (!still) return;
-  const double dt_s = std::max(1e-3, static_cast<double>(t_ns - t_prev_ns) * 1e-9);
-  ekf_.applyZeroVelocityPrior(graph_.zero_velocity_sigma_m_s * std::sqrt(1.0 / dt_s));
+  ekf_.applyZeroVelocityPrior(standstillPriorSigma(graph_.zero_velocity_sigma_m_s, t_ns - t_prev_ns));
 }
 
 void EkfEstimator::applyHeightBand() {

@@ -331,8 +331,7 @@ void RangeImuGraphStream::addMotionPriors(std::uint64_t i, GraphIncrement& inc) 
 bool RangeImuGraphStream::addStandstillPrior(std::uint64_t i, std::int64_t t_prev_ns, std::int64_t t_ns,
                                              const Vec3& v_w_prev, GraphIncrement& inc) const {
   if (params_.zero_velocity_sigma_m_s <= 0.0 || !standstill_.stillFor(t_prev_ns, t_ns, v_w_prev)) return false;
-  const double dt_s = std::max(1e-3, static_cast<double>(t_ns - t_prev_ns) * kNsToS);
-  const double sigma = params_.zero_velocity_sigma_m_s * std::sqrt(1.0 / dt_s);
+  const double sigma = standstillPriorSigma(params_.zero_velocity_sigma_m_s, t_ns - t_prev_ns);
   inc.factors.emplace<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(Vec3::Constant(sigma)));
   return true;
 }

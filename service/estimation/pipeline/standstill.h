@@ -16,6 +16,8 @@
 // of the test therefore also ask the estimate: a state already moving faster
 // than max_speed_m_s is not taken as stopped (stillFor). Turn the prior off
 // where such glides are the rule.
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 
@@ -39,6 +41,15 @@ struct StandstillParams {
   /// Throws std::invalid_argument naming the field.
   void validate() const;
 };
+
+/// The zero-velocity prior's std-dev on a state closing a still interval of
+/// dt_ns, for sigma_m_s per second of standstill: sigma * sqrt(1 s / dt) (dt
+/// at least 1 ms), the same weight per second at any state rate. The graph
+/// stream and the EKF baseline both use it, so their priors agree.
+inline double standstillPriorSigma(double sigma_m_s, std::int64_t dt_ns) {
+  const double dt_s = std::max(1e-3, static_cast<double>(dt_ns) * 1e-9);
+  return sigma_m_s * std::sqrt(1.0 / dt_s);
+}
 
 class StandstillDetector {
  public:

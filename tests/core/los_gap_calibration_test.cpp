@@ -1,0 +1,161 @@
+// LosGapCalibrator: finds where the LOS gaps end from residuals by gap, keeps
+// the configured threshold without evidence, never goes below min_gap_db or
+// above the configured value, cancels a common residual shift, ignores
+// malformed input, and does not allocate.
+#include "estimation/pipeline/los_gap_calibration.h"
+
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include "support/new_counter.h"
+
+namespace rilo {
+namespace {
+
+constexpr double kSigma = 0.15;
+
+// Residuals of a site: LOS (N(0, sigma) + shift) below `los_top_db`, NLOS
+// above it (excess uniform in [0.1, 0.5] m + shift), gaps uniform in [1, 9) dB.
+void feed(LosGapCalibrator& c, double los_top_db, int n, double shift_m = 0.0, unsigned seed = 1) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> gap(1.0, 9.0), excess(0.1, 0.5);
+  std::normal_distribution<double> noise(0.0, kSigma);
+  for (int i = 0; i < n; ++i) {
+    const double g = gap(rng);
+    c.add(g, shift_m + noise(rng) + (g >= los_top_db ? excess(rng) : 0.0));
+  }
+}
+
+TEST(LosGapCalibrator, FindsWhereTheLosGapsEnd) {
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  EXPECT_EQ(c.threshold(), 6.0);
+  feed(c, 4.5, 4000);
+  EXPECT_EQ(c.threshold(), 4.5);
+  EXPECT_NEAR(c.reference(), 0.0, 0.03);
+}
+
+TEST(LosGapCalibrator, ACommonShiftCancels) {
+  // A pose bias moves every residual alike: the step is still found.
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  feed(c, 4.0, 4000, -0.12);
+  EXPECT_EQ(c.threshold(), 4.0);
+  EXPECT_NEAR(c.reference(), -0.12, 0.03);
+}
+
+TEST(LosGapCalibrator, KeepsTheConfiguredThresholdWhereEverythingBelowIsLos) {
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  feed(c, 7.0, 4000);  // the receiver's LOS gaps reach past the configured 6 dB
+  EXPECT_EQ(c.threshold(), 6.0);
+}
+
+TEST(LosGapCalibrator, NeverBelowTheFloorNorAboveTheConfiguredValue) {
+  LosGapParams p;
+  p.min_gap_db = 3.0;
+  LosGapCalibrator c(p, kSigma, 6.0);
+  feed(c, 2.0, 4000);  // the reference itself holds NLOS ranges above 2 dB
+  EXPECT_GE(c.threshold(), 3.0);
+  LosGapCalibrator low(p, kSigma, 5.0);
+  feed(low, 5.5, 4000);
+  EXPECT_EQ(low.threshold(), 5.0);
+}
+
+TEST(LosGapCalibrator, NeedsAReferenceAndEnoughRangesPerBin) {
+  LosGapParams p;
+  p.reference_ranges = 100;
+  LosGapCalibrator c(p, kSigma, 6.0);
+  // Only NLOS-looking ranges above 3 dB: no reference, no change.
+  for (int i = 0; i < 2000; ++i) c.add(3.0 + 3.0 * (i % 100) / 100.0, 0.4);
+  EXPECT_EQ(c.threshold(), 6.0);
+  EXPECT_TRUE(std::isnan(c.reference()));
+  // A reference, but the stepped bin has fewer than min_bin_ranges ranges.
+  LosGapCalibrator sparse(p, kSigma, 6.0);
+  for (int i = 0; i < 200; ++i) sparse.add(2.0, 0.0);
+  for (int i = 0; i < p.min_bin_ranges - 1; ++i) sparse.add(4.2, 0.5);
+  for (int i = 0; i < 40; ++i) sparse.add(2.5, 0.0);  // triggers a recomputation
+  EXPECT_EQ(sparse.threshold(), 6.0);
+  for (int i = 0; i < 2; ++i) sparse.add(4.2, 0.5);
+  for (int i = 0; i < 40; ++i) sparse.add(2.5, 0.0);
+  EXPECT_EQ(sparse.threshold(), 4.0);
+}
+
+TEST(LosGapCalibrator, IgnoresMalformedInputAndResets) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  for (int i = 0; i < 5000; ++i) {
+    c.add(nan, 1.0);
+    c.add(-1.0, 1.0);
+    c.add(4.0, nan);
+    c.add(4.0, inf);
+    c.add(20.0, 1.0);  // above the configured threshold: flagged anyway
+  }
+  EXPECT_EQ(c.threshold(), 6.0);
+  feed(c, 4.5, 4000);
+  EXPECT_EQ(c.threshold(), 4.5);
+  c.reset();
+  EXPECT_EQ(c.threshold(), 6.0);
+  EXPECT_TRUE(std::isnan(c.reference()));
+}
+
+TEST(LosGapCalibrator, OffOrWithoutAnIndicatorItLearnsNothing) {
+  LosGapParams off;
+  off.enabled = false;
+  LosGapCalibrator c(off, kSigma, 6.0);
+  feed(c, 4.0, 4000);
+  EXPECT_EQ(c.threshold(), 6.0);
+  const double inf = std::numeric_limits<double>::infinity();
+  LosGapCalibrator none(LosGapParams(), kSigma, inf);
+  feed(none, 4.0, 4000);
+  EXPECT_EQ(none.threshold(), inf);
+}
+
+TEST(LosGapCalibrator, AddingNeverAllocates) {
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  feed(c, 4.5, 500);
+  std::uint64_t news = 0;
+  {
+    testing::NewCounter counter;
+    for (int i = 0; i < 4000; ++i) c.add(1.0 + 0.002 * i, 0.01 * (i % 7));
+    news = counter.count();
+  }
+  EXPECT_EQ(news, 0u);
+}
+
+TEST(LosGapCalibrator, RejectsMalformedParameters) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  auto bad = [](LosGapParams p, const char* field, double sigma = kSigma, double max_db = 6.0) {
+    try {
+      LosGapCalibrator c(p, sigma, max_db);
+      ADD_FAILURE() << "accepted " << field;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  LosGapParams p;
+  p.bin_db = 0.0;
+  bad(p, "bin_db");
+  p = {};
+  p.min_gap_db = nan;
+  bad(p, "min_gap_db");
+  p = {};
+  p.reference_ranges = 0;
+  bad(p, "reference_ranges");
+  p = {};
+  p.min_bin_ranges = LosGapCalibrator::kPerBin + 1;
+  bad(p, "min_bin_ranges");
+  p = {};
+  p.excess_sigmas = -0.1;
+  bad(p, "excess_sigmas");
+  p = {};
+  p.recompute_every = 0;
+  bad(p, "recompute_every");
+  bad(LosGapParams(), "sigma_m", 0.0);
+  bad(LosGapParams(), "max_gap_db", kSigma, nan);
+}
+
+}  // namespace
+}  // namespace rilo

@@ -86,6 +86,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.flagged_nlos_component) lp.graph.range_noise.flagged_nlos_component = *s.flagged_nlos_component;
   if (s.flagged_nlos_scale_m) lp.graph.range_noise.flagged_nlos_scale_m = *s.flagged_nlos_scale_m;
   if (s.flagged_excess_quantile) lp.flagged_excess.quantile = *s.flagged_excess_quantile;
+  if (s.los_gap_calibration) lp.los_gap.enabled = *s.los_gap_calibration;
   if (s.max_outside_anchors_m) lp.max_outside_anchors_m = *s.max_outside_anchors_m;
   if (s.height_band) lp.track_height_band = *s.height_band;
   if (s.floor_z_m) lp.height_band.floor_z_m = *s.floor_z_m;
@@ -263,6 +264,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.init_attempts = localizer.initStatus().attempts;
   out.height_band_note = localizer.heightBandNote();
   out.flagged_excess_m = localizer.flaggedExcess();
+  out.nlos_gap_db = localizer.nlosGapDb();
   out.flagged_scale_m = localizer.trackingFlaggedScaleM();
   out.height_band_in_use = localizer.params().graph.height_band.enabled;
   // Judged with the noise the tracker used (its flagged scale follows the ranging rate).

@@ -58,6 +58,7 @@ struct ReplaySettings {
   std::optional<bool> flagged_nlos_component;   ///< flagged ranges: the NLOS component alone
   std::optional<double> flagged_nlos_scale_m;   ///< half-Cauchy scale of a flagged range's excess (m)
   std::optional<double> flagged_excess_quantile;  ///< FlaggedExcessParams::quantile (0: off)
+  std::optional<bool> los_gap_calibration;        ///< LosGapParams::enabled
   std::optional<double> max_outside_anchors_m;    ///< LocalizerParams::max_outside_anchors_m (+inf: off)
   // Height knowledge (unset: LocalizerParams defaults).
   std::optional<bool> height_band;             ///< soft tag height band on tracked states
@@ -137,6 +138,7 @@ struct ReplayResult {
   bool height_band_in_use = false;    ///< the tag height band held the tracked states
   std::string height_band_note;       ///< why a configured height band was dropped
   double flagged_excess_m = 0.0;      ///< final estimate of the flagged ranges' excess (Localizer::flaggedExcess)
+  double nlos_gap_db = 0.0;           ///< final NLOS flag threshold of two-way ranges (Localizer::nlosGapDb; +inf: off)
   double flagged_scale_m = 0.0;       ///< half-Cauchy scale of flagged ranges when tracking last started (Localizer::trackingFlaggedScaleM)
   double data_s = 0.0;                ///< recording duration (IMU span, s)
   /// Share of the IMU span the online estimate covered (trackedShare): the

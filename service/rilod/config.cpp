@@ -228,7 +228,7 @@ void readTrustRegion(const ConfigField& field, SmootherParams& s) {
 void readRange(const ConfigField& field, EstimatorConfig& e) {
   const ConfigMap m = field.map({"noise_model", "sigma_m", "huber_k", "cauchy_c", "nlos_scale_m", "nlos_weight",
                                  "nlos_power_gap_db", "flagged_nlos_weight", "flagged_nlos_scale_m", "flagged_nlos_component",
-                                 "flagged_scale_reference_hz", "flagged_excess_quantile",
+                                 "flagged_scale_reference_hz", "flagged_excess_quantile", "los_gap_calibration",
                                  "lever_arm_m", "same_state_window_s", "max_state_interval_s", "max_wait_s"});
   RangeImuGraphParams& g = e.graph;
   if (auto f = m.get("noise_model")) {
@@ -254,6 +254,7 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
   m.read("flagged_scale_reference_hz", g.range_noise.flagged_scale_reference_hz,
          [](const ConfigField& f) { return f.number(0.0, 1e4); });
   m.read("flagged_excess_quantile", e.flagged_excess_quantile, [](const ConfigField& f) { return f.number(0.0, 1.0); });
+  if (auto f = m.get("los_gap_calibration")) e.los_gap_calibration = f->boolean();
   m.read("lever_arm_m", g.p_b_tag, [](const ConfigField& f) {
     const Vec3 v = f.vec3();
     if (v.norm() > 5.0) f.fail("expected a lever arm of at most 5 m, got " + std::to_string(v.norm()) + " m");

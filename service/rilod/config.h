@@ -131,6 +131,8 @@ struct EstimatorConfig {
   double init_window_s = 10.0;
   /// Quantile of the flagged ranges' residuals taken as their excess (FlaggedExcessParams; 0: off).
   double flagged_excess_quantile = FlaggedExcessParams().quantile;
+  /// Lower nlos_power_gap_db to where the ranges show the LOS gaps end (LosGapParams).
+  bool los_gap_calibration = LosGapParams().enabled;
   /// Tag height band above the floor (a wearable's height; see
   /// estimation/pipeline/init_height_band.h): initialization and every state.
   HeightBand height_band;

@@ -37,6 +37,7 @@ LocalizerParams localizerParams(const ServiceConfig& cfg) {
   lp.zero_velocity_sigma_m_s = cfg.estimator.zero_velocity_sigma_m_s;
   lp.max_outside_anchors_m = cfg.estimator.max_outside_anchors_m;
   lp.flagged_excess.quantile = cfg.estimator.flagged_excess_quantile;
+  lp.los_gap.enabled = cfg.estimator.los_gap_calibration;
   lp.with_tdoa = cfg.estimator.with_tdoa;
   return lp;
 }

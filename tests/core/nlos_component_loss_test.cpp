@@ -184,6 +184,23 @@ TEST(RangeModel, FlaggedRangesGetTheMixtureWithTheLargerNlosPriorOnRequest) {
   EXPECT_THROW(RangeModel("asymmetric", noise), std::invalid_argument) << "the mixture needs w < 0.5";
 }
 
+// The Localizer's calibrated threshold (los_gap_calibration.h) replaces the
+// configured one; without the indicator it changes nothing.
+TEST(RangeModel, TakesTheSitesFlagThreshold) {
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.1;
+  RangeModel model("asymmetric", noise);
+  EXPECT_EQ(model.nlosGapDb(), 6.0);
+  EXPECT_FALSE(model.flagsNlos(rangeWithGap(4.5)));
+  model.setNlosGapDb(4.0);
+  EXPECT_TRUE(model.flagsNlos(rangeWithGap(4.5)));
+  EXPECT_TRUE(model.term(rangeWithGap(4.5), 0.1).flagged_nlos);
+  EXPECT_FALSE(model.flagsNlos(rangeWithGap(4.0))) << "above the threshold, not at it";
+  RangeModel gaussian("gaussian", noise);
+  gaussian.setNlosGapDb(4.0);
+  EXPECT_FALSE(gaussian.flagsNlos(rangeWithGap(9.0)));
+}
+
 TEST(RangeModel, FlaggedRangesTakeTheirOwnExcessScaleWhenGiven) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;

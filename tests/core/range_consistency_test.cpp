@@ -103,6 +103,30 @@ TEST(RangeConsistency, NoVerdictBeforeMinJudgedAndOnlyTheNewestStatesRanges) {
   EXPECT_EQ(old.judgedInWindow(), 1);
 }
 
+// The judged ranges feed the LOS-gap calibration: once ranges with gaps of
+// 4 dB and more come out long at the tracked pose while those below 3 dB do
+// not, ranges above 4 dB count as flagged (their residuals go to the
+// flagged quantile) and flagGapDb says so; reset() restores 6 dB.
+TEST(RangeConsistency, JudgedRangesCalibrateTheFlagThreshold) {
+  RangeConsistencyMonitor m(kAnchors, Vec3::Zero(), 0.15, 5'000'000, RangeConsistencyParams(), 6.0);
+  EXPECT_EQ(m.flagGapDb(), 6.0);
+  const Vec3 p(5, 5, 1);
+  std::int64_t t = 0;
+  for (int k = 0; k < 2000; ++k, t += 25'000'000) {
+    const double gap_db = 1.0 + 0.5 * (k % 12);  // 1.0 .. 6.5 dB
+    RangeSample r = rangeTo(static_cast<std::uint32_t>(k % 4), t, p, gap_db >= 4.0 ? 0.3 : 0.0);
+    r.rssi_dbm = -80.0;
+    r.fp_power_dbm = -80.0 - gap_db;
+    m.onRange(r);
+    EXPECT_TRUE(m.judge(t, at(p)));
+  }
+  EXPECT_EQ(m.flagGapDb(), 4.0);
+  // The flagged ring now holds only the 0.3 m residuals of the ranges above 4 dB.
+  EXPECT_NEAR(m.flaggedQuantile(0.0, 50), 0.3, 1e-9);
+  m.reset();
+  EXPECT_EQ(m.flagGapDb(), 6.0);
+}
+
 TEST(RangeConsistency, DisabledNeverFlags) {
   RangeConsistencyParams params = smallWindow();
   params.enabled = false;

@@ -107,7 +107,9 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")
           << ",\n  \"height_band_note\": " << jsonString(run.height_band_note)
           << ",\n  \"flagged_nlos_excess_m\": " << run.flagged_excess_m
-          << ",\n  \"flagged_nlos_scale_m\": " << run.flagged_scale_m;
+          << ",\n  \"flagged_nlos_scale_m\": " << run.flagged_scale_m << ",\n  \"nlos_gap_db\": ";
+  if (std::isfinite(run.nlos_gap_db)) summary << run.nlos_gap_db;
+  else summary << "null";
   const NlosClassification& n = run.nlos;
   summary << ",\n  \"nlos\": {\"ranges\": " << n.ranges << ", \"downweighted\": " << n.downweighted
           << ", \"downweighted_fraction\": " << n.downweightedFraction();
@@ -213,6 +215,9 @@ void addReplayCommand(CLI::App& app) {
                   "Quantile of the flagged ranges' residuals taken as their excess, estimated on line (default 0.25; 0: "
                   "off, the NLOS component's mode instead)")
       ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--los-gap-calibration", options->settings.los_gap_calibration,
+                  "Lower the NLOS flag threshold (--nlos-gap-db, an upper bound) to where the ranges' residuals show "
+                  "the LOS gaps end, learnt on line (true/false; default true)");
   cmd->add_option("--max-outside-anchors", options->settings.max_outside_anchors_m,
                   "Re-initialize when the tag is estimated farther than this beyond the anchors' horizontal box while "
                   "ranging holds it (m; default 10; inf: off)")

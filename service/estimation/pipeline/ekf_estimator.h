@@ -57,6 +57,7 @@ class EkfEstimator final : public TrackingEstimator {
                     const std::optional<StartCovariance>& covariance) override;
   bool started() const override { return ekf_.initialized(); }
   void setFlaggedExcess(double excess_m) override { range_model_.setFlaggedExcess(excess_m); }
+  void setNlosGapDb(double gap_db) override { range_model_.setNlosGapDb(gap_db); }
   void addImu(const ImuSample& sample) override;
   void addMeasurement(const Measurement& m) override;
   void finish() override;

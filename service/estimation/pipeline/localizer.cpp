@@ -25,6 +25,7 @@ void LocalizerParams::validate() const {
   if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
   range_consistency.validate();
   flagged_excess.validate();
+  los_gap.validate();
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   height_band.validate("LocalizerParams.height_band");
@@ -118,6 +119,13 @@ double twoWayRangeRateHz(const std::vector<Measurement>& buffered) {
   return count >= 2 && span_s >= 1.0 ? static_cast<double>(count - 1) / span_s : 0.0;
 }
 
+/// The calibration runs only where the receiver's indicator is in use.
+LosGapParams losGapFor(const LocalizerParams& p) {
+  LosGapParams g = p.los_gap;
+  g.enabled = g.enabled && p.graph.range_loss == "asymmetric" && std::isfinite(p.graph.range_noise.nlos_power_gap_db);
+  return g;
+}
+
 }  // namespace
 
 Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
@@ -126,7 +134,7 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       initializer_(p_w_anchors_, params_.init),
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
                    params_.graph.same_state_window_ns, params_.range_consistency,
-                   params_.graph.range_noise.nlos_power_gap_db) {
+                   params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_)) {
   params_.validate();
   tracking_range_noise_ = params_.graph.range_noise;
   // Flagged ranges take the estimated shift, whether modelled by the NLOS
@@ -266,6 +274,7 @@ void Localizer::startTracking() {
   // until the estimate has enough flagged ranges.
   flagged_excess_m_ = 0.0;
   if (estimate_flagged_excess_) estimator_->setFlaggedExcess(flagged_excess_m_);
+  gap_db_in_use_ = params_.graph.range_noise.nlos_power_gap_db;  // the calibration restarts below
   // Starts at the initializer's state and replays what it buffered after
   // it, so no sample is lost.
   phase_ = Phase::kTracking;
@@ -329,6 +338,10 @@ void Localizer::checkConsistency() {
       flagged_excess_m_ = std::clamp(e, 0.0, fx.max_m);
       estimator_->setFlaggedExcess(flagged_excess_m_);
     }
+  }
+  if (const double gap_db = consistency_.flagGapDb(); gap_db != gap_db_in_use_) {
+    gap_db_in_use_ = gap_db;
+    estimator_->setNlosGapDb(gap_db);
   }
   if (consistent) return;
   char why[160];

@@ -104,6 +104,9 @@ struct LocalizerParams {
   /// The typical excess of ranges the receiver flags as NLOS, estimated from
   /// their residuals at the tracked pose and taken off them (range_model.h).
   FlaggedExcessParams flagged_excess;
+  /// The flag threshold of two-way ranges learnt from their residuals by gap
+  /// (los_gap_calibration.h); never above range_noise.nlos_power_gap_db.
+  LosGapParams los_gap;
   /// Windowed rejection share (RejectionWindow, see its notes for the
   /// measurements behind the defaults): fail when more than
   /// max_rejection_share of the last rejection_window updates were rejected.
@@ -157,6 +160,8 @@ class Localizer {
   const TrackingEstimator* estimator() const { return estimator_.get(); }
   /// Current estimate of the flagged ranges' excess (m; FlaggedExcessParams), 0 before there is one.
   double flaggedExcess() const { return flagged_excess_m_; }
+  /// The two-way ranges' NLOS flag threshold in use (dB; LosGapParams).
+  double nlosGapDb() const { return consistency_.flagGapDb(); }
   /// The smoothed trajectory so far (see TrackingEstimator::drainSmoothed);
   /// nothing while initializing.
   void drainSmoothed(std::vector<TimedPose>& out, bool all = false) {
@@ -214,6 +219,7 @@ class Localizer {
   RangeConsistencyMonitor consistency_;
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
+  double gap_db_in_use_ = 0.0;  ///< last threshold handed to the estimator
   double tracking_vertical_speed_sigma_m_s_ = 0.0;
   std::uint64_t standstill_priors_ended_ = 0;  ///< of the tracking runs that ended
   bool tracking_dynamic_covariance_ = false;

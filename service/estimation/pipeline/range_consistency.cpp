@@ -31,13 +31,13 @@ void FlaggedExcessParams::validate() const {
 
 RangeConsistencyMonitor::RangeConsistencyMonitor(std::vector<Vec3> p_w_anchors, const Vec3& p_b_tag, double sigma_m,
                                                  std::int64_t same_state_window_ns, RangeConsistencyParams params,
-                                                 double flag_gap_db)
+                                                 double flag_gap_db, LosGapParams los_gap)
     : p_w_anchors_(std::move(p_w_anchors)),
       p_b_tag_(p_b_tag),
       short_m_(std::max(params.short_sigmas * sigma_m, params.short_floor_m)),
       group_window_ns_(same_state_window_ns),
       params_(params),
-      flag_gap_db_(flag_gap_db) {
+      los_gap_(los_gap, sigma_m, flag_gap_db) {
   params_.validate();
   pending_.reserve(kMaxPending);
   window_.assign(static_cast<std::size_t>(params_.window), 0);
@@ -64,11 +64,13 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b) noexc
     }
     if (r.t_ns < t_ns - params_.max_age_ns) continue;  // too old to judge at this pose
     const double res = residual(r, T_w_b);
-    if (r.rssi_dbm - r.fp_power_dbm > flag_gap_db_) {  // as RangeModel::flagsNlos
+    const double gap_db = r.rssi_dbm - r.fp_power_dbm;
+    if (gap_db > los_gap_.threshold()) {  // as RangeModel::flagsNlos
       flagged_[static_cast<std::size_t>(flagged_next_)] = res;
       flagged_next_ = (flagged_next_ + 1) % kFlaggedWindow;
       if (flagged_filled_ < kFlaggedWindow) ++flagged_filled_;
     }
+    los_gap_.add(gap_db, res);
     const std::uint8_t is_short = res < -short_m_ ? 1 : 0;
     auto& slot = window_[static_cast<std::size_t>(next_)];
     if (filled_ == params_.window) short_in_window_ -= slot;
@@ -92,6 +94,7 @@ double RangeConsistencyMonitor::flaggedQuantile(double q, int min_count) const n
 
 void RangeConsistencyMonitor::reset() noexcept {
   flagged_next_ = flagged_filled_ = 0;
+  los_gap_.reset();
   pending_.clear();
   std::fill(window_.begin(), window_.end(), std::uint8_t{0});
   next_ = filled_ = short_in_window_ = 0;

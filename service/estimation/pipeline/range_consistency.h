@@ -26,6 +26,7 @@
 #include <limits>
 #include <vector>
 
+#include "estimation/pipeline/los_gap_calibration.h"
 #include "estimation/math/pose3.h"
 #include "estimation/math/types.h"
 #include "hal/samples.h"
@@ -80,7 +81,7 @@ class RangeConsistencyMonitor {
   /// flag_gap_db: the receiver's NLOS flag (RangeNoiseParams::nlos_power_gap_db; +inf: none).
   RangeConsistencyMonitor(std::vector<Vec3> p_w_anchors, const Vec3& p_b_tag, double sigma_m,
                           std::int64_t same_state_window_ns, RangeConsistencyParams params,
-                          double flag_gap_db = std::numeric_limits<double>::infinity());
+                          double flag_gap_db = std::numeric_limits<double>::infinity(), LosGapParams los_gap = {});
   static constexpr int kFlaggedWindow = 200;
 
   /// A range given to the tracking estimator (unknown anchors are ignored).
@@ -102,6 +103,10 @@ class RangeConsistencyMonitor {
   /// Quantile q in [0, 1] of the residuals (m) of the last flagged ranges
   /// judged; NaN with fewer than min_count of them. Does not allocate.
   double flaggedQuantile(double q, int min_count) const noexcept;
+  /// The NLOS flag threshold in use (dB): flag_gap_db, or lower once the
+  /// judged ranges show where the LOS gaps end (los_gap_calibration.h).
+  double flagGapDb() const noexcept { return los_gap_.threshold(); }
+  const LosGapCalibrator& losGap() const noexcept { return los_gap_; }
 
  private:
   static constexpr std::size_t kMaxPending = 256;
@@ -114,7 +119,7 @@ class RangeConsistencyMonitor {
   std::vector<RangeSample> pending_;
   std::vector<std::uint8_t> window_;  ///< ring of judged ranges: 1 short, 0 not
   int next_ = 0, filled_ = 0, short_in_window_ = 0;
-  double flag_gap_db_;
+  LosGapCalibrator los_gap_;
   std::array<double, kFlaggedWindow> flagged_{};          ///< ring of flagged ranges' residuals (m)
   mutable std::array<double, kFlaggedWindow> scratch_{};  ///< for nth_element
   int flagged_next_ = 0, flagged_filled_ = 0;

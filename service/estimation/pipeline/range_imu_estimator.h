@@ -30,6 +30,7 @@ class RangeImuEstimator final : public TrackingEstimator {
   }
   bool started() const override { return stream_.started(); }
   void setFlaggedExcess(double excess_m) override { stream_.rangeModel().setFlaggedExcess(excess_m); }
+  void setNlosGapDb(double gap_db) override { stream_.rangeModel().setNlosGapDb(gap_db); }
   void addImu(const ImuSample& sample) override { stream_.addImu(sample); }
   void addMeasurement(const Measurement& m) override { stream_.addMeasurement(m); }
   /// No more samples: lets the last ranging group through.

@@ -55,6 +55,11 @@ class RangeModel {
     excess_set_ = true;
   }
   double flaggedExcess() const { return flagged_excess_m_; }
+  /// The site's flag threshold (dB; the Localizer's calibration,
+  /// los_gap_calibration.h), in place of nlos_power_gap_db. No effect while
+  /// the indicator is off.
+  void setNlosGapDb(double gap_db) { gap_db_ = gap_db; }
+  double nlosGapDb() const { return gap_db_; }
 
  private:
   RobustLossPtr loss_;

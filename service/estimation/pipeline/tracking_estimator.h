@@ -41,6 +41,8 @@ class TrackingEstimator {
   virtual bool started() const = 0;
   /// Expected excess of ranges the receiver flags as NLOS (m; range_model.h); no-op by default.
   virtual void setFlaggedExcess(double /*excess_m*/) {}
+  /// The two-way ranges' NLOS flag threshold (dB; RangeModel::setNlosGapDb).
+  virtual void setNlosGapDb(double /*gap_db*/) {}
   virtual void addImu(const ImuSample& sample) = 0;
   /// A range, TDoA or ultrasonic range (Measurement::of(sample)).
   virtual void addMeasurement(const Measurement& m) = 0;

@@ -92,6 +92,8 @@ TEST(LosGapCalibrator, IgnoresMalformedInputAndResets) {
     c.add(4.0, nan);
     c.add(4.0, inf);
     c.add(20.0, 1.0);  // above the configured threshold: flagged anyway
+    c.add(inf, 1.0);   // beyond any bin: must not index out of range
+    c.add(1e300, 1.0);
   }
   EXPECT_EQ(c.threshold(), 6.0);
   feed(c, 4.5, 4000);
@@ -99,6 +101,27 @@ TEST(LosGapCalibrator, IgnoresMalformedInputAndResets) {
   c.reset();
   EXPECT_EQ(c.threshold(), 6.0);
   EXPECT_TRUE(std::isnan(c.reference()));
+}
+
+// Gaps reported in whole dB: the ranges at 4 dB exactly are LOS, those at
+// 5 dB carry an excess. The flag is gap > threshold, so the learnt edge
+// must be 4 dB (bins are (lo, hi]), not 4.5 (which would leave 5 dB in).
+TEST(LosGapCalibrator, QuantizedGapsSitBelowTheEdgeTheyShare) {
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  for (int i = 0; i < 4000; ++i) {
+    const double gap_db = 1.0 + (i % 5);  // 1, 2, 3, 4, 5 dB
+    c.add(gap_db, gap_db >= 5.0 ? 0.3 : 0.0);
+  }
+  EXPECT_EQ(c.threshold(), 4.5) << "the 5 dB ranges are in (4.5, 5]";
+  EXPECT_LT(c.threshold(), 5.0);
+}
+
+TEST(LosGapCalibrator, NeverBelowAFloorBetweenBinEdges) {
+  LosGapParams p;
+  p.min_gap_db = 3.2;
+  LosGapCalibrator c(p, kSigma, 6.0);
+  feed(c, 2.0, 4000);
+  EXPECT_GE(c.threshold(), 3.2);
 }
 
 TEST(LosGapCalibrator, OffOrWithoutAnIndicatorItLearnsNothing) {

@@ -104,9 +104,10 @@ TEST(RangeConsistency, NoVerdictBeforeMinJudgedAndOnlyTheNewestStatesRanges) {
 }
 
 // The judged ranges feed the LOS-gap calibration: once ranges with gaps of
-// 4 dB and more come out long at the tracked pose while those below 3 dB do
-// not, ranges above 4 dB count as flagged (their residuals go to the
-// flagged quantile) and flagGapDb says so; reset() restores 6 dB.
+// 4 dB and more come out long at the tracked pose while those up to 3.5 dB
+// do not, the threshold drops to 3.5 dB (bins are (lo, hi], the flag is
+// gap > threshold), so the 4 dB ranges are flagged too (their residuals go
+// to the flagged quantile); reset() restores 6 dB.
 TEST(RangeConsistency, JudgedRangesCalibrateTheFlagThreshold) {
   RangeConsistencyMonitor m(kAnchors, Vec3::Zero(), 0.15, 5'000'000, RangeConsistencyParams(), 6.0);
   EXPECT_EQ(m.flagGapDb(), 6.0);
@@ -120,8 +121,8 @@ TEST(RangeConsistency, JudgedRangesCalibrateTheFlagThreshold) {
     m.onRange(r);
     EXPECT_TRUE(m.judge(t, at(p)));
   }
-  EXPECT_EQ(m.flagGapDb(), 4.0);
-  // The flagged ring now holds only the 0.3 m residuals of the ranges above 4 dB.
+  EXPECT_EQ(m.flagGapDb(), 3.5);
+  // The flagged ring holds only the 0.3 m residuals of the ranges at 4 dB and above.
   EXPECT_NEAR(m.flaggedQuantile(0.0, 50), 0.3, 1e-9);
   m.reset();
   EXPECT_EQ(m.flagGapDb(), 6.0);

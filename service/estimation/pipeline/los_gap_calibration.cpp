@@ -31,8 +31,10 @@ LosGapCalibrator::LosGapCalibrator(LosGapParams params, double sigma_m, double m
 }
 
 void LosGapCalibrator::add(double gap_db, double residual_m) noexcept {
-  if (bins_used_ == 0 || !(gap_db >= 0.0) || !std::isfinite(residual_m)) return;  // NaN gap fails >= too
-  const int b = static_cast<int>(gap_db / params_.bin_db);
+  // Bins are (lo, hi], as the flag is gap > threshold: a range on a learnt
+  // edge is in the bin below it. Checked before the cast (NaN fails too).
+  if (bins_used_ == 0 || !(gap_db >= 0.0 && gap_db <= bins_used_ * params_.bin_db) || !std::isfinite(residual_m)) return;
+  const int b = std::max(0, static_cast<int>(std::ceil(gap_db / params_.bin_db)) - 1);
   if (b >= bins_used_) return;
   residuals_[b][next_[b]] = residual_m;
   next_[b] = (next_[b] + 1) % kPerBin;
@@ -65,7 +67,7 @@ void LosGapCalibrator::recompute() noexcept {
     if (filled_[b] < params_.min_bin_ranges) continue;
     std::copy_n(residuals_[b].begin(), filled_[b], scratch_.begin());
     if (scratchMedian(filled_[b]) - reference_m_ > delta_m_) {
-      threshold_db_ = std::min(max_gap_db_, b * params_.bin_db);
+      threshold_db_ = std::min(max_gap_db_, std::max(params_.min_gap_db, b * params_.bin_db));
       return;
     }
   }

@@ -28,8 +28,10 @@
 // 0.289 -> 0.266 m mean online, 10 held out 0.298 -> 0.271 m; the halls and
 // the severity-0 sims (attenuation without excess) keep 6 dB; at 1-4 Hz two
 // minutes hold too few ranges to calibrate and nothing changes.
-// excess_sigmas 0.33 gave 0.264 / 0.278: 0.5 is three standard errors of a
-// full bin's median, so a LOS bin is not taken for NLOS by chance.
+// excess_sigmas 0.33 gave 0.264 / 0.278: 0.5 is 4.5 standard errors of a
+// full bin's median (2.2 at min_bin_ranges), so a LOS bin is rarely taken
+// for NLOS by chance. Bins are (lo, hi], matching the flag gap > threshold.
+// Fed by RangeConsistencyMonitor::judge: off with range_consistency.enabled.
 // Fixed storage; add() and threshold() never allocate.
 #include <array>
 #include <cstdint>

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <cstdint>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -44,6 +45,35 @@ TEST(LosGapCalibrator, ACommonShiftCancels) {
   feed(c, 4.0, 4000, -0.12);
   EXPECT_EQ(c.threshold(), 4.0);
   EXPECT_NEAR(c.reference(), -0.12, 0.03);
+}
+
+TEST(LosGapCalibrator, MeasuresEachBinsExcessOverTheReference) {
+  // Excess growing with the gap above 4 dB: 0.1 m per dB, under a common
+  // shift that the reference takes out.
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  EXPECT_TRUE(std::isnan(c.excessTable().at(5.0))) << "nothing known before the data";
+  const std::uint32_t v0 = c.tableVersion();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> gap(1.0, 6.0);
+  std::normal_distribution<double> noise(0.0, kSigma);
+  for (int i = 0; i < 8000; ++i) {
+    const double g = gap(rng);
+    c.add(g, -0.1 + noise(rng) + (g > 4.0 ? 0.1 * (g - 4.0) + 0.1 : 0.0));
+  }
+  EXPECT_NE(c.tableVersion(), v0);
+  const GapExcessTable& t = c.excessTable();
+  EXPECT_TRUE(std::isnan(t.at(2.0))) << "the reference bins have none";
+  EXPECT_NEAR(t.at(3.2), 0.0, 0.04);
+  EXPECT_NEAR(t.at(4.2), 0.125, 0.04);
+  EXPECT_NEAR(t.at(5.7), 0.275, 0.04);
+  EXPECT_GT(t.at(5.7), t.at(4.2));
+  EXPECT_TRUE(std::isnan(t.at(6.5))) << "above the configured threshold the site's excess applies";
+  EXPECT_TRUE(std::isnan(t.at(std::numeric_limits<double>::quiet_NaN())));
+  EXPECT_TRUE(std::isnan(t.at(1e300)));
+  EXPECT_TRUE(std::isnan(t.at(-1.0)));
+  for (double e : t.excess_m) EXPECT_TRUE(std::isnan(e) || e >= 0.0) << "never a negative shift";
+  c.reset();
+  EXPECT_TRUE(std::isnan(c.excessTable().at(5.7)));
 }
 
 TEST(LosGapCalibrator, KeepsTheConfiguredThresholdWhereEverythingBelowIsLos) {

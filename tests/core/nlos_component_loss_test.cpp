@@ -201,6 +201,32 @@ TEST(RangeModel, TakesTheSitesFlagThreshold) {
   EXPECT_FALSE(gaussian.flagsNlos(rangeWithGap(9.0)));
 }
 
+TEST(RangeModel, FlaggedRangesTakeTheirGapBinsExcessWhereThereIsOne) {
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.1;
+  RangeModel model("asymmetric", noise);
+  model.setNlosGapDb(4.0);
+  model.setFlaggedExcess(0.05);
+  GapExcessTable table;
+  table.excess_m[8] = 0.2;  // (4.0, 4.5] dB
+  model.setGapExcess(table);
+  const RangeTerm in_bin = model.term(rangeWithGap(4.3), 0.1);
+  EXPECT_TRUE(in_bin.flagged_nlos);
+  EXPECT_DOUBLE_EQ(in_bin.range_m, 7.0 - 0.2);
+  EXPECT_DOUBLE_EQ(model.term(rangeWithGap(9.0), 0.1).range_m, 7.0 - 0.05) << "no bin: the site's excess";
+  EXPECT_DOUBLE_EQ(model.term(rangeWithGap(4.7), 0.1).range_m, 7.0 - 0.05) << "a bin without an estimate";
+  // Unflagged ranges are left alone even where their bin has an excess.
+  table.excess_m[6] = 0.1;  // (3.0, 3.5] dB, below the threshold
+  model.setGapExcess(table);
+  EXPECT_DOUBLE_EQ(model.term(rangeWithGap(3.2), 0.1).range_m, 7.0);
+  // The mixture variant takes the same shift.
+  noise.flagged_nlos_component = false;
+  RangeModel mixture("asymmetric", noise);
+  mixture.setNlosGapDb(4.0);
+  mixture.setGapExcess(table);
+  EXPECT_DOUBLE_EQ(mixture.term(rangeWithGap(4.3), 0.1).range_m, 7.0 - 0.2);
+}
+
 TEST(RangeModel, FlaggedRangesTakeTheirOwnExcessScaleWhenGiven) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.1;

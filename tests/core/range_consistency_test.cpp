@@ -124,8 +124,13 @@ TEST(RangeConsistency, JudgedRangesCalibrateTheFlagThreshold) {
   EXPECT_EQ(m.flagGapDb(), 3.5);
   // The flagged ring holds only the 0.3 m residuals of the ranges at 4 dB and above.
   EXPECT_NEAR(m.flaggedQuantile(0.0, 50), 0.3, 1e-9);
+  // ... and each flagged bin below the configured 6 dB knows its own excess.
+  EXPECT_NEAR(m.losGap().excessTable().at(4.0), 0.3, 1e-9);
+  EXPECT_NEAR(m.losGap().excessTable().at(5.5), 0.3, 1e-9);
+  EXPECT_NEAR(m.losGap().excessTable().at(3.5), 0.0, 1e-9);
   m.reset();
   EXPECT_EQ(m.flagGapDb(), 6.0);
+  EXPECT_TRUE(std::isnan(m.losGap().excessTable().at(4.0)));
 }
 
 TEST(RangeConsistency, DisabledNeverFlags) {

@@ -58,6 +58,7 @@ class EkfEstimator final : public TrackingEstimator {
   bool started() const override { return ekf_.initialized(); }
   void setFlaggedExcess(double excess_m) override { range_model_.setFlaggedExcess(excess_m); }
   void setNlosGapDb(double gap_db) override { range_model_.setNlosGapDb(gap_db); }
+  void setGapExcess(const GapExcessTable& table) override { range_model_.setGapExcess(table); }
   void addImu(const ImuSample& sample) override;
   void addMeasurement(const Measurement& m) override;
   void finish() override;

@@ -26,6 +26,7 @@ LosGapCalibrator::LosGapCalibrator(LosGapParams params, double sigma_m, double m
   params_.validate();
   if (!(sigma_m > 0.0 && std::isfinite(sigma_m))) throw std::invalid_argument("LosGapCalibrator: sigma_m must be finite and > 0");
   if (std::isnan(max_gap_db)) throw std::invalid_argument("LosGapCalibrator: max_gap_db must not be NaN");
+  table_.bin_db = params_.bin_db;
   if (params_.enabled && std::isfinite(max_gap_db) && max_gap_db > params_.min_gap_db)
     bins_used_ = std::min(kBins, static_cast<int>(std::ceil(max_gap_db / params_.bin_db)));
 }
@@ -56,19 +57,23 @@ void LosGapCalibrator::recompute() noexcept {
     std::copy_n(residuals_[b].begin(), filled_[b], scratch_.begin() + n);
     n += filled_[b];
   }
+  threshold_db_ = max_gap_db_;
+  table_.clear();
+  ++table_version_;
   if (n < params_.reference_ranges) {
     reference_m_ = std::numeric_limits<double>::quiet_NaN();
-    threshold_db_ = max_gap_db_;
     return;
   }
   reference_m_ = scratchMedian(n);
-  threshold_db_ = max_gap_db_;
+  bool stepped = false;
   for (; b < bins_used_; ++b) {
     if (filled_[b] < params_.min_bin_ranges) continue;
     std::copy_n(residuals_[b].begin(), filled_[b], scratch_.begin());
-    if (scratchMedian(filled_[b]) - reference_m_ > delta_m_) {
+    const double excess_m = scratchMedian(filled_[b]) - reference_m_;
+    table_.excess_m[static_cast<std::size_t>(b)] = std::max(0.0, excess_m);
+    if (!stepped && excess_m > delta_m_) {
       threshold_db_ = std::min(max_gap_db_, std::max(params_.min_gap_db, b * params_.bin_db));
-      return;
+      stepped = true;
     }
   }
 }
@@ -79,6 +84,8 @@ void LosGapCalibrator::reset() noexcept {
   since_recompute_ = 0;
   threshold_db_ = max_gap_db_;
   reference_m_ = std::numeric_limits<double>::quiet_NaN();
+  table_.clear();
+  ++table_version_;
 }
 
 }  // namespace rilo

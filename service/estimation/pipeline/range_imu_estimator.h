@@ -31,6 +31,7 @@ class RangeImuEstimator final : public TrackingEstimator {
   bool started() const override { return stream_.started(); }
   void setFlaggedExcess(double excess_m) override { stream_.rangeModel().setFlaggedExcess(excess_m); }
   void setNlosGapDb(double gap_db) override { stream_.rangeModel().setNlosGapDb(gap_db); }
+  void setGapExcess(const GapExcessTable& table) override { stream_.rangeModel().setGapExcess(table); }
   void addImu(const ImuSample& sample) override { stream_.addImu(sample); }
   void addMeasurement(const Measurement& m) override { stream_.addMeasurement(m); }
   /// No more samples: lets the last ranging group through.

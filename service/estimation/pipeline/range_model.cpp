@@ -34,8 +34,14 @@ RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noi
 
 RangeTerm RangeModel::term(const Measurement& m, double sigma_m) const {
   if (!flagsNlos(m)) return {m.value_m, sigma_m, loss_, false};
-  if (!component_) return {m.value_m - flagged_excess_m_, sigma_m, flagged_loss_, true};
-  const double shift_m = excess_set_ ? flagged_excess_m_ : component_->modeSigmas() * sigma_m;
+  // The gap's own bin, where the calibration measured one, else the site's.
+  const double bin_excess_m = gap_excess_.at(m.power_gap_db);
+  if (!component_) {
+    return {m.value_m - (std::isfinite(bin_excess_m) ? bin_excess_m : flagged_excess_m_), sigma_m, flagged_loss_, true};
+  }
+  const double shift_m = std::isfinite(bin_excess_m) ? bin_excess_m
+                         : excess_set_              ? flagged_excess_m_
+                                                    : component_->modeSigmas() * sigma_m;
   return {m.value_m - shift_m, sigma_m * component_->sigmaScale(), flagged_loss_, true};
 }
 

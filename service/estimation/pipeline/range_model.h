@@ -10,7 +10,8 @@
 // excess when one was set. Ranges without the powers (NaN) keep the
 // configured mixture.
 //
-// The component's shift: the site's flagged excess once setFlaggedExcess was
+// The component's shift: the excess of the range's power-gap bin where the
+// calibration has one (setGapExcess), else the site's flagged excess once setFlaggedExcess was
 // called (the Localizer's on-line estimate, range_consistency.h, which it
 // sets to 0 before the first update), else the component's own mode. The
 // fixed mode assumes the excess: where walls attenuate the first path
@@ -20,6 +21,7 @@
 #include <string>
 
 #include "estimation/noise/noise_model_factory.h"
+#include "estimation/pipeline/los_gap_calibration.h"
 #include "estimation/pipeline/measurement.h"
 
 namespace rilo {
@@ -60,6 +62,11 @@ class RangeModel {
   /// the indicator is off.
   void setNlosGapDb(double gap_db) { gap_db_ = gap_db; }
   double nlosGapDb() const { return gap_db_; }
+  /// The excess per power-gap bin (the Localizer's calibration,
+  /// los_gap_calibration.h): a flagged range in a bin that has one takes it
+  /// as its shift in place of the site's flagged excess.
+  void setGapExcess(const GapExcessTable& table) { gap_excess_ = table; }
+  const GapExcessTable& gapExcess() const { return gap_excess_; }
 
  private:
   RobustLossPtr loss_;
@@ -67,6 +74,7 @@ class RangeModel {
   std::shared_ptr<const NlosComponentLoss> component_;  ///< set when flagged ranges get the NLOS component
   double gap_db_;
   double flagged_excess_m_ = 0.0;
+  GapExcessTable gap_excess_;  ///< all NaN until set
   bool excess_set_ = false;  ///< setFlaggedExcess was called: its value replaces the component's mode
 };
 

@@ -10,6 +10,7 @@
 #include "estimation/graph/values.h"
 #include "estimation/math/imu_bias.h"
 #include "estimation/math/pose3.h"
+#include "estimation/pipeline/los_gap_calibration.h"
 #include "estimation/pipeline/measurement.h"
 #include "estimation/pipeline/start_covariance.h"
 #include "estimation/smoother/smoother.h"
@@ -43,6 +44,8 @@ class TrackingEstimator {
   virtual void setFlaggedExcess(double /*excess_m*/) {}
   /// The two-way ranges' NLOS flag threshold (dB; RangeModel::setNlosGapDb).
   virtual void setNlosGapDb(double /*gap_db*/) {}
+  /// The two-way ranges' excess per power-gap bin (RangeModel::setGapExcess).
+  virtual void setGapExcess(const GapExcessTable& /*table*/) {}
   virtual void addImu(const ImuSample& sample) = 0;
   /// A range, TDoA or ultrasonic range (Measurement::of(sample)).
   virtual void addMeasurement(const Measurement& m) = 0;

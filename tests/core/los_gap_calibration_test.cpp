@@ -7,7 +7,6 @@
 #include <gtest/gtest.h>
 
 #include <limits>
-#include <cstdint>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -52,7 +51,6 @@ TEST(LosGapCalibrator, MeasuresEachBinsExcessOverTheReference) {
   // shift that the reference takes out.
   LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
   EXPECT_TRUE(std::isnan(c.excessTable().at(5.0))) << "nothing known before the data";
-  const std::uint32_t v0 = c.tableVersion();
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> gap(1.0, 6.0);
   std::normal_distribution<double> noise(0.0, kSigma);
@@ -60,7 +58,6 @@ TEST(LosGapCalibrator, MeasuresEachBinsExcessOverTheReference) {
     const double g = gap(rng);
     c.add(g, -0.1 + noise(rng) + (g > 4.0 ? 0.1 * (g - 4.0) + 0.1 : 0.0));
   }
-  EXPECT_NE(c.tableVersion(), v0);
   const GapExcessTable& t = c.excessTable();
   EXPECT_TRUE(std::isnan(t.at(2.0))) << "the reference bins have none";
   EXPECT_NEAR(t.at(3.2), 0.0, 0.04);

@@ -275,7 +275,6 @@ void Localizer::startTracking() {
   flagged_excess_m_ = 0.0;
   if (estimate_flagged_excess_) estimator_->setFlaggedExcess(flagged_excess_m_);
   gap_db_in_use_ = params_.graph.range_noise.nlos_power_gap_db;  // the calibration restarts below
-  gap_table_in_use_ = consistency_.losGap().tableVersion() + 1;  // consistency_.reset() below bumps it
   // Starts at the initializer's state and replays what it buffered after
   // it, so no sample is lost.
   phase_ = Phase::kTracking;
@@ -344,10 +343,7 @@ void Localizer::checkConsistency() {
     gap_db_in_use_ = gap_db;
     estimator_->setNlosGapDb(gap_db);
   }
-  if (const std::uint32_t v = consistency_.losGap().tableVersion(); v != gap_table_in_use_) {
-    gap_table_in_use_ = v;
-    estimator_->setGapExcess(consistency_.losGap().excessTable());
-  }
+  estimator_->setGapExcess(consistency_.losGap().excessTable());  // 32 doubles: a copy per update is cheaper than tracking changes
   if (consistent) return;
   char why[160];
   std::snprintf(why, sizeof why, "%.0f%% of the last %d ranges much shorter than the estimate predicts at t=%.3f s",

@@ -220,7 +220,6 @@ class Localizer {
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
   double gap_db_in_use_ = 0.0;  ///< last threshold handed to the estimator
-  std::uint32_t gap_table_in_use_ = 0;  ///< version of the last excess table handed to it
   double tracking_vertical_speed_sigma_m_s_ = 0.0;
   std::uint64_t standstill_priors_ended_ = 0;  ///< of the tracking runs that ended
   bool tracking_dynamic_covariance_ = false;

@@ -35,7 +35,7 @@ void LosGapCalibrator::add(double gap_db, double residual_m) noexcept {
   // Bins are (lo, hi], as the flag is gap > threshold: a range on a learnt
   // edge is in the bin below it. Checked before the cast (NaN fails too).
   if (bins_used_ == 0 || !(gap_db >= 0.0 && gap_db <= bins_used_ * params_.bin_db) || !std::isfinite(residual_m)) return;
-  const int b = std::max(0, static_cast<int>(std::ceil(gap_db / params_.bin_db)) - 1);
+  const int b = std::max(0, GapExcessTable::binOf(gap_db, params_.bin_db));  // a gap of 0 is in bin 0
   if (b >= bins_used_) return;
   residuals_[b][next_[b]] = residual_m;
   next_[b] = (next_[b] + 1) % kPerBin;
@@ -59,7 +59,6 @@ void LosGapCalibrator::recompute() noexcept {
   }
   threshold_db_ = max_gap_db_;
   table_.clear();
-  ++table_version_;
   if (n < params_.reference_ranges) {
     reference_m_ = std::numeric_limits<double>::quiet_NaN();
     return;
@@ -85,7 +84,6 @@ void LosGapCalibrator::reset() noexcept {
   threshold_db_ = max_gap_db_;
   reference_m_ = std::numeric_limits<double>::quiet_NaN();
   table_.clear();
-  ++table_version_;
 }
 
 }  // namespace rilo

@@ -60,10 +60,14 @@ struct GapExcessTable {
 
   GapExcessTable() { clear(); }
   void clear() noexcept { excess_m.fill(std::numeric_limits<double>::quiet_NaN()); }
+  /// The bin (lo, hi] of a gap in (0, bins * bin_db] dB; the caller checks the range.
+  static int binOf(double gap_db, double bin_db) noexcept {
+    return static_cast<int>(std::ceil(gap_db / bin_db)) - 1;
+  }
   /// The excess of a range with this gap (dB); NaN for a NaN gap, one outside the bins or a bin without one.
   double at(double gap_db) const noexcept {
     if (!(gap_db > 0.0 && gap_db <= kBins * bin_db)) return std::numeric_limits<double>::quiet_NaN();
-    return excess_m[static_cast<std::size_t>(std::ceil(gap_db / bin_db)) - 1];
+    return excess_m[static_cast<std::size_t>(binOf(gap_db, bin_db))];
   }
 };
 
@@ -97,8 +101,6 @@ class LosGapCalibrator {
   double reference() const noexcept { return reference_m_; }
   /// The bins' excesses, from min_gap_db up to the configured threshold.
   const GapExcessTable& excessTable() const noexcept { return table_; }
-  /// Changes whenever the table may have (a recomputation or a reset).
-  std::uint32_t tableVersion() const noexcept { return table_version_; }
   void reset() noexcept;
 
  private:
@@ -117,7 +119,6 @@ class LosGapCalibrator {
   double threshold_db_;
   double reference_m_;
   GapExcessTable table_;
-  std::uint32_t table_version_ = 0;
 };
 
 }  // namespace rilo

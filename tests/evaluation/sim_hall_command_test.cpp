@@ -1,7 +1,7 @@
 // `rilo sim --plan hall` as a subprocess: the open-hall session with TDoA and
 // ultrasonic is written as a recording that reads back, holds exactly the
 // samples of the same simulation run in-process, and the hall options are
-// refused without --plan hall.
+// refused without --plan hall. Also the wearer's carry height (--body-height).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -92,6 +92,28 @@ TEST_F(RiloSimHall, HallSizeOptionsResizeTheHallAndNeedPlanHall) {
   const testing::ToolRun refused = sim({"sim", (dir_ / "no").string(), "--hall-length", "24", "--minutes", "0.1"});
   EXPECT_EQ(refused.exit_code, 1);
   EXPECT_NE(refused.err.find("--hall-length and --hall-width need --plan hall"), std::string::npos) << refused.err;
+}
+
+TEST_F(RiloSimHall, BodyHeightOptionCarriesTheTagAtThatHeight) {
+  // A head-worn device (glasses): the walk keeps the body frame at the given
+  // height, give or take the gait's bob, and the description says so.
+  const std::string out = (dir_ / "glasses").string();
+  const testing::ToolRun run = sim({"sim", out, "--minutes", "0.1", "--body-height", "1.6"});
+  ASSERT_EQ(run.exit_code, 0) << run.out << run.err;
+  const Recording rec = readRecording(out);
+  ASSERT_FALSE(rec.groundtruth.empty());
+  for (const GroundTruthPose& g : rec.groundtruth) ASSERT_NEAR(g.p_w_b.z(), 1.6, 0.06) << g.t_ns;
+  EXPECT_NE(rec.meta.description.find("body frame 1.60 m above the floor"), std::string::npos) << rec.meta.description;
+
+  // The default (chest) height is not mentioned, and out-of-range heights are refused by name.
+  const testing::ToolRun chest = sim({"sim", (dir_ / "chest").string(), "--minutes", "0.1"});
+  ASSERT_EQ(chest.exit_code, 0) << chest.out << chest.err;
+  const Recording rec_chest = readRecording((dir_ / "chest").string());
+  EXPECT_EQ(rec_chest.meta.description.find("body frame"), std::string::npos) << rec_chest.meta.description;
+  EXPECT_NEAR(rec_chest.groundtruth.front().p_w_b.z(), 1.25, 0.06);
+  const testing::ToolRun refused = sim({"sim", (dir_ / "tall").string(), "--minutes", "0.1", "--body-height", "2.5"});
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_NE(refused.err.find("--body-height"), std::string::npos) << refused.err;
 }
 
 }  // namespace

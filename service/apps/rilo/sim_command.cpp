@@ -105,6 +105,7 @@ int runSim(const SimOptions& o) {
     p.ranges_per_cycle = o.ranges_per_cycle;
     p.packet_loss = o.packet_loss;
     p.walk.start_moving = o.start_moving;
+    p.walk.body_height_m = o.body_height_m;
     p.tdoa.enabled = o.tdoa;
     p.tdoa.round_rate_hz = o.tdoa_hz;
     p.tdoa.packet_reception = o.packet_reception;
@@ -157,6 +158,10 @@ int runSim(const SimOptions& o) {
                   o.start_moving ? " (moving at start)" : "", o.range_hz, o.ranges_per_cycle, o.packet_loss,
                   o.nlos_severity);
     ro.description = description;
+    if (o.body_height_m != SimOptions{}.body_height_m) {
+      std::snprintf(description, sizeof(description), "; body frame %.2f m above the floor", o.body_height_m);
+      ro.description += description;
+    }
     if (o.tdoa) {
       std::snprintf(description, sizeof(description), "; TDoA %.1f Hz rounds, packet reception %.2f, sigma %.3f m%s",
                     o.tdoa_hz, o.packet_reception, o.tdoa_sigma, o.keep_twr ? ", SS-TWR kept" : " (no SS-TWR)");
@@ -268,6 +273,11 @@ void addSimCommand(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(1.0, 4000.0));
   cmd->add_flag("--start-moving", o->start_moving, "Start the session while walking instead of standing still");
+  cmd->add_option("--body-height", o->body_height_m,
+                  "Height of the body frame (IMU) above the floor while standing (m; the UWB antenna is 0.1 m above "
+                  "it): about 1.25 for a chest-worn tag, 1.6 for glasses, 0.95 for a belt")
+      ->capture_default_str()
+      ->check(CLI::Range(0.3, 2.0));
   cmd->add_flag("--force", o->force, "Replace a recording already in OUT");
   CLI::Option* tdoa =
       cmd->add_flag("--tdoa", o->tdoa,

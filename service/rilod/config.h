@@ -129,6 +129,9 @@ struct EstimatorConfig {
   /// Start-up: batch solve over this many seconds of data before the
   /// incremental smoother takes over (seed 000: 10 s).
   double init_window_s = 10.0;
+  /// Start-up refuses a solution whose tag lies farther than this beyond the
+  /// anchors' horizontal box (m; InitializerParams::max_outside_anchors_m; .inf: off).
+  double init_max_outside_anchors_m = InitializerParams().max_outside_anchors_m;
   /// Quantile of the flagged ranges' residuals taken as their excess (FlaggedExcessParams; 0: off).
   double flagged_excess_quantile = FlaggedExcessParams().quantile;
   /// Lower nlos_power_gap_db to where the ranges show the LOS gaps end (LosGapParams).

@@ -32,6 +32,7 @@ LocalizerParams localizerParams(const ServiceConfig& cfg) {
   lp.smoother = cfg.estimator.smoother;
   lp.stream = cfg.estimator.stream;
   lp.init.window_s = cfg.estimator.init_window_s;
+  lp.init.max_outside_anchors_m = cfg.estimator.init_max_outside_anchors_m;
   lp.height_band = cfg.estimator.height_band;
   lp.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
   lp.zero_velocity_sigma_m_s = cfg.estimator.zero_velocity_sigma_m_s;

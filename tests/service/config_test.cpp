@@ -89,6 +89,9 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_EQ(c.estimator.smoother.method, SmootherParams::Method::kDamped);
   EXPECT_DOUBLE_EQ(c.estimator.smoother.lag_s, 10.0);
   EXPECT_DOUBLE_EQ(c.estimator.init_window_s, 10.0);
+  EXPECT_DOUBLE_EQ(c.estimator.init_max_outside_anchors_m, InitializerParams().max_outside_anchors_m);
+  EXPECT_EQ(parse(valid("estimator:\n  init: {max_outside_anchors_m: .inf}\n")).estimator.init_max_outside_anchors_m,
+            std::numeric_limits<double>::infinity());
   EXPECT_FALSE(c.estimator.vertical_speed_sigma_m_s.has_value());  // auto: decided by the ranging in use
   EXPECT_FALSE(parse(valid("estimator:\n  vertical_speed_sigma_m_s: auto\n")).estimator.vertical_speed_sigma_m_s);
   EXPECT_EQ(parse(valid("estimator:\n  vertical_speed_sigma_m_s: 0\n")).estimator.vertical_speed_sigma_m_s, 0.0);
@@ -147,7 +150,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "          max_state_interval_s: 0.25, max_wait_s: 1.5}\n"
       "  anchors_as_variables: false\n"
       "  anchor_sigma_m: 0.05\n"
-      "  init: {window_s: 7.5}\n"
+      "  init: {window_s: 7.5, max_outside_anchors_m: 2.5}\n"
       "  height_band: {enabled: true, floor_z_m: -0.3, min_height_m: 1.0, max_height_m: 1.6, sigma_m: 0.05}\n"
       "  vertical_speed_sigma_m_s: 0.4\n"
       "dds:\n"
@@ -221,6 +224,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_FALSE(g.anchors_as_variables);
   EXPECT_DOUBLE_EQ(g.anchor_sigma_m, 0.05);
   EXPECT_DOUBLE_EQ(c.estimator.init_window_s, 7.5);
+  EXPECT_DOUBLE_EQ(c.estimator.init_max_outside_anchors_m, 2.5);
   EXPECT_TRUE(c.estimator.height_band.enabled);
   EXPECT_DOUBLE_EQ(c.estimator.height_band.floor_z_m, -0.3);
   EXPECT_DOUBLE_EQ(c.estimator.height_band.min_height_m, 1.0);
@@ -658,6 +662,8 @@ std::vector<BadCase> badCases() {
       {"height_band_unknown_key", valid("estimator:\n  height_band: {floor: 0}\n"), "estimator.height_band", "unknown key 'floor'", 11},
       {"init_window_tiny", valid("estimator:\n  init: {window_s: 0.1}\n"), "estimator.init.window_s", "[0.5, 600]",
        11},
+      {"init_outside_negative", valid("estimator:\n  init: {max_outside_anchors_m: -1}\n"),
+       "estimator.init.max_outside_anchors_m", "-1", 11},
       // dds
       {"domain_out_of_range", valid("dds:\n  domain: 300\n"), "dds.domain", "expected an integer in [0, 232], got 300",
        11},

@@ -99,6 +99,7 @@ void InitializerParams::validate() const {
   if (!(max_position_sigma_m > 0.0)) fail("max_position_sigma_m", "must be > 0");
   if (!(max_yaw_sigma_rad > 0.0)) fail("max_yaw_sigma_rad", "must be > 0");
   if (!(max_range_cost_per_range > 0.0)) fail("max_range_cost_per_range", "must be > 0");
+  if (!(max_outside_anchors_m >= 0.0)) fail("max_outside_anchors_m", "must be >= 0 (+inf: off)");
   if (!(max_imu_cost_per_factor > 0.0)) fail("max_imu_cost_per_factor", "must be > 0");
   if (!(max_range_m > 0.0)) fail("max_range_m", "must be > 0");
   if (!(zero_velocity_sigma_m_s > 0.0)) fail("zero_velocity_sigma_m_s", "must be > 0 (+inf disables)");
@@ -148,6 +149,20 @@ Initializer::Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params
   p_w_fix_sources_ = p_w_anchors_;
   p_w_fix_sources_.insert(p_w_fix_sources_.end(), g.p_w_ultrasonic.begin(), g.p_w_ultrasonic.end());
   interval_s_ = params_.attempt_interval_s;
+  anchors_min_xy_.setConstant(std::numeric_limits<double>::infinity());
+  anchors_max_xy_.setConstant(-std::numeric_limits<double>::infinity());
+  for (const Vec3& a : p_w_anchors_) {
+    if (!(a.cwiseAbs().maxCoeff() < 1e5)) continue;  // placeholder of an unused id
+    anchors_min_xy_ = anchors_min_xy_.cwiseMin(a.head<2>());
+    anchors_max_xy_ = anchors_max_xy_.cwiseMax(a.head<2>());
+  }
+}
+
+double Initializer::outsideAnchorBox(const Vec3& p_w) const {
+  if (!(anchors_min_xy_.x() <= anchors_max_xy_.x())) return 0.0;  // no surveyed anchor
+  const Eigen::Vector2d below = (anchors_min_xy_ - p_w.head<2>()).cwiseMax(0.0);
+  const Eigen::Vector2d above = (p_w.head<2>() - anchors_max_xy_).cwiseMax(0.0);
+  return (below + above).norm();
 }
 
 void Initializer::setStatus(InitState s, std::string message) {
@@ -643,6 +658,8 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     reject = "state not determined well enough yet";
   } else if (!P.height_band.contains(tag_last.z(), 3.0 * P.height_band.sigma_m)) {
     reject = strprintf("tag height %.2f m outside the height band", tag_last.z());
+  } else if (const double out_m = outsideAnchorBox(tag_last); out_m > P.max_outside_anchors_m) {
+    reject = strprintf("tag %.1f m outside the anchors' horizontal box", out_m);
   }
   if (!reject.empty()) {
     setStatus(InitState::kBatchRejected, "waiting: " + reject + "; " + summary);

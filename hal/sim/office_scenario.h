@@ -57,7 +57,7 @@ struct OfficeScenarioParams {
   AnchorPlacement anchors;                   ///< count, mounting heights (kHall: count and wall offset only)
   HallLayout hall;                           ///< kHall: size, furniture, low and high anchor heights
   WalkParams walk;                           ///< walk.seed and walk.duration_s are set from seed and duration_s
-  Eigen::Vector3d p_b_tag{0.06, 0.0, 0.10};  ///< UWB antenna in the body frame (m); tag at ~1.35 m
+  Eigen::Vector3d p_b_tag{0.06, 0.0, 0.10};  ///< UWB antenna in the body frame (m); tag at ~1.35 m at the default walk.body_height_m
   std::int64_t t0_ns = 1'000'000'000;        ///< time of the first IMU sample
 
   // IMU (BMI263 class, as range_imu_scenario).

@@ -564,7 +564,10 @@ TEST(Initializer, ATagBeyondTheAnchorsBoxIsNotAccepted) {
   walk.center.x() = 13.5;
   const sim::Scenario s = simulateOn(std::make_shared<sim::LissajousWalk>(walk), sp);
 
-  Initializer strict(s.p_w_anchors, paramsFor(s));
+  // An unused id's placeholder far away must not stretch the box.
+  std::vector<Vec3> anchors = s.p_w_anchors;
+  anchors.push_back(Vec3::Constant(1e6));
+  Initializer strict(anchors, paramsFor(s));
   bool said_why = false;
   const InitRun refused = runInit(s, strict, [&](const Initializer& init, const ImuSample&) {
     said_why |= init.status().message.find("outside the anchors' horizontal box") != std::string::npos;
@@ -840,6 +843,11 @@ TEST(InitializerParamsTest, InvalidParamsAndAnchorsThrow) {
     p = paramsFor(s);
     p.max_outside_anchors_m = outside;
     EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument) << outside;
+  }
+  for (double outside : {0.0, std::numeric_limits<double>::infinity()}) {
+    p = paramsFor(s);
+    p.max_outside_anchors_m = outside;
+    EXPECT_NO_THROW(Initializer(s.p_w_anchors, p)) << outside;
   }
   EXPECT_THROW(Initializer({}, paramsFor(s)), std::invalid_argument);
   EXPECT_THROW(Initializer({Vec3(0, 0, std::nan(""))}, paramsFor(s)), std::invalid_argument);

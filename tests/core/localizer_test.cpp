@@ -407,6 +407,7 @@ TEST(Localizer, TrackingFarOutsideTheAnchorsIsAFailure) {
 
   LocalizerParams p = paramsFor(s);
   p.max_outside_anchors_m = 1.0;
+  p.init.max_outside_anchors_m = std::numeric_limits<double>::infinity();  // the tracking check alone
   Localizer strict(s.p_w_anchors, p);
   feed(s, strict);
   EXPECT_GE(strict.reinitializations(), 1u);

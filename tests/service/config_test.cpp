@@ -89,9 +89,11 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_EQ(c.estimator.smoother.method, SmootherParams::Method::kDamped);
   EXPECT_DOUBLE_EQ(c.estimator.smoother.lag_s, 10.0);
   EXPECT_DOUBLE_EQ(c.estimator.init_window_s, 10.0);
-  EXPECT_DOUBLE_EQ(c.estimator.init_max_outside_anchors_m, InitializerParams().max_outside_anchors_m);
+  EXPECT_DOUBLE_EQ(c.estimator.init_max_outside_anchors_m, 1.0);
   EXPECT_EQ(parse(valid("estimator:\n  init: {max_outside_anchors_m: .inf}\n")).estimator.init_max_outside_anchors_m,
             std::numeric_limits<double>::infinity());
+  EXPECT_EQ(localizerParams(parse(valid("estimator:\n  init: {max_outside_anchors_m: 0}\n"))).init.max_outside_anchors_m,
+            0.0);  // 0 is valid: no start outside the box at all
   EXPECT_FALSE(c.estimator.vertical_speed_sigma_m_s.has_value());  // auto: decided by the ranging in use
   EXPECT_FALSE(parse(valid("estimator:\n  vertical_speed_sigma_m_s: auto\n")).estimator.vertical_speed_sigma_m_s);
   EXPECT_EQ(parse(valid("estimator:\n  vertical_speed_sigma_m_s: 0\n")).estimator.vertical_speed_sigma_m_s, 0.0);
@@ -663,7 +665,7 @@ std::vector<BadCase> badCases() {
       {"init_window_tiny", valid("estimator:\n  init: {window_s: 0.1}\n"), "estimator.init.window_s", "[0.5, 600]",
        11},
       {"init_outside_negative", valid("estimator:\n  init: {max_outside_anchors_m: -1}\n"),
-       "estimator.init.max_outside_anchors_m", "-1", 11},
+       "estimator.init.max_outside_anchors_m", "expected a number in [0, .inf], got -1", 11},
       // dds
       {"domain_out_of_range", valid("dds:\n  domain: 300\n"), "dds.domain", "expected an integer in [0, 232], got 300",
        11},

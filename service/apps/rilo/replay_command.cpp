@@ -222,6 +222,10 @@ void addReplayCommand(CLI::App& app) {
                   "Re-initialize when the tag is estimated farther than this beyond the anchors' horizontal box while "
                   "ranging holds it (m; default 10; inf: off)")
       ->check(CLI::Range(0.001, std::numeric_limits<double>::infinity()));
+  cmd->add_option("--init-max-outside-anchors", options->settings.init_max_outside_anchors_m,
+                  "Start-up refuses a solution whose tag lies farther than this beyond the anchors' horizontal box, a "
+                  "mirror of the truth behind a wall of anchors (m; default 1; inf: off)")
+      ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   cmd->add_option("--height-band", options->settings.height_band, "Soft tag height band on tracked states (true/false)");
   cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");

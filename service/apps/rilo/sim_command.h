@@ -9,6 +9,8 @@
 #include <cstdint>
 #include <string>
 
+#include "hal/sim/walk.h"
+
 namespace CLI {
 class App;
 }
@@ -30,7 +32,7 @@ struct SimOptions {
   double hall_width = 10.0;      ///< --plan hall: size along y (m)
   double truth_hz = 200.0;
   bool start_moving = false;
-  double body_height_m = 1.25;   ///< IMU height of the standing wearer (m); the tag sits 0.1 m above it
+  double body_height_m = sim::WalkParams{}.body_height_m;  ///< IMU height of the standing wearer (m); the tag sits 0.1 m above it
   bool force = false;            ///< replace a recording already in `out`
 
   // Second system (seed 002): UWB TDoA and ultrasonic beacons, off by default.

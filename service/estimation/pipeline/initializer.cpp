@@ -149,20 +149,6 @@ Initializer::Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params
   p_w_fix_sources_ = p_w_anchors_;
   p_w_fix_sources_.insert(p_w_fix_sources_.end(), g.p_w_ultrasonic.begin(), g.p_w_ultrasonic.end());
   interval_s_ = params_.attempt_interval_s;
-  anchors_min_xy_.setConstant(std::numeric_limits<double>::infinity());
-  anchors_max_xy_.setConstant(-std::numeric_limits<double>::infinity());
-  for (const Vec3& a : p_w_anchors_) {
-    if (!(a.cwiseAbs().maxCoeff() < 1e5)) continue;  // placeholder of an unused id
-    anchors_min_xy_ = anchors_min_xy_.cwiseMin(a.head<2>());
-    anchors_max_xy_ = anchors_max_xy_.cwiseMax(a.head<2>());
-  }
-}
-
-double Initializer::outsideAnchorBox(const Vec3& p_w) const {
-  if (!(anchors_min_xy_.x() <= anchors_max_xy_.x())) return 0.0;  // no surveyed anchor
-  const Eigen::Vector2d below = (anchors_min_xy_ - p_w.head<2>()).cwiseMax(0.0);
-  const Eigen::Vector2d above = (p_w.head<2>() - anchors_max_xy_).cwiseMax(0.0);
-  return (below + above).norm();
 }
 
 void Initializer::setStatus(InitState s, std::string message) {
@@ -658,8 +644,8 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     reject = "state not determined well enough yet";
   } else if (!P.height_band.contains(tag_last.z(), 3.0 * P.height_band.sigma_m)) {
     reject = strprintf("tag height %.2f m outside the height band", tag_last.z());
-  } else if (const double out_m = outsideAnchorBox(tag_last); out_m > P.max_outside_anchors_m) {
-    reject = strprintf("tag %.1f m outside the anchors' horizontal box", out_m);
+  } else if (const double out_m = anchor_box_.outside(tag_last); !(out_m <= P.max_outside_anchors_m)) {
+    reject = strprintf("tag %.1f m outside the anchors' horizontal box (limit %.1f)", out_m, P.max_outside_anchors_m);
   }
   if (!reject.empty()) {
     setStatus(InitState::kBatchRejected, "waiting: " + reject + "; " + summary);

@@ -143,12 +143,6 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
   estimate_flagged_excess_ = params_.flagged_excess.quantile > 0.0 && params_.graph.range_loss == "asymmetric" &&
                              std::isfinite(n.nlos_power_gap_db);
   if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
-  anchors_min_xy_.setConstant(std::numeric_limits<double>::infinity());
-  anchors_max_xy_.setConstant(-std::numeric_limits<double>::infinity());
-  for (const Vec3& a : p_w_anchors_) {
-    anchors_min_xy_ = anchors_min_xy_.cwiseMin(a.head<2>());
-    anchors_max_xy_ = anchors_max_xy_.cwiseMax(a.head<2>());
-  }
 }
 
 void Localizer::addImu(const ImuSample& sample) {
@@ -299,7 +293,7 @@ void Localizer::checkHealth(const UpdateStats& stats) {
   } else if (speed > params_.max_speed_m_s) {
     std::snprintf(why, sizeof why, "speed %.1f m/s at t=%.3f s (limit %.1f)", speed, t_s, params_.max_speed_m_s);
     fail(why);
-  } else if (const double outside = outsideAnchors(s.T_w_b.p);
+  } else if (const double outside = anchor_box_.outside(s.T_w_b.p);
              outside > params_.max_outside_anchors_m && ranging_support_.supports(s.t_ns)) {
     std::snprintf(why, sizeof why, "position (%.1f, %.1f) m is %.1f m outside the anchors' area at t=%.3f s (limit %.1f)",
                   s.T_w_b.p.x(), s.T_w_b.p.y(), outside, t_s, params_.max_outside_anchors_m);
@@ -319,13 +313,6 @@ void Localizer::checkHealth(const UpdateStats& stats) {
   } else if (stats.step_accepted) {
     consecutive_rejections_ = 0;
   }
-}
-
-double Localizer::outsideAnchors(const Vec3& p_w) const {
-  if (p_w_anchors_.empty()) return 0.0;
-  const Eigen::Vector2d below = (anchors_min_xy_ - p_w.head<2>()).cwiseMax(0.0);
-  const Eigen::Vector2d above = (p_w.head<2>() - anchors_max_xy_).cwiseMax(0.0);
-  return (below + above).norm();
 }
 
 void Localizer::checkConsistency() {

@@ -13,6 +13,7 @@
 
 #include "estimation/ekf/ekf_params.h"
 #include "estimation/graph/factor.h"
+#include "estimation/pipeline/anchor_box.h"
 #include "estimation/pipeline/initializer.h"
 #include "estimation/pipeline/range_consistency.h"
 #include "estimation/pipeline/range_imu_estimator.h"
@@ -205,7 +206,6 @@ class Localizer {
   void checkHealth(const UpdateStats& stats);
   void checkConsistency();
   /// Horizontal distance (m) of p_w beyond the anchors' bounding box, 0 inside.
-  double outsideAnchors(const Vec3& p_w) const;
   void fail(std::string why);
   template <typename F>
   void guarded(F&& f);
@@ -226,7 +226,7 @@ class Localizer {
   std::int64_t tracking_state_window_ns_ = 0;
   RangeNoiseParams tracking_range_noise_;
   bool tracking_started_ = false;
-  Eigen::Vector2d anchors_min_xy_, anchors_max_xy_;  ///< horizontal bounding box of the UWB anchors (m)
+  AnchorBox anchor_box_{p_w_anchors_};  ///< horizontal bounding box of the UWB anchors
   RangingSupport ranging_support_;  ///< when max_outside_anchors_m is judged
   std::int64_t last_imu_ns_ = 0;
   bool have_imu_ = false;

@@ -4,6 +4,7 @@
 // well as the truth (initializer.h: a start is refused past
 // max_outside_anchors_m) or holds nothing at all (localizer.h: tracking ends
 // past its own max_outside_anchors_m).
+#include <cmath>
 #include <limits>
 #include <vector>
 
@@ -11,14 +12,22 @@
 
 namespace rilo {
 
+/// Whether an anchor position is the placeholder of an unused id (hal
+/// uwbAnchorsById puts them 1e6 m away): any coordinate this far (>= 1e5 m),
+/// or not finite. The anchors' box and the height band's floor check skip them.
+template <class V>
+bool isAnchorPlaceholder(const V& p_w) {
+  return !(std::abs(p_w.x()) < 1e5 && std::abs(p_w.y()) < 1e5 && std::abs(p_w.z()) < 1e5);
+}
+
 class AnchorBox {
  public:
-  /// Placeholders of unused ids (|coordinate| >= 1e5 m, as HeightBand::plausibleFor) are left out.
+  /// Placeholders of unused ids (isAnchorPlaceholder) are left out.
   explicit AnchorBox(const std::vector<Vec3>& p_w_anchors) {
     min_xy_.setConstant(std::numeric_limits<double>::infinity());
     max_xy_.setConstant(-std::numeric_limits<double>::infinity());
     for (const Vec3& a : p_w_anchors) {
-      if (!(a.cwiseAbs().maxCoeff() < 1e5)) continue;
+      if (isAnchorPlaceholder(a)) continue;
       min_xy_ = min_xy_.cwiseMin(a.head<2>());
       max_xy_ = max_xy_.cwiseMax(a.head<2>());
     }

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "estimation/pipeline/anchor_box.h"
+
 namespace rilo {
 
 struct HeightBand {
@@ -52,12 +54,12 @@ struct HeightBand {
   /// another origin, such as a headset's first pose, would be pulled to a
   /// wrong height): none more than 0.5 m below the floor and their median
   /// 1-6 m above it, as wall, ceiling or desk mounts are. Placeholders of
-  /// unused ids (|coordinate| >= 1e5 m) are ignored.
+  /// unused ids (isAnchorPlaceholder, anchor_box.h) are ignored.
   template <class Vec3List>
   bool plausibleFor(const Vec3List& p_w_anchors) const {
     std::vector<double> heights;
     for (const auto& p : p_w_anchors) {
-      if (!(std::abs(p.x()) < 1e5 && std::abs(p.y()) < 1e5 && std::abs(p.z()) < 1e5)) continue;
+      if (isAnchorPlaceholder(p)) continue;
       heights.push_back(p.z() - floor_z_m);
     }
     if (heights.empty()) return false;

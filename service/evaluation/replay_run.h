@@ -66,7 +66,7 @@ struct ReplaySettings {
   std::optional<double> floor_z_m;             ///< floor height in the world frame (m)
   std::optional<double> min_height_m, max_height_m;  ///< band above the floor (m)
   /// Vertical speed prior (m/s; 0 none). Unset: kTdoaVerticalSpeedSigmaMs
-  /// when TDoA rows are used, else none.
+  /// when TDoA rows are used, else kTwoWayVerticalSpeedSigmaMs.
   std::optional<double> vertical_speed_sigma_m_s;
   /// Zero-velocity prior at standstills (m/s per second still; 0 none).
   /// Unset: LocalizerParams' (or the service's) default.

@@ -76,7 +76,7 @@ TEST(Localizer, InitializesFromScratchAndTracks) {
   EXPECT_EQ(localizer.initializations(), 1u);
   EXPECT_EQ(localizer.reinitializations(), 0u) << localizer.lastFailure();
   EXPECT_GT(run.tracked_updates, 400);
-  EXPECT_EQ(localizer.trackingVerticalSpeedSigma(), 0.0);  // "auto" with two-way ranges: no prior
+  EXPECT_EQ(localizer.trackingVerticalSpeedSigma(), kTwoWayVerticalSpeedSigmaMs);  // "auto" with two-way ranges
   // The initializer waits until yaw and position are determined (18 s on
   // this seed's slow start); it must not wait for ever.
   EXPECT_LT(static_cast<double>(run.first_track_ns - s.imu.front().t_ns) * 1e-9, 25.0);
@@ -327,6 +327,40 @@ TEST(Localizer, HeightBandHoldsTheTrackedHeightUnderNlos) {
   EXPECT_LT(with_band, 0.8 * without);
   EXPECT_LT(component_with_band, 0.45);
   EXPECT_LT(component_with_band, without) << "the component pulls less than the mixture";
+}
+
+// Two-way ranging from anchors at similar heights leaves the height weak:
+// the office sim's NLOS excess moves it across the height band over tens of
+// seconds. The loose default vertical speed prior ("auto",
+// kTwoWayVerticalSpeedSigmaMs) lets the many states of a walk on one floor
+// hold it (rilo replay figures in localizer.h).
+TEST(Localizer, DefaultVerticalSpeedPriorSteadiesTheHeightOnTwoWayRanges) {
+  double with_prior = 0.0, without = 0.0, error_with = 0.0, error_without = 0.0;
+  for (const std::uint64_t seed : {1u, 2u, 3u}) {
+    sim::OfficeScenarioParams op;
+    op.seed = seed;
+    op.duration_s = 60.0;
+    const sim::Scenario s = sim::simulateOfficeScenario(op);
+    auto run = [&](std::optional<double> sigma) {
+      LocalizerParams p = paramsFor(s);
+      p.vertical_speed_sigma_m_s = sigma;
+      Localizer localizer(s.p_w_anchors, p);
+      const FeedResult fed = feed(s, localizer);
+      EXPECT_GT(fed.tracked_updates, 400) << "seed " << seed;
+      EXPECT_EQ(localizer.trackingVerticalSpeedSigma(), sigma.value_or(kTwoWayVerticalSpeedSigmaMs));
+      return fed;
+    };
+    const FeedResult on = run(std::nullopt), off = run(0.0);
+    std::printf("seed %llu: mean vertical error %.3f m with the default prior, %.3f m without; 3D %.3f / %.3f m\n",
+                static_cast<unsigned long long>(seed), on.mean_abs_height_error_m, off.mean_abs_height_error_m,
+                on.mean_error_m, off.mean_error_m);
+    with_prior += on.mean_abs_height_error_m;
+    without += off.mean_abs_height_error_m;
+    error_with += on.mean_error_m;
+    error_without += off.mean_error_m;
+  }
+  EXPECT_LT(with_prior, 0.9 * without);
+  EXPECT_LT(error_with, error_without);
 }
 
 // The receiver's NLOS flag (power gap, range_model.h) with the site's

@@ -103,9 +103,10 @@ TEST(ReplayMeasurements, OnlyTheSelectedKindsReachThePipeline) {
   EXPECT_FALSE(localizerParamsFor(rec, off).with_tdoa.dynamic_covariance);
   EXPECT_FALSE(localizerParamsFor(rec, off).ekf.dynamic_covariance.enabled);
   EXPECT_FALSE(replayRecording(rec, off).dynamic_covariance);
-  // The vertical speed prior by default when TDoA is used (every estimator; the EKF reads it from graph).
+  // The vertical speed prior by default, stiffer when TDoA is used (every
+  // estimator; the EKF reads it from graph).
   EXPECT_EQ(localizerParamsFor(rec, ReplaySettings()).vertical_speed_sigma_m_s, kTdoaVerticalSpeedSigmaMs);
-  EXPECT_EQ(localizerParamsFor(rec, s).vertical_speed_sigma_m_s, 0.0);
+  EXPECT_EQ(localizerParamsFor(rec, s).vertical_speed_sigma_m_s, kTwoWayVerticalSpeedSigmaMs);
   ReplaySettings no_prior;
   no_prior.vertical_speed_sigma_m_s = 0.0;
   EXPECT_EQ(localizerParamsFor(rec, no_prior).vertical_speed_sigma_m_s, 0.0);
@@ -257,15 +258,15 @@ TEST(ReplayMeasurements, ReceptionDropsWholeTdoaEpochsAndSingleRangesFromItsSeed
 }
 
 TEST(ReplayMeasurements, ReceptionOneAndAllKindsOfATwrRecordingChangeNothing) {
-  // The committed demo (range.csv only): the settings' new defaults feed
-  // exactly what replays fed before (golden_trace_test pins the whole run).
+  // The committed demo (range.csv only): the TDoA settings' defaults change
+  // nothing for two-way ranges (golden_trace_test pins the whole run).
   const Recording rec = readRecording(testing::officeDemoDir().string());
   ASSERT_TRUE(rec.tdoa.empty());
   const LocalizerParams lp = localizerParamsFor(rec, ReplaySettings());
   EXPECT_EQ(lp.graph.same_state_window_ns, 5'000'000);
   EXPECT_FALSE(lp.stream.dynamic_covariance.enabled);
   EXPECT_FALSE(lp.ekf.dynamic_covariance.enabled);
-  EXPECT_EQ(lp.vertical_speed_sigma_m_s, 0.0);
+  EXPECT_EQ(lp.vertical_speed_sigma_m_s, kTwoWayVerticalSpeedSigmaMs);
   ReplaySettings dc;
   dc.dynamic_covariance = true;
   EXPECT_TRUE(localizerParamsFor(rec, dc).stream.dynamic_covariance.enabled);

@@ -231,7 +231,7 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");
   cmd->add_option("--max-height", options->settings.max_height_m, "Highest tag height above the floor (m)");
   cmd->add_option("--vertical-speed-sigma", options->settings.vertical_speed_sigma_m_s,
-                  "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none; default 0.05 when TDoA rows are used, else none; with --config: its vertical_speed_sigma_m_s)")->check(CLI::Range(0.0, 100.0));
+                  "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none; default 0.05 when TDoA rows are used, else 0.3; with --config: its vertical_speed_sigma_m_s)")->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--zero-velocity-sigma", options->settings.zero_velocity_sigma_m_s,
                   "Std-dev of a zero-velocity prior on each state the IMU shows still (m/s per second still; 0 = none; "
                   "default 0.05; with --config: its zero_velocity_sigma_m_s)")

@@ -36,8 +36,25 @@ namespace rilo {
 /// 0.283/0.211/0.186 -> 0.254/0.185/0.161 m; 0.1 m/s gave 0.474/0.450/0.369
 /// and 0.258/0.199/0.171. Stairs or lifts: pass 0 (off).
 inline constexpr double kTdoaVerticalSpeedSigmaMs = 0.05;
-/// The vertical speed prior "auto" stands for: kTdoaVerticalSpeedSigmaMs with TDoA rows, else none.
-inline double defaultVerticalSpeedSigma(bool tdoa_used) { return tdoa_used ? kTdoaVerticalSpeedSigmaMs : 0.0; }
+/// Vertical speed prior of every estimator on two-way ranges when no value is
+/// given: loose, about the size of a walker's own vertical speed (the sims'
+/// step bob reaches 0.23 m/s), so it takes nothing from a step or a sit-down
+/// that the IMU sees, but the many states together hold the height still
+/// where the ranges alone let it wander across the height band (anchors at
+/// similar heights: a common NLOS excess e looks like a height change of
+/// about e / 0.2). Per state, so its pull grows with the state rate (40 Hz
+/// two-way ranging: about 40 states a second). Measured (session 25,
+/// rilo replay, d-isam2, 40 Hz, mean APE online / smoothed, m; the issue-4
+/// sets of docs/noise-models.md): main 11 0.257/0.205 -> 0.224/0.186, held
+/// out 10 0.254/0.205 -> 0.237/0.195, the main plans with the tag at belt
+/// height 0.190/0.136 -> 0.170/0.127 and at glasses height 0.256/0.204 ->
+/// 0.243/0.205; 1 Hz 0.453 -> 0.459 (main 11). TDoA keeps its stiffer 0.05.
+inline constexpr double kTwoWayVerticalSpeedSigmaMs = 0.3;
+/// The vertical speed prior "auto" stands for: kTdoaVerticalSpeedSigmaMs with
+/// TDoA rows, else kTwoWayVerticalSpeedSigmaMs.
+inline double defaultVerticalSpeedSigma(bool tdoa_used) {
+  return tdoa_used ? kTdoaVerticalSpeedSigmaMs : kTwoWayVerticalSpeedSigmaMs;
+}
 
 struct LocalizerParams {
   /// What tracks after initialization: the factor graph with a Bayes-tree
@@ -59,7 +76,8 @@ struct LocalizerParams {
   /// Vertical speed prior on every state (m/s; 0: none), see
   /// RangeImuGraphParams. Unset ("auto"): none in the initializer, and on the
   /// tracked states kTdoaVerticalSpeedSigmaMs when the data that started
-  /// tracking hold TDoA rows, else none (defaultVerticalSpeedSigma).
+  /// tracking hold TDoA rows, else kTwoWayVerticalSpeedSigmaMs
+  /// (defaultVerticalSpeedSigma).
   std::optional<double> vertical_speed_sigma_m_s;
   /// Zero-velocity prior on each tracked state the IMU shows still (m/s per
   /// second of standstill; 0: none), RangeImuGraphParams::zero_velocity_sigma_m_s

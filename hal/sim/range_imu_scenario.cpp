@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numeric>
 #include <random>
+#include <stdexcept>
+#include <utility>
 
 namespace rilo::sim {
 
@@ -20,11 +22,18 @@ Eigen::Matrix<double, 6, 1> Scenario::biasAt(std::int64_t t_ns) const {
 }
 
 Scenario simulateScenario(const ScenarioParams& p) {
+  return simulateScenario(p, std::make_shared<LissajousWalk>(), defaultOfficeAnchors());
+}
+
+Scenario simulateScenario(const ScenarioParams& p, std::shared_ptr<const Trajectory> truth,
+                          std::vector<Eigen::Vector3d> p_w_anchors) {
+  if (!truth) throw std::invalid_argument("simulateScenario: null trajectory");
+  if (p_w_anchors.empty()) throw std::invalid_argument("simulateScenario: no anchors");
   Scenario s;
   s.params = p;
-  s.p_w_anchors = defaultOfficeAnchors();
+  s.p_w_anchors = std::move(p_w_anchors);
   s.p_b_tag = Eigen::Vector3d(0.05, 0.0, 0.08);
-  s.truth = std::make_shared<LissajousWalk>();
+  s.truth = std::move(truth);
   s.t0_ns = 1'000'000'000;  // recordings rarely start at zero
 
   std::mt19937_64 rng(p.seed);

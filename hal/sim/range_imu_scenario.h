@@ -58,6 +58,11 @@ struct Scenario {
 std::vector<Eigen::Vector3d> defaultOfficeAnchors();
 
 Scenario simulateScenario(const ScenarioParams& params);
+/// The same sensors along another trajectory and anchor layout (tests of
+/// motions the Lissajous walk lacks, such as a sit-down). Throws
+/// std::invalid_argument for a null trajectory or no anchors.
+Scenario simulateScenario(const ScenarioParams& params, std::shared_ptr<const Trajectory> truth,
+                          std::vector<Eigen::Vector3d> p_w_anchors);
 
 /// The IMU model that matches the simulated IMU (densities, random-walk biases).
 ImuParams imuParamsOf(const ScenarioParams& params);

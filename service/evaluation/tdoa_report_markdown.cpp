@@ -209,13 +209,14 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
              "(seed %llu), ultrasonic ranges all kept\n",
              static_cast<unsigned long long>(o.reception_seed)));
   md += strf("- Window / lag %.1f s; dynamic covariance (per-link TDoA/ultrasonic sigmas) %s; vertical speed prior "
-             "%.2f m/s on every estimator's states (replay's default with TDoA); other parameters: the "
+             "%.2f m/s on every estimator's states (replay's default with TDoA; %.2f m/s on two-way ranges "
+             "alone); other parameters: the "
              "library defaults and each recording's meta.yaml\n",
              o.lag_s,
              !o.dynamic_covariance ? "on for every estimator when TDoA is used (default)"
              : *o.dynamic_covariance ? "on for every estimator"
                                      : "off",
-             kTdoaVerticalSpeedSigmaMs);
+             kTdoaVerticalSpeedSigmaMs, kTwoWayVerticalSpeedSigmaMs);
   md += strf("- \"Fail\": the run threw, never produced a pose matched to the ground truth, or its mean online error "
              "exceeds %.0f m (diverged); failed runs are left out of the pooled column\n",
              o.fail_mean_m);

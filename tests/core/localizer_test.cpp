@@ -10,6 +10,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include "hal/sim/office_scenario.h"
@@ -392,6 +393,25 @@ class SitDownWalk final : public sim::Trajectory {
   sim::LissajousWalk walk_;
   double sit_s_, stand_s_, drop_m_, duration_s_;
 };
+
+// The sit-down's velocity and acceleration are the derivatives of its
+// position (central differences), so its IMU samples are exact; and the
+// simulator refuses a missing trajectory or anchor layout.
+TEST(SitDownWalk, DerivativesAreConsistentAndTheSimulatorChecksItsInput) {
+  const SitDownWalk walk(30.0, 45.0, 0.3, 1.2);
+  const double h = 1e-4;
+  for (const double t : {29.0, 30.1, 30.6, 31.1, 45.3, 46.0}) {
+    const sim::KinematicState k = walk.at(t), before = walk.at(t - h), after = walk.at(t + h);
+    EXPECT_NEAR((after.T_w_b.p.z() - before.T_w_b.p.z()) / (2 * h), k.v_w.z(), 1e-6) << "t " << t;
+    EXPECT_NEAR((after.v_w.z() - before.v_w.z()) / (2 * h), k.a_w.z(), 1e-5) << "t " << t;
+  }
+  EXPECT_NEAR(walk.at(40.0).T_w_b.p.z() - sim::LissajousWalk().at(40.0).T_w_b.p.z(), -0.3, 1e-12);
+  EXPECT_NEAR(walk.at(50.0).T_w_b.p.z() - sim::LissajousWalk().at(50.0).T_w_b.p.z(), 0.0, 1e-12);
+  sim::ScenarioParams sp;
+  sp.duration_s = 1.0;
+  EXPECT_THROW(sim::simulateScenario(sp, nullptr, sim::defaultOfficeAnchors()), std::invalid_argument);
+  EXPECT_THROW(sim::simulateScenario(sp, std::make_shared<SitDownWalk>(walk), {}), std::invalid_argument);
+}
 
 // The loose default vertical speed prior holds a walker's height only where
 // the ranges let it drift slowly; a sit-down the accelerometer sees stays in

@@ -39,8 +39,9 @@ inline constexpr double kTdoaVerticalSpeedSigmaMs = 0.05;
 /// Vertical speed prior of every estimator on two-way ranges when no value is
 /// given: loose, about the size of a walker's own vertical speed (the sims'
 /// step bob reaches 0.23 m/s), so it takes little from a step or a sit-down
-/// that the IMU sees (localizer_test's sit-down), but the many states together hold the height still
-/// where the ranges alone let it wander across the height band (anchors at
+/// that the IMU sees (localizer_test's sit-down), but the many states
+/// together hold the height still where the ranges alone let it wander
+/// across the height band (anchors at
 /// similar heights: a common NLOS excess e looks like a height change of
 /// about e / 0.2). Per state, so its pull grows with the state rate (40 Hz
 /// two-way ranging: about 40 states a second). Measured (session 25,

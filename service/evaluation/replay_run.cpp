@@ -119,6 +119,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.tdoa_flagged_noise) lp.graph.tdoa_flagged_loss = *s.tdoa_flagged_noise;
   if (s.tdoa_both_flagged_factor) lp.graph.tdoa_both_flagged_sigma_factor = *s.tdoa_both_flagged_factor;
   if (s.tdoa_one_flagged_factor) lp.graph.tdoa_one_flagged_sigma_factor = *s.tdoa_one_flagged_factor;
+  if (s.tdoa_max_power_gap_db) lp.graph.tdoa_max_power_gap_db = *s.tdoa_max_power_gap_db;
   // The EKF baseline needs the per-link sigmas as much as the graph (with_tdoa
   // gives them to both): at the configured 0.15 m against the office sim's
   // 1.3-1.5 m NLOS TDoA errors its covariance collapsed to a few cm, its gate
@@ -257,6 +258,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
 
   out.data_s = static_cast<double>(rec.imu.back().t_ns - rec.imu.front().t_ns) * 1e-9;
   out.online_tracked_share = trackedShare(out.online, rec.imu.front().t_ns, rec.imu.back().t_ns);
+  counts.tdoa.gated = localizer.tdoaRowsGated();
   out.initializations = localizer.initializations();
   out.reinitializations = localizer.reinitializations();
   out.standstill_priors = localizer.standstillPriors();

@@ -98,6 +98,9 @@ struct ReplaySettings {
   std::optional<bool> tdoa_nlos_indicator;
   std::optional<std::string> tdoa_flagged_noise;
   std::optional<double> tdoa_both_flagged_factor, tdoa_one_flagged_factor;
+  /// Gap over which a TDoA row's packet is too deep in NLOS to use (dB; +inf:
+  /// none; unset: RangeImuGraphParams::tdoa_max_power_gap_db).
+  std::optional<double> tdoa_max_power_gap_db;
   /// Called now and then with the fraction of samples consumed (progress bars).
   std::function<void(double)> progress;
 };
@@ -117,6 +120,8 @@ struct MeasurementCount {
   /// TDoA: used rows with one / both packets flagged NLOS by their receive
   /// diagnostics (TdoaModel::flaggedPackets; 0 without diagnostics or with the indicator off).
   std::size_t flagged_one = 0, flagged_both = 0;
+  /// TDoA: used rows the Localizer gated (Localizer::tdoaRowsGated).
+  std::size_t gated = 0;
 };
 
 struct MeasurementCounts {

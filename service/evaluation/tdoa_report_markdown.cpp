@@ -1,5 +1,6 @@
 #include "evaluation/tdoa_report_markdown.h"
 
+#include "estimation/pipeline/range_imu_graph.h"  // tdoa_max_power_gap_db
 #include "evaluation/replay_run.h"  // kTdoaVerticalSpeedSigmaMs
 #include "evaluation/report_text.h"
 
@@ -210,13 +211,13 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
              static_cast<unsigned long long>(o.reception_seed)));
   md += strf("- Window / lag %.1f s; dynamic covariance (per-link TDoA/ultrasonic sigmas) %s; vertical speed prior "
              "%.2f m/s on every estimator's states (replay's default with TDoA; %.2f m/s on two-way ranges "
-             "alone); other parameters: the "
-             "library defaults and each recording's meta.yaml\n",
+             "alone); TDoA rows with a packet whose RX level exceeds its first-path power by more than %.0f dB "
+             "gated (not used); other parameters: the library defaults and each recording's meta.yaml\n",
              o.lag_s,
              !o.dynamic_covariance ? "on for every estimator when TDoA is used (default)"
              : *o.dynamic_covariance ? "on for every estimator"
                                      : "off",
-             kTdoaVerticalSpeedSigmaMs, kTwoWayVerticalSpeedSigmaMs);
+             kTdoaVerticalSpeedSigmaMs, kTwoWayVerticalSpeedSigmaMs, RangeImuGraphParams().tdoa_max_power_gap_db);
   md += strf("- \"Fail\": the run threw, never produced a pose matched to the ground truth, or its mean online error "
              "exceeds %.0f m (diverged); failed runs are left out of the pooled column\n",
              o.fail_mean_m);

@@ -161,6 +161,29 @@ TEST(TdoaModel, OnlyRowsWithBothDiagnosticsUnflaggedAreVouchedLos) {
   EXPECT_FALSE(model.vouchedLos(Measurement::of(r)));
 }
 
+TEST(TdoaModel, RowsWithAPacketDeeperThanTheGateAreGated) {
+  const TdoaModel model = defaultModel();  // gate at 15 dB
+  EXPECT_FALSE(model.gated(tdoaRow(2.0, 3.0)));
+  EXPECT_FALSE(model.gated(tdoaRow(15.0, 15.0)));  // at the gate: not above it
+  EXPECT_TRUE(model.gated(tdoaRow(15.5, 3.0)));   // either packet
+  EXPECT_TRUE(model.gated(tdoaRow(3.0, 20.0)));
+  EXPECT_TRUE(model.gated(tdoaRow(kNaN, 20.0)));  // the reported packet decides
+  EXPECT_FALSE(model.gated(tdoaRow(kNaN, kNaN)));  // no diagnostics: never gated
+  TdoaModelParams open;
+  open.max_power_gap_db = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(TdoaModel(open, RangeNoiseParams{}).gated(tdoaRow(40.0, 40.0)));
+  TdoaModelParams strict;
+  strict.max_power_gap_db = 8.0;
+  EXPECT_TRUE(TdoaModel(strict, RangeNoiseParams{}).gated(tdoaRow(9.0, 2.0)));
+  TdoaModelParams off;  // the indicator off: diagnostics are not used at all
+  off.use_indicator = false;
+  EXPECT_FALSE(TdoaModel(off, RangeNoiseParams{}).gated(tdoaRow(40.0, 40.0)));
+  RangeSample r;  // a two-way range is not a TDoA row
+  r.rssi_dbm = -80.0;
+  r.fp_power_dbm = -110.0;
+  EXPECT_FALSE(model.gated(Measurement::of(r)));
+}
+
 TEST(TdoaModel, BadParametersThrowNamingThem) {
   TdoaModelParams p;
   p.both_flagged_sigma_factor = 0.5;
@@ -178,6 +201,14 @@ TEST(TdoaModel, BadParametersThrowNamingThem) {
     FAIL() << "no exception";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("nlos_power_gap_db"), std::string::npos);
+  }
+  p = {};
+  p.max_power_gap_db = kNaN;
+  try {
+    TdoaModel(p, RangeNoiseParams{});
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("max_power_gap_db"), std::string::npos);
   }
 }
 

@@ -186,6 +186,45 @@ TEST(ReplayMeasurements, TdoaRowsFlaggedByTheirDiagnosticsAreCountedAndChangeThe
   EXPECT_EQ(bare.measurements.tdoa.flagged_one + bare.measurements.tdoa.flagged_both, 0u);
 }
 
+TEST(ReplayMeasurements, TdoaRowsDeepInNlosAreGatedCountedAndKeptFromTheEstimate) {
+  Recording rec = hallRecording();
+  rec.ranges.clear();
+  auto deeperThan = [&](double gate_db) {
+    std::size_t n = 0, los = 0;
+    for (const TdoaSample& row : rec.tdoa) {
+      if (std::max(row.rssi_a_dbm - row.fp_power_a_dbm, row.rssi_b_dbm - row.fp_power_b_dbm) > gate_db) {
+        ++n;
+        los += row.los == 1 ? 1 : 0;
+      }
+    }
+    return std::pair{n, los};
+  };
+  ReplaySettings s;
+  s.measurements = measurementKindsFromString("tdoa,ultrasonic");
+  const ReplayResult by_default = replayRecording(rec, s);
+  EXPECT_EQ(by_default.measurements.tdoa.gated, deeperThan(RangeImuGraphParams().tdoa_max_power_gap_db).first);
+  EXPECT_EQ(by_default.measurements.tdoa.used, rec.tdoa.size());  // fed to the Localizer; gated there
+
+  s.tdoa_max_power_gap_db = 9.0;
+  const ReplayResult strict = replayRecording(rec, s);
+  const auto [deep, deep_los] = deeperThan(9.0);
+  ASSERT_GT(deep, 20u);
+  EXPECT_EQ(strict.measurements.tdoa.gated, deep);
+  EXPECT_LE(deep_los * 10, deep);  // the gate follows the truth: few of them are line of sight
+
+  s.tdoa_max_power_gap_db = std::numeric_limits<double>::infinity();
+  const ReplayResult open = replayRecording(rec, s);
+  EXPECT_EQ(open.measurements.tdoa.gated, 0u);
+  ASSERT_FALSE(open.online.empty());
+  ASSERT_FALSE(strict.online.empty());
+  EXPECT_FALSE(open.online.back().T_w_b.p.isApprox(strict.online.back().T_w_b.p, 1e-9));
+
+  // Without diagnostics nothing is gated, whatever the gate.
+  for (TdoaSample& row : rec.tdoa) row.fp_power_b_dbm = row.fp_power_a_dbm = std::numeric_limits<double>::quiet_NaN();
+  s.tdoa_max_power_gap_db = 9.0;
+  EXPECT_EQ(replayRecording(rec, s).measurements.tdoa.gated, 0u);
+}
+
 TEST(ReplayMeasurements, ReceptionDropsWholeTdoaEpochsAndSingleRangesFromItsSeed) {
   Recording rec = hallRecording();
   // Give every other TDoA epoch a second row at the same time (a tag that

@@ -142,6 +142,7 @@ TEST(TdoaReportMarkdown, TableOneImprovementPooledFiguresAndDivergedRuns) {
   EXPECT_NE(md.find("mean online error 40.00 m"), std::string::npos);
   EXPECT_NE(md.find("12.3 cm"), std::string::npos);  // the seed's figures beside ours
   EXPECT_NE(md.find("21 ms"), std::string::npos);
+  EXPECT_NE(md.find("first-path power by more than 15 dB gated"), std::string::npos) << md;  // the replay's default
 
   const std::string csv = tdoaResultsCsv(recs, res);
   EXPECT_EQ(countLines(csv), 1 + res.runs.size());

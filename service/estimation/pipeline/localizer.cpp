@@ -131,6 +131,7 @@ LosGapParams losGapFor(const LocalizerParams& p) {
 Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
     : p_w_anchors_(std::move(p_w_anchors)),
       params_(resolved(std::move(params), p_w_anchors_, height_band_note_)),
+      tdoa_model_(tdoaModelParams(params_.graph), params_.graph.range_noise),
       initializer_(p_w_anchors_, params_.init),
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
                    params_.graph.same_state_window_ns, params_.range_consistency,
@@ -174,6 +175,10 @@ void Localizer::addRange(const RangeSample& sample) {
 
 void Localizer::addTdoa(const TdoaSample& sample) {
   if (sample.anchor_a >= p_w_anchors_.size() || sample.anchor_b >= p_w_anchors_.size()) return;  // as addRange
+  if (tdoa_model_.gated(Measurement::of(sample))) {
+    ++tdoa_rows_gated_;
+    return;
+  }
   if (phase_ == Phase::kTracking) {
     ranging_support_.note(sample.t_ns);
     guarded([&] { estimator_->addTdoa(sample); });

@@ -19,6 +19,7 @@
 #include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/pipeline/ranging_support.h"
 #include "estimation/pipeline/rejection_window.h"
+#include "estimation/pipeline/tdoa_model.h"
 #include "estimation/pipeline/tracking_estimator.h"
 #include "estimation/smoother/sliding_window_params.h"
 #include "estimation/smoother/smoother_params.h"
@@ -194,6 +195,9 @@ class Localizer {
 
   std::uint64_t initializations() const { return initializations_; }
   std::uint64_t reinitializations() const { return reinitializations_; }
+  /// TDoA rows dropped on arrival for a packet deeper in NLOS than
+  /// graph.tdoa_max_power_gap_db (TdoaModel::gated).
+  std::uint64_t tdoaRowsGated() const { return tdoa_rows_gated_; }
   /// Tracked states given the zero-velocity prior, over every tracking run.
   std::uint64_t standstillPriors() const {
     return standstill_priors_ended_ + (estimator_ ? estimator_->standstillPriors() : 0);
@@ -237,6 +241,8 @@ class Localizer {
   std::string height_band_note_;  // before params_: filled while params_ is resolved
   LocalizerParams params_;
   Phase phase_ = Phase::kInitializing;
+  TdoaModel tdoa_model_;  ///< gates deep-NLOS TDoA rows on arrival
+  std::uint64_t tdoa_rows_gated_ = 0;
   Initializer initializer_;
   std::unique_ptr<TrackingEstimator> estimator_;
   RangeConsistencyMonitor consistency_;

@@ -21,6 +21,7 @@ TdoaModelParams tdoaModelParams(const RangeImuGraphParams& params) {
   t.both_flagged_sigma_factor = params.tdoa_both_flagged_sigma_factor;
   t.one_flagged_sigma_factor = params.tdoa_one_flagged_sigma_factor;
   t.use_indicator = params.tdoa_nlos_indicator;
+  t.max_power_gap_db = params.tdoa_max_power_gap_db;
   return t;
 }
 

@@ -64,6 +64,9 @@ struct RangeImuGraphParams {
   double tdoa_both_flagged_sigma_factor = 3.0;
   double tdoa_one_flagged_sigma_factor = 2.0;  ///< the EKF's (symmetric loss, no orientation)
   bool tdoa_nlos_indicator = true;
+  /// Rows with a packet whose gap exceeds this are not used (dB; +inf: all
+  /// used; TdoaModelParams::max_power_gap_db).
+  double tdoa_max_power_gap_db = 15.0;
   /// Loss of ultrasonic ranges: the asymmetric model, because reflections
   /// off furniture and people only ever lengthen the path (seed 002 uses
   /// Huber; on the hall sim the asymmetric loss took TDoA + ultrasonic

@@ -26,7 +26,8 @@ TdoaModel::TdoaModel(const TdoaModelParams& params, const RangeNoiseParams& nois
       gap_db_(noise.nlos_power_gap_db),
       both_factor_(params.both_flagged_sigma_factor),
       one_factor_(params.one_flagged_sigma_factor),
-      use_indicator_(params.use_indicator) {
+      use_indicator_(params.use_indicator),
+      max_gap_db_(params.max_power_gap_db) {
   if (!(std::isfinite(both_factor_) && both_factor_ >= 1.0)) {
     throw std::invalid_argument("tdoa both_flagged_sigma_factor must be finite and >= 1, got " +
                                 std::to_string(both_factor_));
@@ -34,6 +35,9 @@ TdoaModel::TdoaModel(const TdoaModelParams& params, const RangeNoiseParams& nois
   if (!(std::isfinite(one_factor_) && one_factor_ >= 1.0)) {
     throw std::invalid_argument("tdoa one_flagged_sigma_factor must be finite and >= 1, got " +
                                 std::to_string(one_factor_));
+  }
+  if (std::isnan(max_gap_db_)) {
+    throw std::invalid_argument("tdoa max_power_gap_db must be a number (dB) or +inf to disable, got NaN");
   }
   if (std::isnan(gap_db_)) {
     throw std::invalid_argument("range_noise.nlos_power_gap_db must be a number (dB) or +inf to disable, got NaN");

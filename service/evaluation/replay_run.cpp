@@ -204,6 +204,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   {
     const TdoaModel tdoa_model(tdoaModelParams(params.graph), params.graph.range_noise);
     for (const TdoaSample& row : tdoa) {
+      if (tdoa_model.gated(Measurement::of(row))) continue;  // counted by the Localizer (deep_nlos)
       const int n = tdoa_model.flaggedPackets(Measurement::of(row));
       counts.tdoa.flagged_one += n == 1 ? 1 : 0;
       counts.tdoa.flagged_both += n == 2 ? 1 : 0;
@@ -258,7 +259,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
 
   out.data_s = static_cast<double>(rec.imu.back().t_ns - rec.imu.front().t_ns) * 1e-9;
   out.online_tracked_share = trackedShare(out.online, rec.imu.front().t_ns, rec.imu.back().t_ns);
-  counts.tdoa.gated = localizer.tdoaRowsGated();
+  counts.tdoa.deep_nlos = localizer.tdoaRowsGated();
   out.initializations = localizer.initializations();
   out.reinitializations = localizer.reinitializations();
   out.standstill_priors = localizer.standstillPriors();

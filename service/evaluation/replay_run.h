@@ -118,10 +118,13 @@ struct MeasurementCount {
   std::size_t dropped = 0;   ///< dropped by the simulated reception (ReplaySettings::reception)
   bool selected = true;      ///< in ReplaySettings::measurements (else none used, none dropped)
   /// TDoA: used rows with one / both packets flagged NLOS by their receive
-  /// diagnostics (TdoaModel::flaggedPackets; 0 without diagnostics or with the indicator off).
+  /// diagnostics (TdoaModel::flaggedPackets; 0 without diagnostics or with
+  /// the indicator off), deep_nlos ones left out.
   std::size_t flagged_one = 0, flagged_both = 0;
-  /// TDoA: used rows the Localizer gated (Localizer::tdoaRowsGated).
-  std::size_t gated = 0;
+  /// TDoA: used rows the Localizer dropped as too deep in NLOS
+  /// (TdoaModel::gated, Localizer::tdoaRowsGated); part of `used`, which
+  /// counts the rows fed to the Localizer.
+  std::size_t deep_nlos = 0;
 };
 
 struct MeasurementCounts {

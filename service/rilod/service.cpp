@@ -286,9 +286,10 @@ void Service::estimatorLoop() {
       localizer_.addRange(*range);
     } else if (const auto* tdoa = std::get_if<TdoaSample>(&lane.pending)) {
       // TDoA rows and ultrasonic ranges fix the position too: a TDoA (+
-      // ultrasonic) deployment is not "without ranging".
-      request_status |= rangingArrived(tdoa->t_ns);
-      localizer_.addTdoa(*tdoa);  // the Localizer skips anchors and beacons it does not know
+      // ultrasonic) deployment is not "without ranging". Rows the Localizer
+      // skips (unknown anchors, deep NLOS) do not: a tag that hears only
+      // rows through several walls is without ranging.
+      if (localizer_.addTdoa(*tdoa)) request_status |= rangingArrived(tdoa->t_ns);
     } else if (const auto* us = std::get_if<UltrasonicSample>(&lane.pending)) {
       request_status |= rangingArrived(us->t_ns);
       localizer_.addUltrasonic(*us);

@@ -203,6 +203,8 @@ TEST(TdoaModel, BadParametersThrowNamingThem) {
     EXPECT_NE(std::string(e.what()).find("nlos_power_gap_db"), std::string::npos);
   }
   p = {};
+  p.max_power_gap_db = -std::numeric_limits<double>::infinity();  // would drop every row with diagnostics
+  EXPECT_THROW(TdoaModel(p, RangeNoiseParams{}), std::invalid_argument);
   p.max_power_gap_db = kNaN;
   try {
     TdoaModel(p, RangeNoiseParams{});

@@ -202,27 +202,33 @@ TEST(ReplayMeasurements, TdoaRowsDeepInNlosAreGatedCountedAndKeptFromTheEstimate
   ReplaySettings s;
   s.measurements = measurementKindsFromString("tdoa,ultrasonic");
   const ReplayResult by_default = replayRecording(rec, s);
-  EXPECT_EQ(by_default.measurements.tdoa.gated, deeperThan(RangeImuGraphParams().tdoa_max_power_gap_db).first);
-  EXPECT_EQ(by_default.measurements.tdoa.used, rec.tdoa.size());  // fed to the Localizer; gated there
+  EXPECT_EQ(by_default.measurements.tdoa.deep_nlos, deeperThan(RangeImuGraphParams().tdoa_max_power_gap_db).first);
+  EXPECT_EQ(by_default.measurements.tdoa.used, rec.tdoa.size());  // fed to the Localizer, which drops the deep ones
 
   s.tdoa_max_power_gap_db = 9.0;
   const ReplayResult strict = replayRecording(rec, s);
   const auto [deep, deep_los] = deeperThan(9.0);
   ASSERT_GT(deep, 20u);
-  EXPECT_EQ(strict.measurements.tdoa.gated, deep);
+  EXPECT_EQ(strict.measurements.tdoa.deep_nlos, deep);
   EXPECT_LE(deep_los * 10, deep);  // the gate follows the truth: few of them are line of sight
 
   s.tdoa_max_power_gap_db = std::numeric_limits<double>::infinity();
   const ReplayResult open = replayRecording(rec, s);
-  EXPECT_EQ(open.measurements.tdoa.gated, 0u);
+  EXPECT_EQ(open.measurements.tdoa.deep_nlos, 0u);
   ASSERT_FALSE(open.online.empty());
   ASSERT_FALSE(strict.online.empty());
   EXPECT_FALSE(open.online.back().T_w_b.p.isApprox(strict.online.back().T_w_b.p, 1e-9));
 
+  // With the indicator off the diagnostics are not used at all.
+  s.tdoa_max_power_gap_db = 9.0;
+  s.tdoa_nlos_indicator = false;
+  EXPECT_EQ(replayRecording(rec, s).measurements.tdoa.deep_nlos, 0u);
+  s.tdoa_nlos_indicator.reset();
+
   // Without diagnostics nothing is gated, whatever the gate.
   for (TdoaSample& row : rec.tdoa) row.fp_power_b_dbm = row.fp_power_a_dbm = std::numeric_limits<double>::quiet_NaN();
   s.tdoa_max_power_gap_db = 9.0;
-  EXPECT_EQ(replayRecording(rec, s).measurements.tdoa.gated, 0u);
+  EXPECT_EQ(replayRecording(rec, s).measurements.tdoa.deep_nlos, 0u);
 }
 
 TEST(ReplayMeasurements, ReceptionDropsWholeTdoaEpochsAndSingleRangesFromItsSeed) {

@@ -97,7 +97,7 @@ TEST(RiloReplay, MeasurementKindsAndReceptionAreCountedInTheSummary) {
   const std::string text = buffer.str();
   EXPECT_NE(text.find("\"selected\": \"range\", \"reception\": 0.7, \"reception_seed\": 3"), std::string::npos) << text;
   EXPECT_NE(text.find("\"tdoa\": {\"recorded\": 0, \"used\": 0, \"dropped\": 0, \"selected\": false, "
-                      "\"flagged_one\": 0, \"flagged_both\": 0, \"gated\": 0}"),
+                      "\"flagged_one\": 0, \"flagged_both\": 0, \"deep_nlos\": 0}"),
             std::string::npos)
       << text;
   const std::size_t range = text.find("\"range\": {\"recorded\": ");

@@ -38,8 +38,8 @@ std::string countJson(const MeasurementCount& c, bool with_flags = false) {
                 c.used, c.dropped, c.selected ? "true" : "false");
   std::string out = buf;
   if (with_flags) {
-    std::snprintf(buf, sizeof buf, ", \"flagged_one\": %zu, \"flagged_both\": %zu, \"gated\": %zu", c.flagged_one,
-                  c.flagged_both, c.gated);
+    std::snprintf(buf, sizeof buf, ", \"flagged_one\": %zu, \"flagged_both\": %zu, \"deep_nlos\": %zu", c.flagged_one,
+                  c.flagged_both, c.deep_nlos);
     out += buf;
   }
   return out + "}";
@@ -144,7 +144,7 @@ int runReplay(const ReplayOptions& o) {
         if (c.flagged_one + c.flagged_both > 0) {
           std::printf(" flagged NLOS: one packet %zu, both %zu;", c.flagged_one, c.flagged_both);
         }
-        if (c.gated > 0) std::printf(" gated as deep NLOS: %zu;", c.gated);
+        if (c.deep_nlos > 0) std::printf(" dropped as deep NLOS: %zu;", c.deep_nlos);
       }
     }
     std::printf("\n");
@@ -279,7 +279,7 @@ void addReplayCommand(CLI::App& app) {
       ->check(CLI::Range(1.0, 100.0));
   cmd->add_option("--tdoa-max-gap-db", options->settings.tdoa_max_power_gap_db,
                   "TDoA rows with a packet whose RX level minus first-path power exceeds this are not used: deep NLOS "
-                  "(dB; default 15; inf: all used)")
+                  "(dB; default 15; inf: all used; needs --tdoa-nlos-indicator, rows without diagnostics are kept)")
       ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
                   "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on once the data hold TDoA "

@@ -173,11 +173,11 @@ void Localizer::addRange(const RangeSample& sample) {
   }
 }
 
-void Localizer::addTdoa(const TdoaSample& sample) {
-  if (sample.anchor_a >= p_w_anchors_.size() || sample.anchor_b >= p_w_anchors_.size()) return;  // as addRange
+bool Localizer::addTdoa(const TdoaSample& sample) {
+  if (sample.anchor_a >= p_w_anchors_.size() || sample.anchor_b >= p_w_anchors_.size()) return false;  // as addRange
   if (tdoa_model_.gated(Measurement::of(sample))) {
     ++tdoa_rows_gated_;
-    return;
+    return false;
   }
   if (phase_ == Phase::kTracking) {
     ranging_support_.note(sample.t_ns);
@@ -185,6 +185,7 @@ void Localizer::addTdoa(const TdoaSample& sample) {
   } else {
     initializer_.addTdoa(sample);
   }
+  return true;
 }
 
 void Localizer::addUltrasonic(const UltrasonicSample& sample) {

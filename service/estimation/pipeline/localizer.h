@@ -163,8 +163,10 @@ class Localizer {
   void addRange(const RangeSample& sample);
   /// TDoA rows and ultrasonic ranges (beacons in params.graph.p_w_ultrasonic),
   /// alone or with two-way ranges: the initializer and the tracking
-  /// estimator use every kind. Unknown anchors and beacons are skipped.
-  void addTdoa(const TdoaSample& sample);
+  /// estimator use every kind. Unknown anchors and beacons are skipped, and
+  /// so are TDoA rows too deep in NLOS (TdoaModel::gated): addTdoa returns
+  /// whether the row was taken.
+  bool addTdoa(const TdoaSample& sample);
   void addUltrasonic(const UltrasonicSample& sample);
   /// Runs what is ready: an initialization attempt, or smoother updates.
   /// Appends one UpdateStats per smoother update when `stats` is given.

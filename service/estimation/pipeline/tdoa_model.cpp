@@ -36,8 +36,9 @@ TdoaModel::TdoaModel(const TdoaModelParams& params, const RangeNoiseParams& nois
     throw std::invalid_argument("tdoa one_flagged_sigma_factor must be finite and >= 1, got " +
                                 std::to_string(one_factor_));
   }
-  if (std::isnan(max_gap_db_)) {
-    throw std::invalid_argument("tdoa max_power_gap_db must be a number (dB) or +inf to disable, got NaN");
+  if (!(max_gap_db_ >= 0.0)) {
+    throw std::invalid_argument("tdoa max_power_gap_db must be >= 0 (dB) or +inf to disable, got " +
+                                std::to_string(max_gap_db_));
   }
   if (std::isnan(gap_db_)) {
     throw std::invalid_argument("range_noise.nlos_power_gap_db must be a number (dB) or +inf to disable, got NaN");

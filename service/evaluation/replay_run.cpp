@@ -204,8 +204,9 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   {
     const TdoaModel tdoa_model(tdoaModelParams(params.graph), params.graph.range_noise);
     for (const TdoaSample& row : tdoa) {
-      if (tdoa_model.gated(Measurement::of(row))) continue;  // counted by the Localizer (deep_nlos)
-      const int n = tdoa_model.flaggedPackets(Measurement::of(row));
+      const Measurement m = Measurement::of(row);
+      if (tdoa_model.gated(m)) continue;  // counted by the Localizer (deep_nlos)
+      const int n = tdoa_model.flaggedPackets(m);
       counts.tdoa.flagged_one += n == 1 ? 1 : 0;
       counts.tdoa.flagged_both += n == 2 ? 1 : 0;
     }

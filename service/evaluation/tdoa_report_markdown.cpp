@@ -212,7 +212,8 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
   md += strf("- Window / lag %.1f s; dynamic covariance (per-link TDoA/ultrasonic sigmas) %s; vertical speed prior "
              "%.2f m/s on every estimator's states (replay's default with TDoA; %.2f m/s on two-way ranges "
              "alone); TDoA rows with a packet whose RX level exceeds its first-path power by more than %.0f dB "
-             "gated (not used; rows without receive diagnostics are all used); other parameters: the library defaults and each recording's meta.yaml\n",
+             "gated (not used; rows without receive diagnostics are all used); other parameters: the library "
+             "defaults and each recording's meta.yaml\n",
              o.lag_s,
              !o.dynamic_covariance ? "on for every estimator when TDoA is used (default)"
              : *o.dynamic_covariance ? "on for every estimator"

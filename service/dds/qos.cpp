@@ -54,7 +54,7 @@ QosPtr readerQos(TopicKind kind, std::int32_t odometry_depth) {
     case TopicKind::kStatus:
       dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
       dds_qset_durability(qos.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
-      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kStatusReaderDepth);
       break;
   }
   return qos;

@@ -4,7 +4,7 @@
 //   topic     writer                                            reader (rilo listen, tests)
 //   odometry  best-effort, volatile, keep-last 1                best-effort, keep-last `depth` (default 256)
 //   pose      reliable, volatile, keep-last 10                  reliable, keep-last 10
-//   status    reliable, transient-local, keep-last 1            reliable, transient-local, keep-last 1
+//   status    reliable, transient-local, keep-last 1            reliable, transient-local, keep-last 64
 //
 // Odometry is sensor data at IMU rate: a late sample is worthless, so it is
 // never retransmitted and never blocks (ROS 2 subscribers need the
@@ -12,7 +12,10 @@
 // Pose and status are reliable; their writers use max_blocking_time 0, so a
 // congested link makes dds_write return DDS_RETCODE_TIMEOUT instead of
 // stalling the service. Status is transient-local so a late joiner gets the
-// current status at once.
+// current status at once (the writer keeps one: the newest). Its readers
+// keep 64, so a subscriber that takes now and then (a loaded machine, a fast
+// replay whose 30 s ranging blackout lasts a few status periods) still sees
+// every state the service went through, not only the last one.
 #include <dds/dds.h>
 
 #include <cstdint>
@@ -29,6 +32,7 @@ using QosPtr = std::unique_ptr<dds_qos_t, QosDeleter>;
 
 inline constexpr std::int32_t kPoseHistoryDepth = 10;
 inline constexpr std::int32_t kDefaultOdometryReaderDepth = 256;
+inline constexpr std::int32_t kStatusReaderDepth = 64;
 
 QosPtr writerQos(TopicKind kind);
 /// `odometry_depth` is the keep-last depth of an odometry reader (> 0).

@@ -90,12 +90,17 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   }
   so.on_status = [](const rilo::ServiceStatus& s) {
     auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
-    char line[512];
+    char tdoa[96] = "";  // seed 002's system only: a two-way line stays as it was
+    if (s.tdoa_samples > 0 || s.ultrasonic_samples > 0) {
+      std::snprintf(tdoa, sizeof tdoa, ", tdoa %llu (deep NLOS %llu), ultrasonic %llu", u(s.tdoa_samples),
+                    u(s.deep_nlos_tdoa_rows), u(s.ultrasonic_samples));
+    }
+    char line[600];
     std::snprintf(line, sizeof line,
-                  "%s: imu %llu, ranges %llu (rejected %llu), odometry %llu (latency max %.2f ms); update mean %.2f ms, "
+                  "%s: imu %llu, ranges %llu (rejected %llu)%s, odometry %llu (latency max %.2f ms); update mean %.2f ms, "
                   "max %.2f ms; faults %llu, overflows %llu, re-inits %llu; dropped non-finite %llu, duplicate %llu, "
                   "out-of-order %llu; gaps imu %llu, ranging %llu%s%s",
-                  stateName(s.state), u(s.imu_samples), u(s.range_samples), u(s.rejected_ranges),
+                  stateName(s.state), u(s.imu_samples), u(s.range_samples), u(s.rejected_ranges), tdoa,
                   u(s.published_odometry), s.odometry_latency_ms, s.mean_update_ms, s.max_update_ms,
                   u(s.sensor_faults), u(s.queue_overflows), u(s.reinitializations), u(s.non_finite_samples),
                   u(s.duplicate_samples), u(s.out_of_order_samples), u(s.imu_gaps), u(s.ranging_gaps),

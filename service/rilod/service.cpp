@@ -289,7 +289,9 @@ void Service::estimatorLoop() {
       // ultrasonic) deployment is not "without ranging". Rows the Localizer
       // skips (unknown anchors, deep NLOS) do not: a tag that hears only
       // rows through several walls is without ranging.
+      const std::uint64_t gated_before = localizer_.tdoaRowsGated();
       if (localizer_.addTdoa(*tdoa)) request_status |= rangingArrived(tdoa->t_ns);
+      if (localizer_.tdoaRowsGated() != gated_before) counters_.deep_nlos_tdoa_rows.add();
     } else if (const auto* us = std::get_if<UltrasonicSample>(&lane.pending)) {
       request_status |= rangingArrived(us->t_ns);
       localizer_.addUltrasonic(*us);

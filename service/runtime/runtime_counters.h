@@ -32,6 +32,7 @@ struct RuntimeCounters {
   EventCounter sensor_silences;
   EventCounter reinitializations;
   EventCounter rejected_ranges;
+  EventCounter deep_nlos_tdoa_rows;
   EventCounter published_odometry;
   EventCounter non_finite_samples;
   EventCounter duplicate_samples;
@@ -51,6 +52,7 @@ struct RuntimeCounters {
     status.sensor_silences = sensor_silences.load();
     status.reinitializations = reinitializations.load();
     status.rejected_ranges = rejected_ranges.load();
+    status.deep_nlos_tdoa_rows = deep_nlos_tdoa_rows.load();
     status.published_odometry = published_odometry.load();
     status.non_finite_samples = non_finite_samples.load();
     status.duplicate_samples = duplicate_samples.load();

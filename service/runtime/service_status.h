@@ -41,6 +41,10 @@ struct ServiceStatus {
   /// NLOS/outlier; the range model's own loss, whitened residual). Ranges seen
   /// while initializing are not judged.
   std::uint64_t rejected_ranges = 0;
+  /// TDoA rows not used because a packet was deeper in NLOS than
+  /// estimator.tdoa.max_power_gap_db (TdoaModel::gated); also counted in
+  /// tdoa_samples. A tag that hears only such rows is without ranging.
+  std::uint64_t deep_nlos_tdoa_rows = 0;
   std::uint64_t published_odometry = 0;
   // Samples dropped at the service's entrance (sample time, per source and
   // stream), so the estimator and the output predictor only see clean data.

@@ -236,6 +236,9 @@ TEST(DdsFill, StatusRoundTrip) {
   EXPECT_EQ(back.status.sensor_silences, s.sensor_silences);
   EXPECT_EQ(back.status.reinitializations, s.reinitializations);
   EXPECT_EQ(back.status.rejected_ranges, s.rejected_ranges);
+  EXPECT_EQ(back.status.deep_nlos_tdoa_rows, s.deep_nlos_tdoa_rows);
+  EXPECT_EQ(back.status.tdoa_samples, s.tdoa_samples);
+  EXPECT_EQ(back.status.ultrasonic_samples, s.ultrasonic_samples);
   EXPECT_EQ(back.status.published_odometry, s.published_odometry);
   EXPECT_EQ(back.status.non_finite_samples, s.non_finite_samples);
   EXPECT_EQ(back.status.duplicate_samples, s.duplicate_samples);

@@ -81,12 +81,15 @@ inline ServiceStatus sampleStatus(std::int64_t t_ns) {
   s.state = TrackingState::kDegraded;
   s.imu_samples = 123456789012ULL;
   s.range_samples = 4567;
+  s.tdoa_samples = 8901;
+  s.ultrasonic_samples = 234;
   s.queue_overflows = 3;
   s.late_updates = 7;
   s.sensor_faults = 11;
   s.sensor_silences = 13;
   s.reinitializations = 2;
   s.rejected_ranges = 99;
+  s.deep_nlos_tdoa_rows = 41;
   s.published_odometry = 123450000;
   s.non_finite_samples = 19;
   s.duplicate_samples = 23;

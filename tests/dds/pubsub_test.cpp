@@ -150,12 +150,15 @@ TEST_F(DdsPubSub, StatusArrivesWithExactFields) {
   EXPECT_EQ(r.state, s.state);
   EXPECT_EQ(r.imu_samples, s.imu_samples);
   EXPECT_EQ(r.range_samples, s.range_samples);
+  EXPECT_EQ(r.tdoa_samples, s.tdoa_samples);
+  EXPECT_EQ(r.ultrasonic_samples, s.ultrasonic_samples);
   EXPECT_EQ(r.queue_overflows, s.queue_overflows);
   EXPECT_EQ(r.late_updates, s.late_updates);
   EXPECT_EQ(r.sensor_faults, s.sensor_faults);
   EXPECT_EQ(r.sensor_silences, s.sensor_silences);
   EXPECT_EQ(r.reinitializations, s.reinitializations);
   EXPECT_EQ(r.rejected_ranges, s.rejected_ranges);
+  EXPECT_EQ(r.deep_nlos_tdoa_rows, s.deep_nlos_tdoa_rows);
   EXPECT_EQ(r.published_odometry, s.published_odometry);
   EXPECT_EQ(r.non_finite_samples, s.non_finite_samples);
   EXPECT_EQ(r.duplicate_samples, s.duplicate_samples);

@@ -70,6 +70,9 @@ TEST(RuntimeCounters, FillCopiesEveryCounter) {
   c.sensor_silences.add(5);
   c.reinitializations.add(6);
   c.rejected_ranges.add(7);
+  c.deep_nlos_tdoa_rows.add(11);
+  c.tdoa_samples.add(12);
+  c.ultrasonic_samples.add(13);
   c.published_odometry.add(8);
   ServiceStatus s;
   s.max_update_ms = 9.5;
@@ -82,6 +85,9 @@ TEST(RuntimeCounters, FillCopiesEveryCounter) {
   EXPECT_EQ(s.sensor_silences, 5u);
   EXPECT_EQ(s.reinitializations, 6u);
   EXPECT_EQ(s.rejected_ranges, 7u);
+  EXPECT_EQ(s.deep_nlos_tdoa_rows, 11u);
+  EXPECT_EQ(s.tdoa_samples, 12u);
+  EXPECT_EQ(s.ultrasonic_samples, 13u);
   EXPECT_EQ(s.published_odometry, 8u);
   EXPECT_EQ(s.max_update_ms, 9.5);  // untouched
 }

@@ -37,6 +37,7 @@ std::int64_t timeOf(const Sample& s) {
 struct Session {
   std::vector<Sample> samples;
   std::size_t ranges = 0, tdoa = 0, ultrasonic = 0;
+  std::size_t deep_nlos = 0;  ///< rows whose packet b is deeper in NLOS than the default gate (15 dB)
 };
 
 const Vec3 kLeverArm(0.06, 0.0, 0.10);
@@ -47,8 +48,10 @@ constexpr std::uint32_t kBeaconId = 20;
 /// rows between consecutive anchors every 20 ms and ultrasonic ranges to one
 /// beacon every 100 ms from the ground truth, plus a few rows naming an
 /// unknown anchor or beacon.
+/// With `deep_every` > 0, every deep_every-th row (of known anchors) reports
+/// packet b 20 dB below its RX level at the first path: deep NLOS.
 Session demoSession(const Recording& rec, bool extra, bool with_ranges = true, std::int64_t blackout_from_ns = 0,
-                    std::int64_t blackout_to_ns = 0) {
+                    std::int64_t blackout_to_ns = 0, std::size_t deep_every = 0) {
   Session out;
   const std::int64_t t_end = rec.imu.front().t_ns + 30'000'000'000;  // the first 30 s: initialization and 20 s of tracking
   for (const ImuSample& m : rec.imu) {
@@ -74,6 +77,13 @@ Session demoSession(const Recording& rec, bool extra, bool with_ranges = true, s
       d.anchor_a = a;
       d.anchor_b = g % 97 == 50 ? 99 : b;  // now and then an anchor rilod does not know
       d.diff_m = (p_tag - anchors[b]).norm() - (p_tag - anchors[a]).norm();
+      if (deep_every > 0 && g % deep_every == 0 && d.anchor_b != 99) {
+        d.rssi_a_dbm = -80.0;
+        d.fp_power_a_dbm = -82.0;
+        d.rssi_b_dbm = -85.0;
+        d.fp_power_b_dbm = -105.0;
+        ++out.deep_nlos;
+      }
       out.samples.push_back(d);
       ++out.tdoa;
       a = b;
@@ -164,6 +174,7 @@ TEST(RilodTdoa, TdoaAndUltrasonicAreCountedAndReachTheEstimator) {
   EXPECT_EQ(with.status.ultrasonic_samples, extra.ultrasonic);
   EXPECT_EQ(with.status.range_samples, extra.ranges);
   EXPECT_EQ(with.status.range_samples, without.status.range_samples);
+  EXPECT_EQ(with.status.deep_nlos_tdoa_rows, 0u);  // no diagnostics: never gated
   // Unknown anchors and beacons were skipped, not fatal to tracking.
   EXPECT_EQ(with.status.reinitializations, 0u);
   // The TDoA rows (50/s) mostly open states of their own between the
@@ -194,6 +205,21 @@ TEST(RilodTdoa, TdoaAloneInitializesAndItsBlackoutIsARangingGap) {
   const bool initialized = std::any_of(run.events.begin(), run.events.end(),
                                        [](const std::string& e) { return e.rfind("initialized", 0) == 0; });
   EXPECT_TRUE(initialized);
+}
+
+TEST(RilodTdoa, RowsDeepInNlosAreCountedOnTheStatusAndTrackingGoesOn) {
+  // Every 7th row says its packet b arrived 20 dB below its RX level at the
+  // first path (over the default 15 dB gate): the service drops it and says
+  // how many on its status, while initializing and while tracking.
+  const Recording rec = readRecording(testing::sourceDir() / "tests" / "data" / "office-demo");
+  const Session session = demoSession(rec, true, true, 0, 0, 7);
+  ASSERT_GT(session.deep_nlos, 100u);
+  const RunResult run = runService(rec, session, 100 + static_cast<std::uint32_t>((::getpid() + 13) % 130));
+  EXPECT_EQ(run.exit_code, 0);
+  EXPECT_EQ(run.status.tdoa_samples, session.tdoa);
+  EXPECT_EQ(run.status.deep_nlos_tdoa_rows, session.deep_nlos);
+  EXPECT_EQ(run.status.reinitializations, 0u);
+  EXPECT_GT(run.poses, 200u);
 }
 
 }  // namespace

@@ -230,12 +230,15 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
         .string("state_name", m.state_name)
         .unsignedInteger("imu_samples", s.imu_samples)
         .unsignedInteger("range_samples", s.range_samples)
+        .unsignedInteger("tdoa_samples", s.tdoa_samples)
+        .unsignedInteger("ultrasonic_samples", s.ultrasonic_samples)
         .unsignedInteger("queue_overflows", s.queue_overflows)
         .unsignedInteger("late_updates", s.late_updates)
         .unsignedInteger("sensor_faults", s.sensor_faults)
         .unsignedInteger("sensor_silences", s.sensor_silences)
         .unsignedInteger("reinitializations", s.reinitializations)
         .unsignedInteger("rejected_ranges", s.rejected_ranges)
+        .unsignedInteger("deep_nlos_tdoa_rows", s.deep_nlos_tdoa_rows)
         .unsignedInteger("published_odometry", s.published_odometry)
         .unsignedInteger("non_finite_samples", s.non_finite_samples)
         .unsignedInteger("duplicate_samples", s.duplicate_samples)
@@ -257,13 +260,19 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
         .print();
     return;
   }
+  char tdoa[96] = "";  // seed 002's system only
+  if (s.tdoa_samples > 0 || s.ultrasonic_samples > 0) {
+    std::snprintf(tdoa, sizeof tdoa, "  tdoa %llu (deep NLOS %llu)  ultrasonic %llu",
+                  static_cast<unsigned long long>(s.tdoa_samples), static_cast<unsigned long long>(s.deep_nlos_tdoa_rows),
+                  static_cast<unsigned long long>(s.ultrasonic_samples));
+  }
   std::printf(
-      "status   %14.6f  %-12s imu %llu  ranges %llu (rejected %llu)  overflows %llu  late %llu  faults %llu  "
+      "status   %14.6f  %-12s imu %llu  ranges %llu (rejected %llu)%s  overflows %llu  late %llu  faults %llu  "
       "silences %llu  reinit %llu  dropped %llu/%llu/%llu (non-finite/duplicate/out-of-order)  gaps %llu/%llu "
       "(imu/ranging)  update %.2f ms (mean %.2f, max %.2f)  odometry latency %.2f ms  pose latency "
       "%.2f ms  %5.1f Hz  latency %7.2f ms%s%s%s%s%s%s\n",
       stampSeconds(s.t_ns), m.state_name.c_str(), static_cast<unsigned long long>(s.imu_samples),
-      static_cast<unsigned long long>(s.range_samples), static_cast<unsigned long long>(s.rejected_ranges),
+      static_cast<unsigned long long>(s.range_samples), static_cast<unsigned long long>(s.rejected_ranges), tdoa,
       static_cast<unsigned long long>(s.queue_overflows), static_cast<unsigned long long>(s.late_updates),
       static_cast<unsigned long long>(s.sensor_faults), static_cast<unsigned long long>(s.sensor_silences),
       static_cast<unsigned long long>(s.reinitializations), static_cast<unsigned long long>(s.non_finite_samples),

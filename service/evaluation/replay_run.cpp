@@ -120,6 +120,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.tdoa_both_flagged_factor) lp.graph.tdoa_both_flagged_sigma_factor = *s.tdoa_both_flagged_factor;
   if (s.tdoa_one_flagged_factor) lp.graph.tdoa_one_flagged_sigma_factor = *s.tdoa_one_flagged_factor;
   if (s.tdoa_max_power_gap_db) lp.graph.tdoa_max_power_gap_db = *s.tdoa_max_power_gap_db;
+  if (s.tdoa_gap_excess) lp.graph.tdoa_gap_excess.enabled = *s.tdoa_gap_excess;
   // The EKF baseline needs the per-link sigmas as much as the graph (with_tdoa
   // gives them to both): at the configured 0.15 m against the office sim's
   // 1.3-1.5 m NLOS TDoA errors its covariance collapsed to a few cm, its gate

@@ -101,6 +101,9 @@ struct ReplaySettings {
   /// Gap over which a TDoA row's packet is too deep in NLOS to use (dB; +inf:
   /// none; unset: RangeImuGraphParams::tdoa_max_power_gap_db).
   std::optional<double> tdoa_max_power_gap_db;
+  /// Learn the packets' NLOS excess per gap bin and take it off the rows
+  /// (graph estimators; unset: RangeImuGraphParams::tdoa_gap_excess.enabled).
+  std::optional<bool> tdoa_gap_excess;
   /// Called now and then with the fraction of samples consumed (progress bars).
   std::function<void(double)> progress;
 };

@@ -317,13 +317,15 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     }
   }
   if (auto f = m.get("tdoa")) {
-    const ConfigMap t = f->map({"state_window_s", "dynamic_covariance", "nlos_indicator", "max_power_gap_db"});
+    const ConfigMap t =
+        f->map({"state_window_s", "dynamic_covariance", "nlos_indicator", "max_power_gap_db", "gap_excess"});
     t.read("state_window_s", e.with_tdoa.state_window_ns, [](const ConfigField& w) { return w.secondsAsNs(0.0, 1.0); });
     t.read("dynamic_covariance", e.with_tdoa.dynamic_covariance, [](const ConfigField& d) { return d.boolean(); });
     t.read("nlos_indicator", e.graph.tdoa_nlos_indicator, [](const ConfigField& d) { return d.boolean(); });
     t.read("max_power_gap_db", e.graph.tdoa_max_power_gap_db, [](const ConfigField& d) {
       return d.number(0.0, std::numeric_limits<double>::infinity(), true);  // dB, or .inf: none gated
     });
+    t.read("gap_excess", e.graph.tdoa_gap_excess.enabled, [](const ConfigField& d) { return d.boolean(); });
     if (e.with_tdoa.state_window_ns >= e.graph.max_state_interval_ns) {
       (t.has("state_window_s") ? t.require("state_window_s") : *f)
           .fail("state_window_s must be below range.max_state_interval_s (" +

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <limits>
 #include <set>
 #include <string>
@@ -229,6 +230,33 @@ TEST(ReplayMeasurements, TdoaRowsDeepInNlosAreGatedCountedAndKeptFromTheEstimate
   for (TdoaSample& row : rec.tdoa) row.fp_power_b_dbm = row.fp_power_a_dbm = std::numeric_limits<double>::quiet_NaN();
   s.tdoa_max_power_gap_db = 9.0;
   EXPECT_EQ(replayRecording(rec, s).measurements.tdoa.deep_nlos, 0u);
+}
+
+TEST(ReplayMeasurements, TdoaPacketExcessLearntFromTheGapsLowersTheErrorAndNeedsDiagnostics) {
+  Recording rec = hallRecording();
+  rec.ranges.clear();
+  ReplaySettings s;
+  s.measurements = measurementKindsFromString("tdoa,ultrasonic");
+  s.smoother = "sliding-window";
+  s.lag_s = 10.0;
+  const ReplayResult learnt = replayRecording(rec, s);
+  s.tdoa_gap_excess = false;
+  const ReplayResult plain = replayRecording(rec, s);
+  ASSERT_TRUE(learnt.ape_smoothed && plain.ape_smoothed && learnt.ape_online && plain.ape_online);
+  std::printf("hall 30 s, sliding window, 3D RMSE online / smoothed: %.3f / %.3f m learnt, %.3f / %.3f m without\n",
+              learnt.ape_online->ape_3d.rmse, learnt.ape_smoothed->ape_3d.rmse, plain.ape_online->ape_3d.rmse,
+              plain.ape_smoothed->ape_3d.rmse);
+  EXPECT_LT(learnt.ape_smoothed->ape_3d.rmse, plain.ape_smoothed->ape_3d.rmse);
+  EXPECT_LT(learnt.ape_online->ape_3d.rmse, plain.ape_online->ape_3d.rmse);
+
+  // Rows without diagnostics teach nothing and are not corrected: the same run.
+  for (TdoaSample& row : rec.tdoa) row.fp_power_b_dbm = row.fp_power_a_dbm = std::numeric_limits<double>::quiet_NaN();
+  const ReplayResult bare_plain = replayRecording(rec, s);
+  s.tdoa_gap_excess.reset();
+  const ReplayResult bare_learnt = replayRecording(rec, s);
+  ASSERT_EQ(bare_learnt.online.size(), bare_plain.online.size());
+  ASSERT_FALSE(bare_plain.online.empty());
+  EXPECT_TRUE(bare_learnt.online.back().T_w_b.p.isApprox(bare_plain.online.back().T_w_b.p, 1e-12));
 }
 
 TEST(ReplayMeasurements, ReceptionDropsWholeTdoaEpochsAndSingleRangesFromItsSeed) {

@@ -111,9 +111,11 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_TRUE(c.estimator.with_tdoa.dynamic_covariance);
   EXPECT_TRUE(c.estimator.graph.tdoa_nlos_indicator);
   EXPECT_EQ(c.estimator.graph.tdoa_max_power_gap_db, RangeImuGraphParams().tdoa_max_power_gap_db);
+  EXPECT_TRUE(c.estimator.graph.tdoa_gap_excess.enabled);
   const ServiceConfig tdoa = parse(valid(
       "estimator:\n  tdoa:\n    state_window_s: 0\n    dynamic_covariance: false\n    nlos_indicator: false\n"
-      "    max_power_gap_db: 12.5\n"));
+      "    max_power_gap_db: 12.5\n    gap_excess: false\n"));
+  EXPECT_FALSE(tdoa.estimator.graph.tdoa_gap_excess.enabled);
   EXPECT_EQ(tdoa.estimator.with_tdoa.state_window_ns, 0);
   EXPECT_FALSE(tdoa.estimator.with_tdoa.dynamic_covariance);
   EXPECT_FALSE(tdoa.estimator.graph.tdoa_nlos_indicator);
@@ -626,6 +628,8 @@ std::vector<BadCase> badCases() {
       {"lag_zero", valid("estimator:\n  lag_s: 0\n"), "estimator.lag_s", "the service must bound its memory", 11},
       {"lag_negative", valid("estimator:\n  lag_s: -1\n"), "estimator.lag_s", "expected a number in [0, 3600], got -1",
        11},
+      {"tdoa_gap_excess_not_a_boolean", valid("estimator:\n  tdoa: {gap_excess: sometimes}\n"),
+       "estimator.tdoa.gap_excess", "expected true or false", 11},
       {"tdoa_gap_gate_negative", valid("estimator:\n  tdoa: {max_power_gap_db: -3}\n"),
        "estimator.tdoa.max_power_gap_db", "expected a number in [0, .inf], got -3", 11},
       {"bad_noise_model", valid("estimator:\n  range: {noise_model: laplace}\n"), "estimator.range.noise_model",

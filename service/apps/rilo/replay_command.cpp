@@ -281,6 +281,9 @@ void addReplayCommand(CLI::App& app) {
                   "TDoA rows with a packet whose RX level minus first-path power exceeds this are not used: deep NLOS "
                   "(dB; default 15; inf: all used; needs --tdoa-nlos-indicator, rows without diagnostics are kept)")
       ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
+  cmd->add_option("--tdoa-gap-excess", options->settings.tdoa_gap_excess,
+                  "Learn each TDoA packet's NLOS excess per RX-level-minus-first-path gap bin from the rows' residuals "
+                  "and take it off the rows (true/false; default true; graph estimators; needs --tdoa-nlos-indicator)");
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
                   "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on once the data hold TDoA "
                   "rows; with --config: its tdoa.dynamic_covariance)");

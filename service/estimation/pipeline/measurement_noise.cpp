@@ -34,14 +34,16 @@ MeasurementNoise::MeasurementNoise(std::vector<Vec3> p_w_anchors, const RangeImu
       sigma_range_m_(graph.range_noise.sigma_m),
       sigma_tdoa_m_(graph.tdoa_sigma_m),
       sigma_ultrasonic_m_(graph.ultrasonic_sigma_m) {
-  if (!options.enabled) return;
+  if (graph.tdoa_gap_excess.enabled && graph.tdoa_nlos_indicator) gap_excess_.emplace(graph.tdoa_gap_excess);
+  if (!options.enabled && !gap_excess_) return;
   if (options.max_pending < 1) throw std::invalid_argument("DynamicCovarianceOptions.max_pending must be >= 1");
+  max_pending_ = options.max_pending;
+  pending_.reserve(max_pending_);
+  if (!options.enabled) return;
   cov_.emplace(dynamicCovarianceParamsFor(graph, options.params));
   dynamic_kind_[static_cast<std::size_t>(Measurement::Kind::kRange)] = options.range;
   dynamic_kind_[static_cast<std::size_t>(Measurement::Kind::kTdoa)] = options.tdoa;
   dynamic_kind_[static_cast<std::size_t>(Measurement::Kind::kUltrasonic)] = options.ultrasonic;
-  max_pending_ = options.max_pending;
-  pending_.reserve(max_pending_);
 }
 
 double MeasurementNoise::nominalSigma(Measurement::Kind kind) const {
@@ -84,7 +86,7 @@ void MeasurementNoise::count(CovarianceUpdate u) {
 }
 
 void MeasurementNoise::notePrediction(std::uint64_t state_index, const Measurement& m, const Pose3& T_w_b_predicted) {
-  if (!dynamicKind(m.kind)) return;
+  if (!learnsFrom(m.kind)) return;
   if (!pending_.empty() && pending_index_ != state_index) pending_.clear();
   pending_index_ = state_index;
   if (pending_.size() >= max_pending_) {
@@ -95,9 +97,11 @@ void MeasurementNoise::notePrediction(std::uint64_t state_index, const Measureme
 }
 
 void MeasurementNoise::notePostFit(std::uint64_t state_index, const Pose3& T_w_b_updated) {
-  if (!cov_ || pending_.empty() || pending_index_ != state_index) return;
+  if (pending_.empty() || pending_index_ != state_index) return;
   for (const Pending& p : pending_) {
     const double e_post = p.m.value_m - predict(p.m, T_w_b_updated);
+    if (gap_excess_ && p.m.kind == Measurement::Kind::kTdoa) gap_excess_->add(p.m.power_gap_db, p.m.power_gap_b_db, e_post);
+    if (!dynamicKind(p.m.kind)) continue;
     const double product = p.innovation_m * e_post;
     const double r = product > 0.0 ? std::copysign(std::sqrt(product), p.innovation_m) : 0.0;
     count(cov_->update(keyOf(p.m), r));

@@ -13,6 +13,7 @@
 #include "estimation/graph/factor.h"
 #include "estimation/imu/imu_params.h"
 #include "estimation/noise/noise_model_factory.h"
+#include "estimation/noise/tdoa_gap_excess.h"
 #include "estimation/pipeline/init_height_band.h"
 #include "estimation/pipeline/measurement.h"
 #include "estimation/pipeline/standstill.h"
@@ -67,6 +68,10 @@ struct RangeImuGraphParams {
   /// Rows with a packet whose gap exceeds this are not used (dB; +inf: all
   /// used; TdoaModelParams::max_power_gap_db).
   double tdoa_max_power_gap_db = 15.0;
+  /// Per gap bin NLOS excess of a packet, learnt from the rows' post-fit
+  /// residuals and taken off each row (tdoa_gap_excess.h; needs
+  /// tdoa_nlos_indicator; the graph estimators only, not the EKF).
+  TdoaGapExcessParams tdoa_gap_excess;
   /// Loss of ultrasonic ranges: the asymmetric model, because reflections
   /// off furniture and people only ever lengthen the path (seed 002 uses
   /// Huber; on the hall sim the asymmetric loss took TDoA + ultrasonic

@@ -362,7 +362,9 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
         break;
       }
       case Measurement::Kind::kTdoa: {
-        const TdoaTerm t = tdoa_model_.term(m, sigma_m);
+        TdoaTerm t = tdoa_model_.term(m, sigma_m);
+        // The packets' learnt NLOS excess off the difference (negated with the row).
+        t.value_m -= (t.reversed ? -1.0 : 1.0) * noise_.tdoaExcessCorrection(m);
         if (vars) {
           const Key a = uwbAnchorKey(t.anchor_a, inc);
           inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(t.anchor_b, inc), t.value_m, t.sigma_m, params_.p_b_tag,

@@ -23,8 +23,8 @@
 // A bin is used once min_rows rows reached it; NaN gaps (rows without
 // diagnostics, UTIL imports) are neither learnt from nor corrected.
 // Measured (docs/noise-models.md, session 27): 15 TDoA sims, sliding window,
-// online / smoothed 3D RMSE 0.263 / 0.149 -> 0.224 / 0.115 m; with the gaps
-// shuffled among the rows (a gap that says nothing) 0.510 -> 0.512.
+// online / smoothed 3D RMSE 0.263 / 0.149 -> 0.221 / 0.112 m; with the gaps
+// shuffled among the rows (a gap that says nothing) 0.510 -> 0.516.
 // Fixed storage; add() and correction() never allocate.
 #include <array>
 #include <cstdint>

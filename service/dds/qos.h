@@ -13,9 +13,10 @@
 // congested link makes dds_write return DDS_RETCODE_TIMEOUT instead of
 // stalling the service. Status is transient-local so a late joiner gets the
 // current status at once (the writer keeps one: the newest). Its readers
-// keep 64, so a subscriber that takes now and then (a loaded machine, a fast
-// replay whose 30 s ranging blackout lasts a few status periods) still sees
-// every state the service went through, not only the last one.
+// keep 64, so a subscriber that takes at least once per 64 statuses (a
+// loaded machine, a fast replay whose 30 s ranging blackout lasts a few
+// status periods) still sees every state the service went through, not only
+// the last one (a sample lost on the wire is repaired only with the newest).
 #include <dds/dds.h>
 
 #include <cstdint>

@@ -16,8 +16,9 @@
 // Model: residual r = measured - predicted of a row = f(g_b) - f(g_a) + noise,
 // f piecewise constant in bins of bin_db from 0, f = 0 below los_gap_db (the
 // gauge: packets there are LOS on any DW1000/DW3000 front end, APS006).
-// Update per row (a clipped LMS step, Huber's psi, so one multipath outlier
-// moves a bin by at most clip_m / window_rows):
+// Update per row (a clipped LMS step, Huber's psi: one multipath outlier
+// moves a bin by at most clip_m / n, clip_m / window_rows once the bin has
+// window_rows rows; a bin's first row sets it, by up to clip_m):
 //   e = clamp(r - (f(g_b) - f(g_a)), -clip_m, clip_m)
 //   f(g_b) += lambda_b e,  f(g_a) -= lambda_a e,  lambda = max(1 / n_bin, 1 / window_rows)
 // A bin is used once min_rows rows reached it; NaN gaps (rows without

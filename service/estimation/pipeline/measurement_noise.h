@@ -72,7 +72,8 @@ class MeasurementNoise {
  public:
   /// `p_w_anchors[id]`: surveyed UWB anchors; ultrasonic beacons and lever
   /// arms from `graph`. Throws std::invalid_argument (DynamicCovarianceParams
-  /// fields, max_pending < 1) when enabled.
+  /// fields, max_pending < 1) when enabled; (TdoaGapExcessParams fields,
+  /// max_pending < 1) when graph.tdoa_gap_excess is on with the indicator.
   MeasurementNoise(std::vector<Vec3> p_w_anchors, const RangeImuGraphParams& graph,
                    const DynamicCovarianceOptions& options);
 
@@ -112,8 +113,8 @@ class MeasurementNoise {
   /// and clears them. Notes of another state are kept. No-op when off.
   void notePostFit(std::uint64_t state_index, const Pose3& T_w_b_updated);
   /// EKF: innovation y = z - h(x_prior) (m) and H P H^T (m^2) of m. No-op when off.
-  /// Not fed to the excess learner: the EKF does not use it (fed with its
-  /// innovations it took the 15 TDoA sims from 0.365 to 0.398 m online).
+  /// Not fed to the excess learner: the EKF builds its MeasurementNoise
+  /// without one (ekf_estimator.cpp).
   void noteInnovation(const Measurement& m, double innovation_m, double predicted_var_m2);
 
   /// The estimator (nullptr when off).

@@ -362,9 +362,11 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
         break;
       }
       case Measurement::Kind::kTdoa: {
-        TdoaTerm t = tdoa_model_.term(m, sigma_m);
-        // The packets' learnt NLOS excess off the difference (negated with the row).
-        t.value_m -= (t.reversed ? -1.0 : 1.0) * noise_.tdoaExcessCorrection(m);
+        // The packets' learnt NLOS excess off the difference, before the
+        // model orients the row (it may swap a and b and negate the value).
+        Measurement corrected = m;
+        corrected.value_m -= noise_.tdoaExcessCorrection(m);
+        const TdoaTerm t = tdoa_model_.term(corrected, sigma_m);
         if (vars) {
           const Key a = uwbAnchorKey(t.anchor_a, inc);
           inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(t.anchor_b, inc), t.value_m, t.sigma_m, params_.p_b_tag,

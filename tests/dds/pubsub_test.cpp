@@ -52,6 +52,20 @@ class DdsPubSub : public ::testing::Test {
         pub_participant_(testing::loopbackOptions()),
         sub_participant_(testing::loopbackOptions()) {}
 
+  PublisherOptions publisherOptions() const {
+    PublisherOptions po;
+    po.topics = names_;
+    return po;
+  }
+  /// A reader of the status topic alone.
+  SubscriberOptions statusOnly() const {
+    SubscriberOptions so;
+    so.topics = names_;
+    so.odometry = false;
+    so.pose = false;
+    return so;
+  }
+
   TopicNames names_;
   Participant pub_participant_;
   Participant sub_participant_;
@@ -178,14 +192,8 @@ TEST_F(DdsPubSub, StatusArrivesWithExactFields) {
 }
 
 TEST_F(DdsPubSub, StatusFaultFillingTheWholeArrayStaysTerminated) {
-  PublisherOptions po;
-  po.topics = names_;
-  Publisher pub(pub_participant_, po);
-  SubscriberOptions so;
-  so.topics = names_;
-  so.odometry = false;
-  so.pose = false;
-  Subscriber sub(sub_participant_, so);
+  Publisher pub(pub_participant_, publisherOptions());
+  Subscriber sub(sub_participant_, statusOnly());
   ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kStatus, 1, kMatchTimeout));
   ServiceStatus s = testing::sampleStatus(1);
   s.last_fault.fill('f');  // no terminating NUL in the source
@@ -202,14 +210,8 @@ TEST_F(DdsPubSub, StatusFaultFillingTheWholeArrayStaysTerminated) {
 // A subscriber that takes only now and then (a loaded machine, a fast replay)
 // still sees every state the service went through, not only the newest.
 TEST_F(DdsPubSub, StatusesPublishedBetweenTakesAllArriveInOrder) {
-  PublisherOptions po;
-  po.topics = names_;
-  Publisher pub(pub_participant_, po);
-  SubscriberOptions so;
-  so.topics = names_;
-  so.odometry = false;
-  so.pose = false;
-  Subscriber sub(sub_participant_, so);
+  Publisher pub(pub_participant_, publisherOptions());
+  Subscriber sub(sub_participant_, statusOnly());
   ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kStatus, 1, kMatchTimeout));
   const TrackingState states[] = {TrackingState::kTracking, TrackingState::kDegraded, TrackingState::kDegraded,
                                   TrackingState::kTracking, TrackingState::kLost};

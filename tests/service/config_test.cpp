@@ -313,6 +313,17 @@ TEST_F(ConfigTest, SmootherNamesMapToMethods) {
   }
 }
 
+// Only D-iSAM2's acceptance test needs the previous state relinearized
+// (BadConfigTest damped_without_recent_relinearization); the others take it.
+TEST_F(ConfigTest, NoRecentRelinearizationIsRefusedOnlyForDiSam2) {
+  for (const char* name : {"isam2", "dogleg"}) {
+    const ServiceConfig c =
+        parse(valid(std::string("estimator:\n  smoother: ") + name + "\n  relinearization: {recent_updates: 0}\n"));
+    EXPECT_EQ(c.estimator.smoother.always_relinearize_recent_updates, 0) << name;
+  }
+  EXPECT_THROW(parse(valid("estimator:\n  relinearization: {recent_updates: 0}\n  smoother: d-isam2\n")), ConfigError);
+}
+
 TEST_F(ConfigTest, RelativePathsResolveAgainstTheConfigFolder) {
   const std::string yaml =
       "sources:\n  mode: replay\n  replay:\n    path: ../data/./rec\n" + kAnchors + "recording: {directory: /abs/recs}\n";
@@ -666,6 +677,8 @@ std::vector<BadCase> badCases() {
        "expected one of damped_factors, global", 11},
       {"relinearize_skip_zero", valid("estimator:\n  relinearization: {skip: 0}\n"),
        "estimator.relinearization.skip", "[1, 1000]", 11},
+      {"damped_without_recent_relinearization", valid("estimator:\n  relinearization: {recent_updates: 0}\n"),
+       "estimator.relinearization.recent_updates", "must be >= 1 with smoother d-isam2", 11},
       {"relinearize_interval_negative", valid("estimator:\n  relinearization: {interval_s: -0.1}\n"),
        "estimator.relinearization.interval_s", "[0, 3600]", 11},
       {"trust_radius_order", valid("estimator:\n  trust_region: {initial: 0.1, min: 1.0}\n"), "estimator.trust_region",

@@ -89,6 +89,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.los_gap_calibration) lp.los_gap.enabled = *s.los_gap_calibration;
   if (s.max_outside_anchors_m) lp.max_outside_anchors_m = *s.max_outside_anchors_m;
   if (s.init_max_outside_anchors_m) lp.init.max_outside_anchors_m = *s.init_max_outside_anchors_m;
+  if (s.init_heavy_nlos_after_s) lp.init.heavy_nlos_after_s = *s.init_heavy_nlos_after_s;
   if (s.height_band) lp.track_height_band = *s.height_band;
   if (s.floor_z_m) lp.height_band.floor_z_m = *s.floor_z_m;
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;

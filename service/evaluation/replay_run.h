@@ -61,6 +61,7 @@ struct ReplaySettings {
   std::optional<bool> los_gap_calibration;        ///< LosGapParams::enabled
   std::optional<double> max_outside_anchors_m;    ///< LocalizerParams::max_outside_anchors_m (+inf: off)
   std::optional<double> init_max_outside_anchors_m;  ///< InitializerParams::max_outside_anchors_m (+inf: off)
+  std::optional<double> init_heavy_nlos_after_s;     ///< InitializerParams::heavy_nlos_after_s (+inf: off)
   // Height knowledge (unset: LocalizerParams defaults).
   std::optional<bool> height_band;             ///< soft tag height band on tracked states
   std::optional<double> floor_z_m;             ///< floor height in the world frame (m)

@@ -33,6 +33,7 @@ LocalizerParams localizerParams(const ServiceConfig& cfg) {
   lp.stream = cfg.estimator.stream;
   lp.init.window_s = cfg.estimator.init_window_s;
   lp.init.max_outside_anchors_m = cfg.estimator.init_max_outside_anchors_m;
+  lp.init.heavy_nlos_after_s = cfg.estimator.init_heavy_nlos_after_s;
   lp.height_band = cfg.estimator.height_band;
   lp.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
   lp.zero_velocity_sigma_m_s = cfg.estimator.zero_velocity_sigma_m_s;

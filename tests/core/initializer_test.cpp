@@ -604,6 +604,76 @@ TEST(Initializer, NoisierThanNominalDataNeedALargerYawCostGap) {
   EXPECT_TRUE(saw_scaled_wait);
 }
 
+// Most paths blocked: at the right solution the costs exceed the gates for
+// good, but NLOS only lengthens ranges, so few are shorter than the solution
+// predicts. After heavy_nlos_after_s the gates widen for such windows.
+TEST(Initializer, HeavyNlosStartsOnceItHasWaitedAndFewRangesAreShort) {
+  sim::ScenarioParams sp;
+  sp.seed = 3;
+  sp.range_rate_hz = 40.0;
+  sp.duration_s = 80.0;
+  sp.nlos_fraction = 0.7;
+  sp.nlos_scale_m = 1.0;
+  const sim::Scenario s = sim::simulateScenario(sp);
+
+  InitializerParams strict = paramsFor(s);
+  strict.heavy_nlos_after_s = std::numeric_limits<double>::infinity();
+  Initializer never(s.p_w_anchors, strict);
+  bool cost_said = false;
+  const InitRun refused = runInit(s, never, [&](const Initializer& in, const ImuSample&) {
+    cost_said |= in.status().message.find("disagree with the IMU motion") != std::string::npos ||
+                 in.status().message.find("cost too high") != std::string::npos;
+  });
+  printRun("heavy, off", sp.seed, refused);
+  EXPECT_FALSE(refused.initialized) << refused.status;
+  EXPECT_TRUE(cost_said) << refused.status;
+
+  InitializerParams p = paramsFor(s);
+  p.heavy_nlos_after_s = 30.0;
+  Initializer init(s.p_w_anchors, p);
+  const InitRun r = runInit(s, init);
+  printRun("heavy, 30 s", sp.seed, r);
+  ASSERT_TRUE(r.initialized) << r.status;
+  EXPECT_GE(r.time_s, p.heavy_nlos_after_s);
+  EXPECT_TRUE(init.result().heavy_nlos);
+  EXPECT_NE(r.status.find("heavy NLOS"), std::string::npos) << r.status;
+  const AlignmentResult& a = init.result().alignment;
+  EXPECT_GT(a.ranges, 0);
+  EXPECT_LE(a.short_ranges, p.max_short_range_share * a.ranges);
+  EXPECT_LT(r.h_err_m, 0.5) << r.status;
+  EXPECT_LT(r.yaw_err_deg, 10.0) << r.status;
+}
+
+// A wrong anchor survey (two anchors swapped) leaves many ranges shorter than
+// any solution predicts: the widened gates do not open for it, however wide,
+// and the short ranges are what keeps them shut.
+TEST(Initializer, SwappedAnchorsAreRefusedAfterTheHeavyNlosWaitToo) {
+  const sim::Scenario s = movingScenario(1, 40.0, 60.0);
+  std::vector<Vec3> surveyed = s.p_w_anchors;
+  std::swap(surveyed[0], surveyed[2]);
+  InitializerParams p = paramsFor(s);
+  p.heavy_nlos_after_s = 0.0;
+  p.heavy_nlos_cost_factor = 100.0;
+
+  InitializerParams any_share = p;
+  any_share.max_short_range_share = 1.0;
+  Initializer fooled(surveyed, any_share);
+  EXPECT_TRUE(runInit(s, fooled).initialized) << fooled.status().message;
+
+  Initializer init(surveyed, p);
+  int most_short = 0;
+  const InitRun r = runInit(s, init, [&](const Initializer& in, const ImuSample&) {
+    const std::string& m = in.status().message;
+    const auto at = m.find(" short)");
+    if (at == std::string::npos) return;
+    const auto from = m.rfind(", ", at);
+    most_short = std::max(most_short, std::stoi(m.substr(from + 2, at - from - 2)));
+  });
+  printRun("swapped", 1, r);
+  EXPECT_FALSE(r.initialized) << r.status;
+  EXPECT_GT(most_short, 0) << r.status;
+}
+
 TEST(Initializer, StillStart40HzWaitsForMotionThenInitializes) {
   Tally t;
   for (std::uint64_t seed = 11; seed <= 16; ++seed) {
@@ -848,6 +918,25 @@ TEST(InitializerParamsTest, InvalidParamsAndAnchorsThrow) {
     p = paramsFor(s);
     p.max_outside_anchors_m = outside;
     EXPECT_NO_THROW(Initializer(s.p_w_anchors, p)) << outside;
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  for (double after : {-1.0, std::nan("")}) {
+    p = paramsFor(s);
+    p.heavy_nlos_after_s = after;
+    EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument) << after;
+  }
+  p = paramsFor(s);
+  p.heavy_nlos_after_s = inf;  // off
+  EXPECT_NO_THROW(Initializer(s.p_w_anchors, p));
+  for (double share : {-0.1, 1.5}) {
+    p = paramsFor(s);
+    p.max_short_range_share = share;
+    EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument) << share;
+  }
+  for (double factor : {0.5, inf}) {
+    p = paramsFor(s);
+    p.heavy_nlos_cost_factor = factor;
+    EXPECT_THROW(Initializer(s.p_w_anchors, p), std::invalid_argument) << factor;
   }
   EXPECT_THROW(Initializer({}, paramsFor(s)), std::invalid_argument);
   EXPECT_THROW(Initializer({Vec3(0, 0, std::nan(""))}, paramsFor(s)), std::invalid_argument);

@@ -90,6 +90,9 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_DOUBLE_EQ(c.estimator.smoother.lag_s, 10.0);
   EXPECT_DOUBLE_EQ(c.estimator.init_window_s, 10.0);
   EXPECT_DOUBLE_EQ(c.estimator.init_max_outside_anchors_m, 1.0);
+  EXPECT_DOUBLE_EQ(c.estimator.init_heavy_nlos_after_s, 60.0);
+  EXPECT_EQ(parse(valid("estimator:\n  init: {heavy_nlos_after_s: .inf}\n")).estimator.init_heavy_nlos_after_s,
+            std::numeric_limits<double>::infinity());
   EXPECT_EQ(parse(valid("estimator:\n  init: {max_outside_anchors_m: .inf}\n")).estimator.init_max_outside_anchors_m,
             std::numeric_limits<double>::infinity());
   EXPECT_EQ(localizerParams(parse(valid("estimator:\n  init: {max_outside_anchors_m: 0}\n"))).init.max_outside_anchors_m,
@@ -159,7 +162,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "          max_state_interval_s: 0.25, max_wait_s: 1.5}\n"
       "  anchors_as_variables: false\n"
       "  anchor_sigma_m: 0.05\n"
-      "  init: {window_s: 7.5, max_outside_anchors_m: 2.5}\n"
+      "  init: {window_s: 7.5, max_outside_anchors_m: 2.5, heavy_nlos_after_s: 45}\n"
       "  height_band: {enabled: true, floor_z_m: -0.3, min_height_m: 1.0, max_height_m: 1.6, sigma_m: 0.05}\n"
       "  vertical_speed_sigma_m_s: 0.4\n"
       "dds:\n"
@@ -234,6 +237,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_DOUBLE_EQ(g.anchor_sigma_m, 0.05);
   EXPECT_DOUBLE_EQ(c.estimator.init_window_s, 7.5);
   EXPECT_DOUBLE_EQ(c.estimator.init_max_outside_anchors_m, 2.5);
+  EXPECT_DOUBLE_EQ(c.estimator.init_heavy_nlos_after_s, 45.0);
   EXPECT_TRUE(c.estimator.height_band.enabled);
   EXPECT_DOUBLE_EQ(c.estimator.height_band.floor_z_m, -0.3);
   EXPECT_DOUBLE_EQ(c.estimator.height_band.min_height_m, 1.0);
@@ -677,6 +681,8 @@ std::vector<BadCase> badCases() {
        "expected one of damped_factors, global", 11},
       {"relinearize_skip_zero", valid("estimator:\n  relinearization: {skip: 0}\n"),
        "estimator.relinearization.skip", "[1, 1000]", 11},
+      {"heavy_nlos_after_negative", valid("estimator:\n  init: {heavy_nlos_after_s: -1}\n"),
+       "estimator.init.heavy_nlos_after_s", "expected a number in [0, .inf], got -1", 11},
       {"damped_without_recent_relinearization", valid("estimator:\n  relinearization: {recent_updates: 0}\n"),
        "estimator.relinearization.recent_updates", "must be >= 1 with smoother d-isam2", 11},
       {"relinearize_interval_negative", valid("estimator:\n  relinearization: {interval_s: -0.1}\n"),

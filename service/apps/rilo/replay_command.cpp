@@ -228,6 +228,10 @@ void addReplayCommand(CLI::App& app) {
                   "Start-up refuses a solution whose tag lies farther than this beyond the anchors' horizontal box, a "
                   "mirror of the truth behind a wall of anchors (m; default 1; inf: off)")
       ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
+  cmd->add_option("--init-heavy-nlos-after", options->settings.init_heavy_nlos_after_s,
+                  "Start-up accepts costs up to twice its gates when few two-way ranges are shorter than the solution "
+                  "predicts (heavy NLOS, not bad data) once it has waited this long (s of data; default 60; inf: off)")
+      ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   cmd->add_option("--height-band", options->settings.height_band, "Soft tag height band on tracked states (true/false)");
   cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");

@@ -503,6 +503,10 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
     const Obs& o = pr.obs[j];
     const double r = (o.value_m - o.predict(st.T_w_b.transformFrom(*o.p_b_sensor), nullptr)) * o.inv_sigma;
     if (std::abs(r) <= 3.0) ++out.inliers;
+    if (o.kind == Measurement::Kind::kRange) {
+      ++out.ranges;
+      if (r < -3.0) ++out.short_ranges;
+    }
   }
   out.valid = true;
   return out;

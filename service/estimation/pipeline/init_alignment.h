@@ -84,6 +84,8 @@ struct AlignmentResult {
   ImuBias bias;                ///< constant bias over the window
   int measurements = 0;        ///< measurements used (every kind)
   int inliers = 0;             ///< |whitened residual| <= 3
+  int ranges = 0;              ///< two-way ranges among the measurements
+  int short_ranges = 0;        ///< two-way ranges more than 3 sigma shorter than the fitted track predicts
   double cost = std::numeric_limits<double>::infinity();  ///< robust cost incl. priors (whitened, ~chi^2/2)
   double measurement_cost = std::numeric_limits<double>::infinity();  ///< robust cost of the measurements only
   double yaw_sigma_rad = std::numeric_limits<double>::infinity();   ///< marginal sigma of the world yaw at t_r

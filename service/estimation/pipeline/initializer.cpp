@@ -8,6 +8,7 @@
 
 #include "estimation/pipeline/init_format.h"
 #include "estimation/factors/prior_factors.h"
+#include "estimation/factors/range_factor.h"
 #include "estimation/factors/tdoa_factor.h"
 #include "estimation/noise/noise_model_factory.h"
 #include "estimation/pipeline/range_imu_estimator.h"
@@ -96,6 +97,11 @@ void InitializerParams::validate() const {
     fail("max_yaw_gap_noise_scale", "must be finite and >= 1 (1 disables)");
   }
   if (!(max_alignment_cost_per_range > 0.0)) fail("max_alignment_cost_per_range", "must be > 0");
+  if (!(heavy_nlos_after_s >= 0.0)) fail("heavy_nlos_after_s", "must be >= 0 (+inf: off)");
+  if (!(max_short_range_share >= 0.0 && max_short_range_share <= 1.0)) fail("max_short_range_share", "must be in [0, 1]");
+  if (!(heavy_nlos_cost_factor >= 1.0) || !std::isfinite(heavy_nlos_cost_factor)) {
+    fail("heavy_nlos_cost_factor", "must be finite and >= 1 (1 disables)");
+  }
   if (!(max_position_sigma_m > 0.0)) fail("max_position_sigma_m", "must be > 0");
   if (!(max_yaw_sigma_rad > 0.0)) fail("max_yaw_sigma_rad", "must be > 0");
   if (!(max_range_cost_per_range > 0.0)) fail("max_range_cost_per_range", "must be > 0");
@@ -485,14 +491,26 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
     return w;
   }
   const double cost_per_range = a.measurement_cost / std::max(1, a.measurements);
-  if (cost_per_range > P.max_alignment_cost_per_range) {
+  const double factor = heavyNlosFactor(t_now, a.ranges, a.short_ranges, a.measurements);
+  if (cost_per_range > factor * P.max_alignment_cost_per_range) {
     w.state = InitState::kPoorFix;
-    w.message = strprintf("waiting: ranges disagree with the IMU motion (cost per range %.2f, %d of %d ranges inliers)",
+    w.message = strprintf("waiting: ranges disagree with the IMU motion (cost per range %.2f, %d of %d ranges inliers",
                           cost_per_range, a.inliers, a.measurements);
+    if (a.ranges > 0) w.message += strprintf(", %d short", a.short_ranges);
+    w.message += ")";
     return w;
   }
+  w.heavy_nlos = cost_per_range > P.max_alignment_cost_per_range;
   w.ok = true;
   return w;
+}
+
+double Initializer::heavyNlosFactor(std::int64_t t_now, int ranges, int short_ranges, int measurements) const {
+  const InitializerParams& P = params_;
+  const bool waited = toS(t_now - data_start_ns_) >= P.heavy_nlos_after_s;
+  const bool mostly_ranges = ranges > 0 && 2 * ranges >= measurements;  // the sign test needs two-way ranges
+  const bool few_short = short_ranges <= P.max_short_range_share * ranges;
+  return waited && mostly_ranges && few_short ? P.heavy_nlos_cost_factor : 1.0;
 }
 
 bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
@@ -593,6 +611,7 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   // residuals (the residual scale, for the hand-over covariance).
   std::vector<double> abs_residuals;
   abs_residuals.reserve(win.graph.range_factors);
+  int ranges = 0, short_ranges = 0;  // two-way (heavyNlosFactor)
   for (std::size_t k = first_range; k < first_range + win.graph.range_factors; ++k) {
     const Factor& f = *win.graph.graph[k];
     Residual r;
@@ -605,6 +624,10 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     // NLOS tails already.)
     const double e = f.errorOfResidual(r);
     range_cost += dynamic_cast<const TdoaFactor*>(&f) ? std::min(e, kTdoaGateCostCap) : e;
+    if (dynamic_cast<const RangeFactor*>(&f)) {
+      ++ranges;
+      if (r(0) < -3.0) ++short_ranges;  // (measured - predicted) / sigma
+    }
   }
   const double residual_scale = residualScale(abs_residuals);
   const double range_cpr = range_cost / static_cast<double>(std::max<std::size_t>(1, win.graph.range_factors));
@@ -613,9 +636,12 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   std::string reject;
   if (!out.result.converged()) {
     reject = std::string("not converged (") + toString(out.result.status) + ")";
-  } else if (range_cpr > P.max_range_cost_per_range || imu_cpf > P.max_imu_cost_per_factor) {
+  } else if (range_cpr > P.max_range_cost_per_range *
+                             heavyNlosFactor(t_now, ranges, short_ranges, static_cast<int>(win.graph.range_factors)) ||
+             imu_cpf > P.max_imu_cost_per_factor) {
     reject = "cost too high";
   }
+  const bool heavy_nlos = w.heavy_nlos || range_cpr > P.max_range_cost_per_range;
   // The marginal covariance (a factorization and a selected inverse) only
   // once the solve converged with plausible costs: a rejected solve does not
   // pay for it. The checks keep their order, so the same solves are accepted.
@@ -638,6 +664,8 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
       strprintf("range cost %.2f, IMU cost %.3g per factor, residual scale %.2f, ", range_cpr, imu_cpf, residual_scale);
   summary += cov ? strprintf("sigma %.2f m, yaw sigma %.1f deg", pos_sigma, yaw_sigma * kRadToDeg)
                  : std::string("sigmas not computed");
+  if (ranges > 0) summary += strprintf(", %d of %d ranges short", short_ranges, ranges);
+  if (heavy_nlos) summary += " (heavy NLOS: cost gates widened)";
   if (!reject.empty()) {
     // Already rejected above.
   } else if (!(pos_sigma <= P.max_position_sigma_m) || !(yaw_sigma <= P.max_yaw_sigma_rad)) {
@@ -701,6 +729,7 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   res.alignment = align;
   res.lm = out.result;
   res.range_cost_per_range = range_cpr;
+  res.heavy_nlos = heavy_nlos;
   res.residual_scale = residual_scale;
   res.imu_cost_per_factor = imu_cpf;
   res.still_s = still_s;

@@ -132,8 +132,8 @@ struct EstimatorConfig {
   /// Start-up refuses a solution whose tag lies farther than this beyond the
   /// anchors' horizontal box (m; InitializerParams::max_outside_anchors_m; .inf: off).
   double init_max_outside_anchors_m = InitializerParams().max_outside_anchors_m;
-  /// Start-up widens its cost gates for heavy NLOS after this much data
-  /// without a start (s; InitializerParams::heavy_nlos_after_s; .inf: off).
+  /// Start-up widens its cost gates for heavy NLOS this long after the first
+  /// two-way range without a start (s; InitializerParams::heavy_nlos_after_s; .inf: off).
   double init_heavy_nlos_after_s = InitializerParams().heavy_nlos_after_s;
   /// Quantile of the flagged ranges' residuals taken as their excess (FlaggedExcessParams; 0: off).
   double flagged_excess_quantile = FlaggedExcessParams().quantile;

@@ -604,6 +604,27 @@ TEST(Initializer, NoisierThanNominalDataNeedALargerYawCostGap) {
   EXPECT_TRUE(saw_scaled_wait);
 }
 
+/// (short, ranges) from a batch summary's "K of N ranges short"; (0, 0) if absent.
+std::pair<int, int> shortRangesIn(const std::string& message) {
+  int k = 0, n = 0;
+  const auto at = message.find(" ranges short");
+  if (at == std::string::npos) return {0, 0};
+  const auto from = message.rfind(", ", at);
+  if (std::sscanf(message.c_str() + from, ", %d of %d", &k, &n) != 2) return {0, 0};
+  return {k, n};
+}
+
+/// (short, ranges) from an alignment refusal's "M of N ranges inliers, K short"
+/// (every measurement a two-way range); (0, 0) if absent.
+std::pair<int, int> alignmentShortRangesIn(const std::string& message) {
+  int m = 0, n = 0, k = 0;
+  const auto at = message.find("ranges inliers, ");
+  if (at == std::string::npos) return {0, 0};
+  const auto from = message.rfind(", ", at);
+  if (std::sscanf(message.c_str() + from, ", %d of %d ranges inliers, %d short", &m, &n, &k) != 3) return {0, 0};
+  return {k, n};
+}
+
 // Most paths blocked: at the right solution the costs exceed the gates for
 // good, but NLOS only lengthens ranges, so few are shorter than the solution
 // predicts. After heavy_nlos_after_s the gates widen for such windows.
@@ -640,6 +661,9 @@ TEST(Initializer, HeavyNlosStartsOnceItHasWaitedAndFewRangesAreShort) {
   const AlignmentResult& a = init.result().alignment;
   EXPECT_GT(a.ranges, 0);
   EXPECT_LE(a.short_ranges, p.max_short_range_share * a.ranges);
+  const auto [batch_short, batch_ranges] = shortRangesIn(r.status);
+  ASSERT_GT(batch_ranges, 0) << r.status;
+  EXPECT_LE(batch_short, p.max_short_range_share * batch_ranges) << r.status;
   EXPECT_LT(r.h_err_m, 0.5) << r.status;
   EXPECT_LT(r.yaw_err_deg, 10.0) << r.status;
 }
@@ -661,17 +685,14 @@ TEST(Initializer, SwappedAnchorsAreRefusedAfterTheHeavyNlosWaitToo) {
   EXPECT_TRUE(runInit(s, fooled).initialized) << fooled.status().message;
 
   Initializer init(surveyed, p);
-  int most_short = 0;
+  double least_short_share = 1.0;  // over the attempts refused for their cost
   const InitRun r = runInit(s, init, [&](const Initializer& in, const ImuSample&) {
-    const std::string& m = in.status().message;
-    const auto at = m.find(" short)");
-    if (at == std::string::npos) return;
-    const auto from = m.rfind(", ", at);
-    most_short = std::max(most_short, std::stoi(m.substr(from + 2, at - from - 2)));
+    const auto [short_ranges, ranges] = alignmentShortRangesIn(in.status().message);
+    if (ranges > 0) least_short_share = std::min(least_short_share, static_cast<double>(short_ranges) / ranges);
   });
   printRun("swapped", 1, r);
   EXPECT_FALSE(r.initialized) << r.status;
-  EXPECT_GT(most_short, 0) << r.status;
+  EXPECT_GT(least_short_share, p.max_short_range_share) << r.status;
 }
 
 TEST(Initializer, StillStart40HzWaitsForMotionThenInitializes) {

@@ -70,6 +70,22 @@ TEST(ReplayMeasurements, EveryKindTheRecordingHasIsUsedByDefault) {
   EXPECT_LT(run.ape_smoothed->ape_3d.rmse, 0.5);
 }
 
+// rilod refuses relinearization.recent_updates 0 with d-isam2 in its config;
+// a replay's --smoother choice over a service configuration must too.
+TEST(ReplayMeasurements, DiSam2OverAConfigWithoutRecentRelinearizationIsRefused) {
+  const Recording& rec = hallRecording();
+  ReplaySettings s;
+  s.service_params = LocalizerParams();
+  s.service_params->smoother.method = SmootherParams::Method::kGaussNewton;
+  s.service_params->smoother.always_relinearize_recent_updates = 0;
+  s.smoother = "isam2";
+  EXPECT_EQ(localizerParamsFor(rec, s).smoother.always_relinearize_recent_updates, 0);
+  s.smoother = "d-isam2";
+  EXPECT_THROW(localizerParamsFor(rec, s), std::invalid_argument);
+  s.service_params->smoother.always_relinearize_recent_updates = 1;
+  EXPECT_EQ(localizerParamsFor(rec, s).smoother.method, SmootherParams::Method::kDamped);
+}
+
 TEST(ReplayMeasurements, OnlyTheSelectedKindsReachThePipeline) {
   const Recording& rec = hallRecording();
   ReplaySettings s;

@@ -230,7 +230,8 @@ void addReplayCommand(CLI::App& app) {
       ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   cmd->add_option("--init-heavy-nlos-after", options->settings.init_heavy_nlos_after_s,
                   "Start-up accepts costs up to twice its gates when few two-way ranges are shorter than the solution "
-                  "predicts (heavy NLOS, not bad data) once it has waited this long (s of data; default 60; inf: off)")
+                  "predicts (heavy NLOS, not bad data) this long after the first two-way range (s of data; default 60; 0: at once; "
+                  "inf: off)")
       ->check(CLI::Range(0.0, std::numeric_limits<double>::infinity()));
   cmd->add_option("--height-band", options->settings.height_band, "Soft tag height band on tracked states (true/false)");
   cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");

@@ -167,6 +167,7 @@ void Initializer::reset() {
   meas_.clear();
   have_data_ = false;
   data_start_ns_ = 0;
+  first_range_ns_.reset();
   last_attempt_ns_ = 0;
   attempted_ = false;
   interval_s_ = params_.attempt_interval_s;
@@ -207,6 +208,7 @@ void Initializer::addMeasurement(const Measurement& m) {
     have_data_ = true;
     data_start_ns_ = m.t_ns;
   }
+  if (m.kind == Measurement::Kind::kRange && !first_range_ns_) first_range_ns_ = m.t_ns;
   meas_.push_back(m);
 }
 
@@ -507,7 +509,8 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
 
 double Initializer::heavyNlosFactor(std::int64_t t_now, int ranges, int short_ranges, int measurements) const {
   const InitializerParams& P = params_;
-  const bool waited = toS(t_now - data_start_ns_) >= P.heavy_nlos_after_s;
+  // From the first two-way range: IMU time before ranging comes up is no wait.
+  const bool waited = first_range_ns_ && toS(t_now - *first_range_ns_) >= P.heavy_nlos_after_s;
   const bool mostly_ranges = ranges > 0 && 2 * ranges >= measurements;  // the sign test needs two-way ranges
   const bool few_short = short_ranges <= P.max_short_range_share * ranges;
   return waited && mostly_ranges && few_short ? P.heavy_nlos_cost_factor : 1.0;
@@ -636,12 +639,14 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   std::string reject;
   if (!out.result.converged()) {
     reject = std::string("not converged (") + toString(out.result.status) + ")";
-  } else if (range_cpr > P.max_range_cost_per_range *
-                             heavyNlosFactor(t_now, ranges, short_ranges, static_cast<int>(win.graph.range_factors)) ||
-             imu_cpf > P.max_imu_cost_per_factor) {
+  }
+  const double batch_factor = heavyNlosFactor(t_now, ranges, short_ranges, static_cast<int>(win.graph.range_factors));
+  if (reject.empty() &&
+      (range_cpr > batch_factor * P.max_range_cost_per_range || imu_cpf > P.max_imu_cost_per_factor)) {
     reject = "cost too high";
   }
-  const bool heavy_nlos = w.heavy_nlos || range_cpr > P.max_range_cost_per_range;
+  // Passed (or judged) at a widened gate: said on the start and on a rejection.
+  const bool heavy_nlos = w.heavy_nlos || (batch_factor > 1.0 && range_cpr > P.max_range_cost_per_range);
   // The marginal covariance (a factorization and a selected inverse) only
   // once the solve converged with plausible costs: a rejected solve does not
   // pay for it. The checks keep their order, so the same solves are accepted.

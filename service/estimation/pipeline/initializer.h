@@ -152,13 +152,15 @@ struct InitializerParams {
   /// --plan random --nlos-severity 2 / 3` with rilod.yaml (0.10 m sigma) the
   /// alignment's cost per range stayed at 3.6-4.4 and the batch's at 3.0-3.5
   /// for the whole two minutes, and the service never started. NLOS only
-  /// lengthens a two-way range, so a right track leaves few ranges far
-  /// *shorter* than it predicts (at most 1.5 % on every sim, clean or heavy),
-  /// while a wrong fix, yaw or anchor survey leaves many (16-31 % with two
-  /// anchors swapped or one moved 2 m). So once initialization has waited
-  /// heavy_nlos_after_s of data, a window whose measurements are mostly
-  /// two-way ranges passes the cost gates up to heavy_nlos_cost_factor times
-  /// their limits if at most max_short_range_share of its ranges are short.
+  /// lengthens a two-way range, so a right track leaves few ranges more than
+  /// 3 sigma *shorter* than it predicts (the alignment: at most 1.5 % on every
+  /// sim, clean or heavy; the batch: 0.5 % on random-plan severity 3), while
+  /// a wrong fix, yaw or anchor survey leaves many (16-31 % with two anchors
+  /// swapped or one moved 2 m); the same sign test as range_consistency.h.
+  /// So once heavy_nlos_after_s of data has passed since the first two-way
+  /// range (0: at once), a window whose measurements are mostly two-way
+  /// ranges passes each cost gate up to heavy_nlos_cost_factor times its
+  /// limit if at most max_short_range_share of its ranges are short.
   /// Not at once: windows that pass this way while a better one is to come
   /// start worse and stay worse (main sim rnd2, started at 13.8 s instead of
   /// 30.8 s: 0.43 m against 0.29 m online over the time both tracked).
@@ -395,6 +397,7 @@ class Initializer {
   std::vector<Vec3> p_w_fix_sources_;
   bool have_data_ = false;
   std::int64_t data_start_ns_ = 0;
+  std::optional<std::int64_t> first_range_ns_;  ///< first two-way range since construction or reset (heavyNlosFactor)
   std::int64_t last_attempt_ns_ = 0;
   bool attempted_ = false;
   double interval_s_ = 0.5;   ///< current attempt interval (see max_attempt_interval_s)

@@ -73,7 +73,7 @@ void BM_InitWindowSolve(benchmark::State& state) {
   }
   setCounters(state, wp, last);
 }
-BENCHMARK(BM_InitWindowSolve)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_InitWindowSolve)->Arg(10)->Arg(20)->Arg(45)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 /// Linearizing every factor into H and g (the per-iteration assembly).
 void BM_InitWindowLinearize(benchmark::State& state) {

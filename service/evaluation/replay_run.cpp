@@ -139,10 +139,9 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   // of 12 office sims (issue 7).
   if (tdoa_used) lp.ekf.velocity_noise_density = kEkfTdoaVelocityNoiseDensity;
   setEstimatorByName(lp, s.smoother);
-  if (lp.smoother.method == SmootherParams::Method::kDamped && lp.smoother.always_relinearize_recent_updates == 0) {
-    // rilod refuses this in its config; a --smoother override must too.
-    throw std::invalid_argument("smoother d-isam2 with relinearization.recent_updates 0: its damped acceptance needs the "
-                                "previous state relinearized (>= 1)");
+  // rilod refuses this in its configuration; a --smoother override must too.
+  if (lp.smoother.dampedWithStalePreviousState()) {
+    throw std::invalid_argument(SmootherParams::kDampedNeedsRecentRelinearization);
   }
   lp.smoother.lag_s = s.lag_s;
   lp.sliding_window.window_s = s.lag_s;

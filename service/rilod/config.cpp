@@ -200,15 +200,7 @@ void readRelinearization(const ConfigField& field, SmootherParams& s) {
          [](const ConfigField& f) { return f.integerAs<int>(0, 1'000'000); });
   m.read("recent_updates", s.always_relinearize_recent_updates,
          [](const ConfigField& f) { return f.integerAs<int>(0, 1000); });
-  // D-iSAM2 judges a try by the nonlinear error of the factors on the newest
-  // state. Left at a stale linearization point, the previous state's stiff
-  // IMU factor dominates that error and almost every try is rejected
-  // (docs/smoother.md: main sims online 0.25 -> 0.33 m, with GTSAM's
-  // thresholds 0.88 m and re-initializations). iSAM2 and dog-leg do not test.
-  if (s.method == SmootherParams::Method::kDamped && s.always_relinearize_recent_updates == 0) {
-    m.require("recent_updates")
-        .fail("must be >= 1 with smoother d-isam2 (its damped acceptance needs the previous state relinearized)");
-  }
+  if (s.dampedWithStalePreviousState()) m.require("recent_updates").fail(SmootherParams::kDampedNeedsRecentRelinearization);
   m.read("wildfire_threshold", s.wildfire_threshold, threshold);
 }
 

@@ -505,7 +505,7 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
     if (std::abs(r) <= 3.0) ++out.inliers;
     if (o.kind == Measurement::Kind::kRange) {
       ++out.ranges;
-      if (r < -3.0) ++out.short_ranges;
+      if (r < -kShortRangeSigmas) ++out.short_ranges;
     }
   }
   out.valid = true;

@@ -75,6 +75,11 @@ struct AlignmentParams {
   void validate() const;
 };
 
+/// A two-way range more than this many sigmas shorter than a solution
+/// predicts is "short": NLOS cannot explain it (start-up's heavy-NLOS rule,
+/// InitializerParams::heavy_nlos_after_s; the alignment and the batch alike).
+inline constexpr double kShortRangeSigmas = 3.0;
+
 struct AlignmentResult {
   bool valid = false;          ///< a finite solution exists (observability is judged by the caller)
   std::string message;
@@ -85,7 +90,7 @@ struct AlignmentResult {
   int measurements = 0;        ///< measurements used (every kind)
   int inliers = 0;             ///< |whitened residual| <= 3
   int ranges = 0;              ///< two-way ranges among the measurements
-  int short_ranges = 0;        ///< two-way ranges more than 3 sigma shorter than the fitted track predicts
+  int short_ranges = 0;        ///< two-way ranges more than kShortRangeSigmas shorter than the fitted track predicts
   double cost = std::numeric_limits<double>::infinity();  ///< robust cost incl. priors (whitened, ~chi^2/2)
   double measurement_cost = std::numeric_limits<double>::infinity();  ///< robust cost of the measurements only
   double yaw_sigma_rad = std::numeric_limits<double>::infinity();   ///< marginal sigma of the world yaw at t_r

@@ -629,7 +629,7 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
     range_cost += dynamic_cast<const TdoaFactor*>(&f) ? std::min(e, kTdoaGateCostCap) : e;
     if (dynamic_cast<const RangeFactor*>(&f)) {
       ++ranges;
-      if (r(0) < -3.0) ++short_ranges;  // (measured - predicted) / sigma
+      if (r(0) < -kShortRangeSigmas) ++short_ranges;  // (measured - predicted) / sigma
     }
   }
   const double residual_scale = residualScale(abs_residuals);

@@ -57,8 +57,9 @@ struct SmootherParams {
   /// weights of the range factors on the newest states must stay fresh).
   /// D-iSAM2 needs at least 1 once older states relinearize: with the previous
   /// state stale, its stiff IMU factor to the new one dominates the error the
-  /// acceptance test compares, and almost every try is rejected (rilod
-  /// refuses 0 with d-isam2; docs/smoother.md). 0 suits exact-algebra tests.
+  /// acceptance test compares, and almost every try is rejected
+  /// (dampedWithStalePreviousState; docs/smoother.md). 0 suits exact-algebra
+  /// tests, which relinearize nothing.
   int always_relinearize_recent_updates = 1;
   /// When any variable passes its threshold, relinearize every variable that
   /// moved, not just that one. A linearization point mixing fresh and stale
@@ -163,6 +164,17 @@ struct SmootherParams {
   /// sqrt(regularization) * I on its frontals (reported as indeterminate).
   double rank_tolerance = 1e-10;
   double regularization = 1e-9;
+
+  /// D-iSAM2 with the previous update's variables left at a stale
+  /// linearization point (always_relinearize_recent_updates 0): rilod's
+  /// configuration and rilo replay refuse it with this reason (validate()
+  /// cannot: the exact-algebra tests use it with no relinearization at all).
+  bool dampedWithStalePreviousState() const {
+    return method == Method::kDamped && always_relinearize_recent_updates == 0;
+  }
+  static constexpr const char* kDampedNeedsRecentRelinearization =
+      "relinearization.recent_updates must be >= 1 with smoother d-isam2 (its damped acceptance needs the previous "
+      "state relinearized)";
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const {

@@ -11,7 +11,7 @@
 #include <string>
 #include <variant>
 
-#include "hal/samples.h"
+#include "sensors/samples.h"
 
 namespace rilo {
 

@@ -10,9 +10,9 @@
 #include <string_view>
 #include <vector>
 
-#include "estimation/math/pose3.h"
-#include "estimation/math/types.h"
-#include "hal/samples.h"
+#include "math/pose3.h"
+#include "math/types.h"
+#include "sensors/samples.h"
 
 namespace rilo {
 

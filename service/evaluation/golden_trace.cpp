@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "estimation/math/so3.h"
+#include "math/so3.h"
 
 namespace rilo {
 

@@ -9,9 +9,9 @@
 #include <optional>
 #include <vector>
 
-#include "estimation/pipeline/range_model.h"
-#include "estimation/pipeline/range_imu_estimator.h"
-#include "hal/samples.h"
+#include "estimation/measurements/range_model.h"
+#include "estimation/tracking/range_imu_estimator.h"
+#include "sensors/samples.h"
 
 namespace rilo {
 

@@ -1,6 +1,6 @@
 #pragma once
 // Lower ranging rates from a recording made at a high one (`--range-hz`, the
-// seed's rate sweep, Fig. 7 / Table II).
+// Ranging-IMU Fusion paper's rate sweep, Fig. 7 / Table II).
 //
 // A tag that ranges at a low total rate picks whom to range with: our DW3000
 // scheduler cycles through the anchors in range. Keeping simply the first
@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "hal/samples.h"
+#include "sensors/samples.h"
 
 namespace rilo {
 

@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "estimation/pipeline/localizer.h"
-#include "estimation/pipeline/trajectory_error.h"
+#include "estimation/tracking/localizer.h"
 #include "evaluation/nlos_classification.h"
 #include "evaluation/range_thinning.h"
+#include "evaluation/trajectory_error.h"
 #include "evaluation/trajectory_metrics.h"  // positionErrorAgainst
 #include "hal/recording/recording.h"
 
@@ -72,7 +72,7 @@ struct ReplaySettings {
   /// Zero-velocity prior at standstills (m/s per second still; 0 none).
   /// Unset: LocalizerParams' (or the service's) default.
   std::optional<double> zero_velocity_sigma_m_s;
-  // Second system (seed 002): TDoA, ultrasonic, packet reception.
+  // Second system (IMU-Ultrasonic-UWB paper): TDoA, ultrasonic, packet reception.
   /// Kinds fed to the Localizer (default: every kind the recording has).
   MeasurementKinds measurements;
   /// Fraction of UWB packets kept, in [0, 1]: each TDoA epoch (the rows of
@@ -87,8 +87,8 @@ struct ReplaySettings {
   std::optional<double> same_state_window_ms;
   /// Per-link TDoA and ultrasonic sigmas from DynamicCovariance. true: the
   /// graph stream and the EKF; false: neither; unset: both once the data
-  /// hold TDoA rows (LocalizerParams::with_tdoa; seed 002's system: 20-45 %
-  /// lower online RMSE of the sliding window on the hall and office sims).
+  /// hold TDoA rows (LocalizerParams::with_tdoa; the IMU-Ultrasonic-UWB paper's system; measured:
+  /// docs/noise-models.md, Figures behind the defaults).
   std::optional<bool> dynamic_covariance;
   // TDoA and ultrasonic noise models (unset: RangeImuGraphParams defaults).
   std::optional<double> tdoa_sigma_m, ultrasonic_sigma_m;  ///< LOS std-dev (m)

@@ -13,7 +13,7 @@
 
 #include "evaluation/replay_run.h"
 #include "hal/recording/recording_reader.h"
-#include "hal/sim/office_recording.h"
+#include "sim/office_recording.h"
 
 namespace rilo {
 namespace {

@@ -1,5 +1,5 @@
 #pragma once
-// The evaluation matrix of seed 000 (Sec. VI) over a set of recordings, as
+// The evaluation matrix of the Ranging-IMU Fusion paper (Sec. VI) over a set of recordings, as
 // `rilo report` runs it: every run is one replayRecording() (replay_run.h),
 // runs are independent and spread over worker threads, and a run that throws
 // is recorded (never aborts the matrix). No CLI and no files here except
@@ -34,10 +34,10 @@
 #include <string>
 #include <vector>
 
-#include "estimation/pipeline/range_imu_estimator.h"
-#include "estimation/pipeline/trajectory_error.h"
+#include "estimation/tracking/range_imu_estimator.h"
+#include "evaluation/trajectory_error.h"
 #include "hal/recording/recording.h"
-#include "hal/sim/office_scenario.h"
+#include "sim/office_scenario.h"
 
 namespace rilo {
 

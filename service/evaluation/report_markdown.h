@@ -1,6 +1,6 @@
 #pragma once
 // Writes the results of the evaluation matrix (report.h) as a Markdown report
-// in the layout of seed 000 Sec. VI, a CSV with one row per run, and SVG
+// in the layout of the Ranging-IMU Fusion paper's Sec. VI, a CSV with one row per run, and SVG
 // figures (svg_plot.h):
 //   DIR/report.md     header (date, machine, version, recordings, settings),
 //                     Table I (online and smoothed), Table II, Fig. 7 (+ its

@@ -7,7 +7,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "hal/sim/office_recording.h"
+#include "sim/office_recording.h"
 
 namespace rilo {
 namespace {

@@ -1,8 +1,8 @@
 #pragma once
-// The second system's evaluation (seed 002, "IMU-Ultrasonic-UWB", Table I and
+// The second system's evaluation (IMU-Ultrasonic-UWB paper, Table I and
 // Sec. V): UWB TDoA (+ ultrasonic) recordings replayed by the sliding-window
-// smoother (the seed's method), the EKF (the seed's baseline) and D-iSAM2
-// (rilo's default), at full packet reception and at the seed's worst case of
+// smoother (the paper's method), the EKF (the paper's baseline) and D-iSAM2
+// (rilo's default), at full packet reception and at the paper's worst case of
 // 40 %, as `rilo report --system tdoa` runs it. Every run is one
 // replayRecording() (replay_run.h) with ReplaySettings::measurements and
 // ::reception; runs are spread over worker threads (report.h parallelFor) and
@@ -11,7 +11,7 @@
 // Runs: every recording x every estimator x every reception (deduplicated).
 // Figures per run: online and smoothed 3D APE (RMSE, mean, median, max),
 // per-update time (mean, p99, max), updates, (re)initializations. The
-// seed's claims the tables put beside ours: 12.3 cm RMS error, 38 % better
+// paper's claims the tables put beside ours: 12.3 cm RMS error, 38 % better
 // than the EKF, 21 ms per iteration on a Jetson Nano, robust down to 40 %
 // packet reception.
 #include <cstdint>
@@ -29,9 +29,9 @@ namespace rilo {
 struct TdoaReportOptions {
   /// Estimators (estimatorNames()); the table's rows in this order.
   std::vector<std::string> estimators{"sliding-window", "ekf", "d-isam2"};
-  /// Packet receptions (0, 1]: 1 is the recording as recorded; the seed's worst case is 0.4.
+  /// Packet receptions (0, 1]: 1 is the recording as recorded; the IMU-Ultrasonic-UWB paper's worst case is 0.4.
   std::vector<double> receptions{1.0, 0.4};
-  MeasurementKinds measurements{false, true, true};  ///< seed 002: TDoA and ultrasonic
+  MeasurementKinds measurements{false, true, true};  ///< IMU-Ultrasonic-UWB paper: TDoA and ultrasonic
   std::uint64_t reception_seed = 1;
   double lag_s = 5.0;                        ///< smoother lag / sliding window (s)
   std::optional<bool> dynamic_covariance;    ///< ReplaySettings::dynamic_covariance (unset: on when TDoA is used)
@@ -92,7 +92,7 @@ TdoaReportResults runTdoaReport(const std::vector<ReportRecording>& recordings, 
 std::filesystem::path simulateTdoaReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir,
                                                   sim::OfficePlanKind plan = sim::OfficePlanKind::kHall);
 
-/// (baseline - proposed) / baseline * 100, the seed's "38 % improvement"; NaN
+/// (baseline - proposed) / baseline * 100, the IMU-Ultrasonic-UWB paper's "38 % improvement"; NaN
 /// when either is not a number or the baseline is 0.
 double improvementPercent(double proposed, double baseline);
 

@@ -1,6 +1,6 @@
 #include "evaluation/tdoa_report_markdown.h"
 
-#include "estimation/pipeline/range_imu_graph.h"  // tdoa_max_power_gap_db
+#include "estimation/assembly/range_imu_graph.h"  // tdoa_max_power_gap_db
 #include "evaluation/replay_run.h"  // kTdoaVerticalSpeedSigmaMs
 #include "evaluation/report_text.h"
 
@@ -31,7 +31,7 @@ std::string cat(const Parts&... parts) {
 }
 
 std::string estimatorLabel(const std::string& e) {
-  if (e == "sliding-window") return "Sliding window (seed 002)";
+  if (e == "sliding-window") return "Sliding window (IMU-Ultrasonic-UWB paper)";
   if (e == "ekf") return "EKF";
   if (e == "d-isam2") return "D-iSAM2";
   if (e == "isam2") return "iSAM2";
@@ -98,7 +98,7 @@ std::string pooledRmseCell(const Pooled& p) {
   return cell;
 }
 
-/// Table I (seed 002 style): one row per estimator, RMSE in cm per recording
+/// Table I (IMU-Ultrasonic-UWB paper style): one row per estimator, RMSE in cm per recording
 /// and pooled, then the improvement row.
 std::string tableOne(const std::vector<ReportRecording>& recordings, const TdoaReportResults& res, double reception,
                      bool smoothed) {
@@ -176,7 +176,7 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
     if (r.threw) ++threw;
   }
   std::string md = "# rilo TDoA system report\n\n";
-  md += "The second system (seed 002, \"Indoor Fusion Positioning Based on IMU-Ultrasonic-UWB and Factor Graph "
+  md += "The second system (\"Indoor Fusion Positioning Based on IMU-Ultrasonic-UWB and Factor Graph "
         "Optimization\"): UWB TDoA and ultrasonic ranges with an IMU, its sliding-window smoother against the EKF "
         "baseline and rilo's D-iSAM2, made with `rilo report --system tdoa`.\n\n";
   const auto known = [](const std::string& s) { return s.empty() ? std::string("unknown") : s; };
@@ -235,13 +235,13 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
 
   const double full = *std::max_element(o.receptions.begin(), o.receptions.end());
   add(md, "\n## Table I: 3D RMSE (cm), online, ", receptionLabel(full), " reception\n\n");
-  md += "Seed 002 Table I (office): proposed 12.3 cm, EKF 27.6 cm, a 38 % improvement.\n\n";
+  md += "The IMU-Ultrasonic-UWB paper's Table I (office): proposed 12.3 cm, EKF 27.6 cm, a 38 % improvement.\n\n";
   md += tableOne(recordings, results, full, false);
   add(md, "\n## Table I: 3D RMSE (cm), smoothed, ", receptionLabel(full), " reception\n\n");
   md += tableOne(recordings, results, full, true);
 
   md += "\n## Accuracy and runtime per estimator (all recordings pooled)\n\n";
-  md += "Seed 002: 21 ms per optimization iteration on a Jetson Nano.\n\n";
+  md += "The IMU-Ultrasonic-UWB paper: 21 ms per optimization iteration on a Jetson Nano.\n\n";
   md += "| Method | Reception | Online RMSE / mean / max (m) | Smoothed RMSE / mean / max (m) | Update mean / p99 (ms) | "
         "Updates | Tracked | Re-initializations | Failed runs |\n|---|---:|---|---|---|---:|---:|---:|---:|\n";
   for (double p : o.receptions) {
@@ -277,7 +277,7 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
   for (double p : o.receptions) {
     if (p == full) continue;
     add(md, "\n## ", receptionLabel(p), " packet reception: 3D RMSE (cm), online\n\n");
-    md += "Seed 002: robust \"down to a 40 % packet reception rate\". A run diverged when it failed or needed a "
+    md += "The IMU-Ultrasonic-UWB paper: robust \"down to a 40 % packet reception rate\". A run diverged when it failed or needed a "
           "re-initialization.\n\n";
     md += tableOne(recordings, results, p, false);
     md += "\n| Method | Diverged runs | Recordings |\n|---|---:|---|\n";

@@ -1,5 +1,5 @@
 #pragma once
-// Writes the TDoA system evaluation (tdoa_report.h) like seed 002 Table I:
+// Writes the TDoA system evaluation (tdoa_report.h) like the IMU-Ultrasonic-UWB paper's Table I:
 //   DIR/report.md    header (date, machine, version, command), recordings,
 //                    settings; Table I online and smoothed 3D RMSE (cm) per
 //                    recording and over all of them (at the highest
@@ -8,7 +8,7 @@
 //                    window) over the baseline (EKF) in %; per estimator the
 //                    online and smoothed RMSE / mean / max and the per-update
 //                    time mean / p99; one table per reduced reception (the
-//                    seed's 40 % row) with the runs that diverged; failed runs.
+//                    IMU-Ultrasonic-UWB paper's 40 % row) with the runs that diverged; failed runs.
 //   DIR/results.csv  one row per run (kTdoaResultsCsvHeader)
 // "All" pools the recordings: RMSE over every matched pose of every
 // recording (sqrt of the count-weighted mean square), mean likewise, max the

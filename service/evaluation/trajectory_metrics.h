@@ -40,7 +40,7 @@
 #include <utility>
 #include <vector>
 
-#include "estimation/pipeline/trajectory_error.h"
+#include "evaluation/trajectory_error.h"
 #include "evaluation/tum.h"
 #include "hal/recording/recording.h"
 

@@ -33,7 +33,7 @@
 #include <string_view>
 #include <vector>
 
-#include "estimation/pipeline/range_imu_estimator.h"
+#include "estimation/tracking/range_imu_estimator.h"
 
 namespace rilo {
 

@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "estimation/noise/noise_model_factory.h"
+#include "estimation/smoother/smoother_method_names.h"
 #include "hal/recording/recording_reader.h"
 #include "rilod/config_hardware.h"
 #include "rilod/config_reader.h"
@@ -208,22 +209,22 @@ void readDamping(const ConfigField& field, SmootherParams& s) {
   const ConfigMap m = field.map({"lambda_initial", "lambda_min", "lambda_max", "lambda_increase",
                                  "lambda_decrease", "widen", "acceptance"});
   auto lambda = [](const ConfigField& f) { return f.positive(1e20); };
-  m.read("lambda_initial", s.lambda_initial, lambda);
-  m.read("lambda_min", s.lambda_min, lambda);
-  m.read("lambda_max", s.lambda_max, lambda);
-  m.read("lambda_increase", s.lambda_increase, [](const ConfigField& f) { return f.number(1.0, 1e6); });
-  m.read("lambda_decrease", s.lambda_decrease, [](const ConfigField& f) { return f.number(0.0, 1.0); });
-  m.read("widen", s.widen_damping, [](const ConfigField& f) { return f.boolean(); });
-  m.read("acceptance", s.acceptance, [](const ConfigField& f) {
-    return f.choice<SmootherParams::Acceptance>({{"damped_factors", SmootherParams::Acceptance::kDampedFactors},
-                                                 {"global", SmootherParams::Acceptance::kGlobal}});
+  m.read("lambda_initial", s.d_isam2.lambda_initial, lambda);
+  m.read("lambda_min", s.d_isam2.lambda_min, lambda);
+  m.read("lambda_max", s.d_isam2.lambda_max, lambda);
+  m.read("lambda_increase", s.d_isam2.lambda_increase, [](const ConfigField& f) { return f.number(1.0, 1e6); });
+  m.read("lambda_decrease", s.d_isam2.lambda_decrease, [](const ConfigField& f) { return f.number(0.0, 1.0); });
+  m.read("widen", s.d_isam2.widen_damping, [](const ConfigField& f) { return f.boolean(); });
+  m.read("acceptance", s.d_isam2.acceptance, [](const ConfigField& f) {
+    return f.choice<DIsam2Params::Acceptance>({{"damped_factors", DIsam2Params::Acceptance::kDampedFactors},
+                                               {"global", DIsam2Params::Acceptance::kGlobal}});
   });
 }
 
 void readTrustRegion(const ConfigField& field, SmootherParams& s) {
   const ConfigMap m = field.map({"initial", "min"});
-  m.read("initial", s.trust_radius_initial, [](const ConfigField& f) { return f.positive(1e6); });
-  m.read("min", s.trust_radius_min, [](const ConfigField& f) { return f.positive(1e6); });
+  m.read("initial", s.dogleg.trust_radius_initial, [](const ConfigField& f) { return f.positive(1e6); });
+  m.read("min", s.dogleg.trust_radius_min, [](const ConfigField& f) { return f.positive(1e6); });
 }
 
 void readRange(const ConfigField& field, EstimatorConfig& e) {
@@ -282,9 +283,7 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
                                  "vertical_speed_sigma_m_s", "zero_velocity_sigma_m_s", "max_outside_anchors_m",
                                  "tdoa"});
   m.read("smoother", e.smoother.method, [](const ConfigField& f) {
-    return f.choice<SmootherParams::Method>({{"d-isam2", SmootherParams::Method::kDamped},
-                                             {"isam2", SmootherParams::Method::kGaussNewton},
-                                             {"dogleg", SmootherParams::Method::kDogleg}});
+    return f.choice<SmootherParams::Method>(kSmootherMethodNames);
   });
   m.read("lag_s", e.smoother.lag_s, [](const ConfigField& f) {
     const double lag = f.number(0.0, 3600.0);
@@ -544,13 +543,4 @@ std::string_view toString(SourceMode mode) { return mode == SourceMode::kReplay 
 std::string_view toString(ReplayPace pace) {
   return pace == ReplayPace::kRealTime ? "real_time" : "as_fast_as_possible";
 }
-std::string_view smootherName(SmootherParams::Method method) {
-  switch (method) {
-    case SmootherParams::Method::kDamped: return "d-isam2";
-    case SmootherParams::Method::kGaussNewton: return "isam2";
-    case SmootherParams::Method::kDogleg: return "dogleg";
-  }
-  return "unknown";
-}
-
 }  // namespace rilo

@@ -25,11 +25,11 @@
 #include <vector>
 
 #include "dds/topics.h"
-#include "estimation/pipeline/localizer.h"
-#include "estimation/pipeline/range_consistency.h"
-#include "estimation/pipeline/range_imu_graph.h"
-#include "estimation/pipeline/range_imu_graph_stream.h"
+#include "estimation/assembly/range_imu_graph.h"
+#include "estimation/assembly/range_imu_graph_stream.h"
+#include "estimation/measurements/range_consistency.h"
 #include "estimation/smoother/smoother_params.h"
+#include "estimation/tracking/localizer.h"
 #include "hal/bmi263/bmi263_config.h"
 #include "hal/dw3000/dw3000_config.h"
 #include "hal/recording/recording.h"
@@ -127,7 +127,7 @@ struct EstimatorConfig {
   RangeImuGraphParams graph;
   RangeImuStreamOptions stream;
   /// Start-up: batch solve over this many seconds of data before the
-  /// incremental smoother takes over (seed 000: 10 s).
+  /// incremental smoother takes over (Ranging-IMU Fusion paper: 10 s).
   double init_window_s = 10.0;
   /// Start-up refuses a solution whose tag lies farther than this beyond the
   /// anchors' horizontal box (m; InitializerParams::max_outside_anchors_m; .inf: off).
@@ -140,7 +140,7 @@ struct EstimatorConfig {
   /// Lower nlos_power_gap_db to where the ranges show the LOS gaps end (LosGapParams).
   bool los_gap_calibration = LosGapParams().enabled;
   /// Tag height band above the floor (a wearable's height; see
-  /// estimation/pipeline/init_height_band.h): initialization and every state.
+  /// estimation/measurements/height_band.h): initialization and every state.
   HeightBand height_band;
   /// Zero vertical-speed prior on every state (m/s std-dev; 0 = none);
   /// unset ("auto"): on the tracked states, 0.05 when the ranging is TDoA,
@@ -232,7 +232,5 @@ ServiceConfig parseServiceConfig(std::string_view yaml, const std::filesystem::p
 
 std::string_view toString(SourceMode mode);
 std::string_view toString(ReplayPace pace);
-/// "d-isam2", "isam2", "dogleg".
-std::string_view smootherName(SmootherParams::Method method);
 
 }  // namespace rilo

@@ -16,6 +16,7 @@
 #include <initializer_list>
 #include <limits>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -24,7 +25,7 @@
 
 #include <yaml-cpp/yaml.h>
 
-#include "estimation/math/types.h"
+#include "math/types.h"
 #include "rilod/config.h"
 
 namespace rilo::config_detail {
@@ -84,6 +85,11 @@ class ConfigField {
   /// One of the spellings in `choices` (exact, case-sensitive); the error lists them.
   template <typename E>
   E choice(std::initializer_list<std::pair<std::string_view, E>> choices) const {
+    return choice<E>(std::span<const std::pair<std::string_view, E>>(choices.begin(), choices.size()));
+  }
+  /// The same from a table kept elsewhere (kSmootherMethodNames, say).
+  template <typename E>
+  E choice(std::span<const std::pair<std::string_view, E>> choices) const {
     const std::string& text = scalar("one of " + listChoices(choices));
     for (const auto& [name, value] : choices) {
       if (text == name) return value;
@@ -103,7 +109,7 @@ class ConfigField {
 
  private:
   template <typename E>
-  static std::string listChoices(std::initializer_list<std::pair<std::string_view, E>> choices) {
+  static std::string listChoices(std::span<const std::pair<std::string_view, E>> choices) {
     std::string out;
     for (const auto& choice : choices) {
       if (!out.empty()) out += ", ";

@@ -90,7 +90,7 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   }
   so.on_status = [](const rilo::ServiceStatus& s) {
     auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
-    char tdoa[96] = "";  // seed 002's system only: a two-way line stays as it was
+    char tdoa[96] = "";  // the IMU-Ultrasonic-UWB paper's system only: a two-way line stays as it was
     if (s.tdoa_samples > 0 || s.ultrasonic_samples > 0) {
       std::snprintf(tdoa, sizeof tdoa, ", tdoa %llu (deep NLOS %llu), ultrasonic %llu", u(s.tdoa_samples),
                     u(s.deep_nlos_tdoa_rows), u(s.ultrasonic_samples));

@@ -17,11 +17,11 @@
 #include <cstdint>
 #include <vector>
 
-#include "estimation/math/types.h"
+#include "estimation/assembly/range_imu_graph.h"
+#include "estimation/assembly/range_imu_graph_stream.h"
 #include "estimation/noise/robust_loss.h"
-#include "estimation/pipeline/range_imu_graph.h"
-#include "estimation/pipeline/range_imu_graph_stream.h"
-#include "hal/samples.h"
+#include "math/types.h"
+#include "sensors/samples.h"
 
 namespace rilo {
 

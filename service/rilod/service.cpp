@@ -11,7 +11,7 @@
 #include <thread>
 
 #include "hal/bus/clock.h"
-#include "estimation/math/so3.h"
+#include "math/so3.h"
 #include "rilod/sample_screen.h"
 #include "runtime/spsc_queue.h"
 

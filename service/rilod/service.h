@@ -24,8 +24,10 @@
 
 #include "dds/participant.h"
 #include "dds/publisher.h"
-#include "estimation/pipeline/localizer.h"
+#include "estimation/tracking/localizer.h"
 #include "hal/source.h"
+#include "rilod/range_trust_monitor.h"
+#include "rilod/sensor_gap_monitor.h"
 #include "runtime/heartbeat.h"
 #include "runtime/latest_value.h"
 #include "runtime/navigation_state.h"
@@ -33,8 +35,6 @@
 #include "runtime/runtime_counters.h"
 #include "runtime/service_status.h"
 #include "runtime/wake_signal.h"
-#include "rilod/range_trust_monitor.h"
-#include "rilod/sensor_gap_monitor.h"
 
 namespace rilo {
 

@@ -26,10 +26,10 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "estimation/math/types.h"
-#include "hal/samples.h"
+#include "math/types.h"
 #include "runtime/fixed_ring.h"
 #include "runtime/navigation_state.h"
+#include "sensors/samples.h"
 
 namespace rilo {
 

@@ -25,7 +25,7 @@ struct ServiceStatus {
   // Counters since start.
   std::uint64_t imu_samples = 0;         ///< IMU samples accepted at the service's entrance
   std::uint64_t range_samples = 0;       ///< two-way ranges accepted at the service's entrance
-  std::uint64_t tdoa_samples = 0;        ///< UWB TDoA rows accepted at the service's entrance (seed 002's system)
+  std::uint64_t tdoa_samples = 0;        ///< UWB TDoA rows accepted on entry (the IMU-Ultrasonic-UWB paper's system)
   std::uint64_t ultrasonic_samples = 0;  ///< ultrasonic ranges accepted at the service's entrance
   std::uint64_t queue_overflows = 0;     ///< samples dropped because a queue was full
   std::uint64_t late_updates = 0;        ///< smoother updates slower than ServiceOptions::late_update_ms

@@ -6,10 +6,10 @@
 #include <cmath>
 #include <random>
 
-#include "estimation/math/so3.h"
 #include "estimation/solver/batch_lm.h"
 #include "estimation/solver/normal_equations.h"
 #include "estimation/solver/ordering.h"
+#include "math/so3.h"
 
 namespace rilo {
 namespace {

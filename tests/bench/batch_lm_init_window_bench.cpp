@@ -19,14 +19,14 @@
 
 #include <string>
 
-#include "estimation/pipeline/init_alignment.h"
-#include "estimation/pipeline/init_gravity.h"
-#include "estimation/pipeline/initializer.h"
-#include "estimation/pipeline/range_imu_graph.h"
+#include "estimation/assembly/range_imu_graph.h"
+#include "estimation/init/alignment.h"
+#include "estimation/init/gravity.h"
+#include "estimation/init/initializer.h"
 #include "estimation/solver/batch_lm.h"
 #include "estimation/solver/normal_equations.h"
 #include "estimation/solver/ordering.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 
 namespace rilo {
 namespace {

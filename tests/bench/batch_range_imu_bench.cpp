@@ -1,12 +1,12 @@
-// Batch LM on the seed's range + IMU graph: a 60 s walk at 40 Hz ranging
+// Batch LM on the Ranging-IMU Fusion paper's range + IMU graph: a 60 s walk at 40 Hz ranging
 // (about 2300 states, 15 variables each, 8 anchor variables) solved from a
 // perturbed ground truth, per noise model.
 #include <benchmark/benchmark.h>
 
 
-#include "estimation/pipeline/range_imu_graph.h"
+#include "estimation/assembly/range_imu_graph.h"
 #include "estimation/solver/batch_lm.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 
 namespace rilo {
 namespace {

@@ -10,12 +10,12 @@
 #include "estimation/ekf/error_state_ekf.h"
 #include "estimation/noise/asymmetric_loss.h"
 #include "estimation/noise/huber_loss.h"
-#include "hal/sim/trajectory.h"
+#include "sim/trajectory.h"
 
 namespace rilo {
 namespace {
 
-constexpr double kImuRateHz = 800.0;  // BMI263 in the seed's setup
+constexpr double kImuRateHz = 800.0;  // BMI263 in the Ranging-IMU Fusion paper's setup
 constexpr int kNumAnchors = 8;
 
 Mat15 startCovariance() {

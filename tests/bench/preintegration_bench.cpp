@@ -4,12 +4,12 @@
 #include <vector>
 
 #include "estimation/factors/imu_factor.h"
-#include "hal/sim/trajectory.h"
+#include "sim/trajectory.h"
 
 namespace rilo {
 namespace {
 
-constexpr double kRateHz = 800.0;  // BMI263 in the seed's setup
+constexpr double kRateHz = 800.0;  // BMI263 in the Ranging-IMU Fusion paper's setup
 
 std::vector<sim::ImuReading> walkSamples(int n, double t0_s = 1.0) {
   const sim::LissajousWalk walk;

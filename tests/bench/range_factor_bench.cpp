@@ -8,7 +8,7 @@
 #include <random>
 
 #include "estimation/factors/range_factor.h"
-#include "estimation/math/so3.h"
+#include "math/so3.h"
 
 namespace rilo {
 namespace {

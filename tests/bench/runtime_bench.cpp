@@ -6,15 +6,15 @@
 #include <cstdint>
 #include <vector>
 
-#include "hal/sim/trajectory.h"
 #include "runtime/latest_value.h"
 #include "runtime/output_predictor.h"
 #include "runtime/spsc_queue.h"
+#include "sim/trajectory.h"
 
 namespace rilo {
 namespace {
 
-constexpr double kImuRateHz = 800.0;  // BMI263 in the seed's setup
+constexpr double kImuRateHz = 800.0;  // BMI263 in the Ranging-IMU Fusion paper's setup
 constexpr std::int64_t kImuPeriodNs = 1'250'000;
 
 // One push and one pop of an ImuSample on the same thread (no contention:

@@ -1,4 +1,4 @@
-// Per-update cost of SlidingWindowSmoother on the seed's range + IMU setting,
+// Per-update cost of SlidingWindowSmoother on the Ranging-IMU Fusion paper's range + IMU setting,
 // driven online through RangeImuEstimator: a simulated office walk, 8
 // anchors as variables with survey priors, 800 Hz IMU, one state every 25 ms
 // carrying 4 ranges (160 ranges/s in cycles of 4, grouped by a 20 ms
@@ -27,7 +27,7 @@
 
 #include "estimation/smoother/bayes_tree_smoother.h"
 #include "estimation/smoother/sliding_window_smoother.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 #include "support/online_run.h"
 
 namespace rilo {

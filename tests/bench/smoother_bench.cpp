@@ -1,4 +1,4 @@
-// Per-update cost of the incremental smoothers on the seed's setting: a
+// Per-update cost of the incremental smoothers on the Ranging-IMU Fusion paper's setting: a
 // simulated office walk, 8 anchors (4 ranged per cycle), 40 Hz ranging,
 // 800 Hz IMU, states predicted by the IMU from the smoother's own estimate.
 // Reported per configuration: mean / p99 / max update time (ms), the online
@@ -11,7 +11,7 @@
 #include <numeric>
 
 #include "estimation/smoother/bayes_tree_smoother.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 #include "support/online_run.h"
 
 namespace rilo {

@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "estimation/pipeline/standstill.h"
+#include "estimation/measurements/standstill.h"
 
 namespace rilo {
 namespace {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include "estimation/pipeline/anchor_box.h"
+#include "estimation/measurements/anchor_box.h"
 
 namespace rilo {
 namespace {

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <random>
 
-#include "estimation/math/so3.h"
 #include "estimation/solver/normal_equations.h"
+#include "math/so3.h"
 #include "support/numerical_jacobian.h"
 #include "support/random_states.h"
 

@@ -53,12 +53,12 @@ std::string errorIncreases(bool loops, double perturbation_scale, int* updates_s
       FeedOptions fo;
       fo.order = order;
       if (!loops) fo.defer_probability = 0.0;
-      // D-iSAM2 defaults (wildfire, fluid relinearization) with the seed's
+      // D-iSAM2 defaults (wildfire, fluid relinearization) with the Ranging-IMU Fusion paper's
       // whole-graph acceptance, the one that promises monotone error.
       SmootherParams params;
-      params.acceptance = SmootherParams::Acceptance::kGlobal;
+      params.d_isam2.acceptance = DIsam2Params::Acceptance::kGlobal;
       params.relinearize_max_age_s = 0.0;
-      params.widen_damping = true;
+      params.d_isam2.widen_damping = true;
       BayesTreeSmoother smoother(params);
       for (const Increment& inc : makeSchedule(g, rng, fo)) {
         const UpdateStats st = smoother.update(inc.factors, inc.values, inc.timestamps);
@@ -328,7 +328,7 @@ TEST(BayesTreeDamped, NewStateOnWhichGaussNewtonOvershootsIsDamped) {
   const UpdateStats st = smoother.update(oscillationGraph(X(1)), v1);
   EXPECT_TRUE(st.step_accepted);
   EXPECT_GT(st.step_tries, 1) << "the undamped step increases the error: damping must have grown";
-  EXPECT_GT(st.lambda, SmootherParams().lambda_initial);
+  EXPECT_GT(st.lambda, SmootherParams().d_isam2.lambda_initial);
   EXPECT_LT(st.error_after, st.error_before);
   EXPECT_NEAR(smoother.error(), smoother.errorFromScratch(), 1e-9 * smoother.error());
 }
@@ -337,9 +337,9 @@ TEST(BayesTreeDamped, NewStateOnWhichGaussNewtonOvershootsIsDamped) {
 
 TEST(BayesTreeDamped, LambdaMaxExhaustedKeepsThePreviousEstimate) {
   SmootherParams p = exactParams(Method::kDamped);
-  p.lambda_initial = 1e-5;
-  p.lambda_max = 1e-5;  // one try only
-  p.lambda_min = 1e-10;
+  p.d_isam2.lambda_initial = 1e-5;
+  p.d_isam2.lambda_max = 1e-5;  // one try only
+  p.d_isam2.lambda_min = 1e-10;
   BayesTreeSmoother smoother(p);
   FactorGraph so_far;
 

@@ -21,9 +21,9 @@
 #include <set>
 #include <string>
 
-#include "estimation/pipeline/range_imu_graph.h"
+#include "estimation/assembly/range_imu_graph.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 #include "support/smoother_graphs.h"
 
 namespace rilo {

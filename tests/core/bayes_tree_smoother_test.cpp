@@ -1,11 +1,11 @@
-// BayesTreeSmoother against dense and batch references on the seed's range +
+// BayesTreeSmoother against dense and batch references on the Ranging-IMU Fusion paper's range +
 // IMU graphs fed state by state.
 #include <gtest/gtest.h>
 
-#include "estimation/pipeline/range_imu_graph.h"
+#include "estimation/assembly/range_imu_graph.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
 #include "estimation/solver/batch_lm.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 #include "support/online_run.h"
 #include "support/smoother_graphs.h"
 

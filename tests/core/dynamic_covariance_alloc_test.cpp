@@ -6,8 +6,8 @@
 
 #include <vector>
 
-#include "estimation/pipeline/ekf_estimator.h"
-#include "estimation/pipeline/measurement_noise.h"
+#include "estimation/assembly/measurement_noise.h"
+#include "estimation/tracking/ekf_estimator.h"
 #include "support/new_counter.h"
 
 namespace rilo {

@@ -1,4 +1,4 @@
-// Dynamic covariance (seed 002's "dynamic covariance estimation"): the
+// Dynamic covariance (the IMU-Ultrasonic-UWB paper's "dynamic covariance estimation"): the
 // per-link robust scale converges to the residuals' sigma, follows a
 // persistent change both ways, shrugs off a short burst of outliers, stays in
 // its bounds, keeps keys apart and reports a full table.

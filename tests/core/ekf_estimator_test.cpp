@@ -1,13 +1,13 @@
 // The EKF baseline as the pipeline drives it (EkfEstimator: measurement
 // timing, grouping, losses from the graph parameters), started at the truth.
-#include "estimation/pipeline/ekf_estimator.h"
+#include "estimation/tracking/ekf_estimator.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
 #include <limits>
 
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 #include "support/online_run.h"
 #include "support/resting_imu.h"
 #include "support/tdoa_row.h"

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "estimation/ekf/error_state_ekf.h"
-#include "estimation/pipeline/ekf_estimator.h"
+#include "estimation/tracking/ekf_estimator.h"
 #include "support/expect_throws_naming.h"
 #include "support/tdoa_row.h"
 

@@ -9,12 +9,12 @@
 #include <random>
 #include <string>
 
+#include "estimation/assembly/range_imu_graph_stream.h"
 #include "estimation/ekf/ekf_propagation.h"
 #include "estimation/ekf/error_state_ekf.h"
 #include "estimation/noise/asymmetric_loss.h"
 #include "estimation/noise/huber_loss.h"
-#include "estimation/pipeline/range_imu_graph_stream.h"
-#include "hal/sim/trajectory.h"
+#include "sim/trajectory.h"
 #include "support/expect_throws_naming.h"
 #include "support/random_states.h"
 

@@ -14,7 +14,7 @@
 
 #include "estimation/ekf/error_state_ekf.h"
 #include "estimation/noise/asymmetric_loss.h"
-#include "hal/sim/trajectory.h"
+#include "sim/trajectory.h"
 
 namespace rilo {
 namespace {

@@ -6,7 +6,7 @@
 #include <random>
 #include <string>
 
-#include "hal/sim/trajectory.h"
+#include "sim/trajectory.h"
 #include "support/numerical_jacobian.h"
 
 namespace rilo {

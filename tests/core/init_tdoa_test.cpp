@@ -1,4 +1,4 @@
-// TDoA initialization (seed 002, Sec. III-B): the spherical-intersection
+// TDoA initialization (IMU-Ultrasonic-UWB paper, Sec. III-B): the spherical-intersection
 // closed form, the robust fix from a window of mixed-reference TDoA rows
 // (noise-free, Gaussian noise, 30 % NLOS rows, a blocked anchor), the
 // ultrasonic-enhanced fix, degenerate geometry and malformed input.
@@ -15,13 +15,13 @@
 #include <string>
 #include <vector>
 
+#include "estimation/init/tdoa.h"
 #include "estimation/noise/gaussian_loss.h"
 #include "estimation/noise/huber_loss.h"
-#include "estimation/pipeline/init_tdoa.h"
-#include "hal/sim/office_scenario.h"
-#include "hal/sim/office_tdoa.h"
-#include "hal/sim/office_ultrasonic.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/office_scenario.h"
+#include "sim/office_tdoa.h"
+#include "sim/office_ultrasonic.h"
+#include "sim/range_imu_scenario.h"
 #include "support/expect_throws_naming.h"
 
 namespace rilo {

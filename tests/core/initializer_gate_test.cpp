@@ -7,8 +7,8 @@
 #include <limits>
 #include <vector>
 
-#include "estimation/pipeline/initializer.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "estimation/init/initializer.h"
+#include "sim/range_imu_scenario.h"
 #include "support/initializer_scenarios.h"
 #include "support/online_run.h"
 

@@ -1,6 +1,6 @@
 // Initialization without a known start: strapdown integration, gravity
 // alignment, multilateration, range-inertial yaw alignment, the Initializer
-// (the seed's batch window) on simulated walks (moving and still starts, 40 Hz
+// (the Ranging-IMU Fusion paper's batch window) on simulated walks (moving and still starts, 40 Hz
 // and 1 Hz ranging, 25 % NLOS), garbage input, and the hand-over to the
 // online estimator.
 #include <gtest/gtest.h>
@@ -14,10 +14,11 @@
 #include <numeric>
 #include <random>
 
-#include "estimation/pipeline/initializer.h"
-#include "estimation/pipeline/range_imu_estimator.h"
+#include "estimation/init/initializer.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "estimation/tracking/hand_over.h"
+#include "estimation/tracking/range_imu_estimator.h"
+#include "sim/range_imu_scenario.h"
 #include "support/initializer_scenarios.h"
 #include "support/online_run.h"
 
@@ -517,7 +518,7 @@ TEST(InitAlignment, NoiseScaleFromTheInlierShare) {
 TEST(Initializer, MovingStart40HzSeveralSeeds) {
   // The Lissajous walk is smooth (0.2-0.4 m/s^2): yaw separates from the
   // accelerometer bias and tilt only after 15-20 s, so the window grows past
-  // the seed's 10 s. Vertical error is dominated by the NLOS bias of weak
+  // the Ranging-IMU Fusion paper's 10 s. Vertical error is dominated by the NLOS bias of weak
   // vertical geometry (the estimator started at the truth has the same), so
   // the 3D bound holds on fewer seeds than the horizontal one.
   Tally t;

@@ -10,7 +10,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "estimation/math/so3.h"
+#include "math/so3.h"
 #include "support/random_states.h"
 
 namespace rilo {

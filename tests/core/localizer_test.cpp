@@ -1,6 +1,6 @@
 // The online pipeline end to end on simulated walks: initialization from
 // scratch, tracking, failure detection and re-initialization.
-#include "estimation/pipeline/localizer.h"
+#include "estimation/tracking/localizer.h"
 
 #include <gtest/gtest.h>
 
@@ -14,8 +14,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "hal/sim/office_scenario.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/office_scenario.h"
+#include "sim/range_imu_scenario.h"
 #include "support/online_run.h"
 
 namespace rilo {

@@ -2,7 +2,7 @@
 // the configured threshold without evidence, never goes below min_gap_db or
 // above the configured value, cancels a common residual shift, ignores
 // malformed input, and does not allocate.
-#include "estimation/pipeline/los_gap_calibration.h"
+#include "estimation/measurements/los_gap_calibration.h"
 
 #include <gtest/gtest.h>
 

@@ -12,14 +12,14 @@
 #include <random>
 #include <stdexcept>
 
+#include "estimation/assembly/measurement_noise.h"
 #include "estimation/factors/tdoa_factor.h"
-#include "estimation/pipeline/ekf_estimator.h"
-#include "estimation/pipeline/localizer.h"
-#include "estimation/pipeline/measurement_noise.h"
-#include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
-#include "hal/sim/office_scenario.h"
-#include "hal/sim/office_tdoa.h"
+#include "estimation/tracking/ekf_estimator.h"
+#include "estimation/tracking/localizer.h"
+#include "estimation/tracking/range_imu_estimator.h"
+#include "sim/office_scenario.h"
+#include "sim/office_tdoa.h"
 #include "support/smoother_graphs.h"
 
 namespace rilo {

@@ -9,10 +9,10 @@
 #include <stdexcept>
 #include <vector>
 
+#include "estimation/measurements/range_model.h"
 #include "estimation/noise/asymmetric_loss.h"
 #include "estimation/noise/nlos_component_loss.h"
 #include "estimation/noise/noise_model_factory.h"
-#include "estimation/pipeline/range_model.h"
 
 namespace rilo {
 namespace {

@@ -361,7 +361,7 @@ TEST(AsymmetricLoss, HalfCauchyComponentIsThePlainDensity) {
 }
 
 TEST(AsymmetricLoss, HalfCauchyBarelyMovesTheDecisionPoint) {
-  // Seed 000 Fig. 2: the simpler component does not significantly change the decision point.
+  // Ranging-IMU Fusion paper, Fig. 2: the simpler component does not significantly change the decision point.
   for (double gamma : {1.349, 5.0, 20.0}) {
     const double conv = AsymmetricLoss(gamma, 0.2).decisionPoint();
     const double hc = AsymmetricLoss(gamma, 0.2, Component::kHalfCauchy).decisionPoint();

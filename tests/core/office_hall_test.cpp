@@ -9,11 +9,11 @@
 #include <cmath>
 #include <cstdio>
 
-#include "hal/sim/office_hall.h"
-#include "hal/sim/office_scenario.h"
-#include "hal/sim/office_tdoa.h"
-#include "hal/sim/office_ultrasonic.h"
-#include "hal/sim/walk.h"
+#include "sim/office_hall.h"
+#include "sim/office_scenario.h"
+#include "sim/office_tdoa.h"
+#include "sim/office_ultrasonic.h"
+#include "sim/walk.h"
 
 namespace rilo::sim {
 namespace {

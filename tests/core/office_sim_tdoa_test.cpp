@@ -1,4 +1,4 @@
-// Office simulator, second system (seed 002): UWB TDoA (differences match the
+// Office simulator, second system (IMU-Ultrasonic-UWB paper): UWB TDoA (differences match the
 // geometry, NLOS bias has the sign of the blocked anchor, packet reception at
 // the option's rate, the TDMA schedule) and ultrasonic ranging (beacons on
 // the ceiling, never through a wall nor beyond max range, centimetre noise,
@@ -11,10 +11,10 @@
 #include <tuple>
 #include <vector>
 
-#include "hal/sim/office.h"
-#include "hal/sim/office_scenario.h"
-#include "hal/sim/office_tdoa.h"
-#include "hal/sim/office_ultrasonic.h"
+#include "sim/office.h"
+#include "sim/office_scenario.h"
+#include "sim/office_tdoa.h"
+#include "sim/office_ultrasonic.h"
 
 namespace rilo::sim {
 namespace {
@@ -203,7 +203,7 @@ TEST(OfficeTdoa, PacketReceptionMatchesTheOption) {
       EXPECT_EQ(st.received, st.heard);
     }
   }
-  // The seed's 40 %: fewer rows, and more received packets find no reference within a round.
+  // The IMU-Ultrasonic-UWB paper's 40 %: fewer rows, and more received packets find no reference within a round.
   OfficeScenarioParams low = tdoaParams(4, 120.0), high = low;
   low.tdoa.packet_reception = 0.4;
   const TdoaStats st_low = runTdoa(low).stats, st_high = runTdoa(high).stats;

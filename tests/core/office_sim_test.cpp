@@ -9,11 +9,11 @@
 #include <map>
 #include <set>
 
-#include "estimation/math/so3.h"
-#include "hal/sim/office.h"
-#include "hal/sim/office_channel.h"
-#include "hal/sim/office_scenario.h"
-#include "hal/sim/walk.h"
+#include "math/so3.h"
+#include "sim/office.h"
+#include "sim/office_channel.h"
+#include "sim/office_scenario.h"
+#include "sim/walk.h"
 
 namespace rilo::sim {
 namespace {

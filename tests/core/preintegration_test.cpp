@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "hal/sim/trajectory.h"
+#include "sim/trajectory.h"
 
 namespace rilo {
 namespace {

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "estimation/pipeline/range_consistency.h"
+#include "estimation/measurements/range_consistency.h"
 
 namespace rilo {
 namespace {

@@ -1,8 +1,8 @@
-// RangeImuGraphStream: the seed's graph delivered state by state. The oracle
+// RangeImuGraphStream: the Ranging-IMU Fusion paper's graph delivered state by state. The oracle
 // is the batch builder as it was before it moved onto the stream (kept below),
 // so the stream and today's buildRangeImuGraph are both checked against an
 // independent implementation.
-#include "estimation/pipeline/range_imu_graph_stream.h"
+#include "estimation/assembly/range_imu_graph_stream.h"
 
 #include <gtest/gtest.h>
 
@@ -15,12 +15,12 @@
 #include <tuple>
 #include <typeinfo>
 
+#include "estimation/assembly/range_imu_graph.h"
 #include "estimation/factors/imu_factor.h"
 #include "estimation/factors/prior_factors.h"
 #include "estimation/factors/range_factor.h"
-#include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/solver/batch_lm.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 #include "support/resting_imu.h"
 
 namespace rilo {

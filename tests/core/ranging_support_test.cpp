@@ -1,6 +1,6 @@
 // RangingSupport: when a check of where the estimate is may judge it
 // (LocalizerParams::max_outside_anchors_m).
-#include "estimation/pipeline/ranging_support.h"
+#include "estimation/tracking/ranging_support.h"
 
 #include <gtest/gtest.h>
 

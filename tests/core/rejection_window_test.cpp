@@ -1,5 +1,5 @@
 // The Localizer's windowed rejection-share rule in isolation.
-#include "estimation/pipeline/rejection_window.h"
+#include "estimation/tracking/rejection_window.h"
 
 #include <gtest/gtest.h>
 

@@ -1,9 +1,9 @@
-// SlidingWindowSmoother (seed 002, Sec. III-C6 / III-D4) against batch
+// SlidingWindowSmoother (IMU-Ultrasonic-UWB paper, Sec. III-C6 / III-D4) against batch
 // Levenberg-Marquardt and dense references:
 //   - no marginalization (window 0, or longer than the run): the batch optimum;
 //   - a linear Gaussian problem: marginalization is exact, so every variable
 //     in the window equals the batch solution over everything ever added;
-//   - the seed's range + IMU walk: the newest state stays close to batch;
+//   - the Ranging-IMU Fusion paper's range + IMU walk: the newest state stays close to batch;
 //   - bookkeeping: drained variables, input validation, rank deficiency,
 //     covariance, bounded priors, FEJ linearization points.
 #include <gtest/gtest.h>
@@ -15,12 +15,12 @@
 #include <set>
 #include <string>
 
+#include "estimation/assembly/range_imu_graph.h"
 #include "estimation/factors/prior_factors.h"
 #include "estimation/factors/range_factor.h"
-#include "estimation/pipeline/range_imu_graph.h"
 #include "estimation/smoother/sliding_window_smoother.h"
 #include "estimation/solver/batch_lm.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 #include "support/dense_reference.h"
 #include "support/incremental_feed.h"
 #include "support/online_run.h"
@@ -497,7 +497,7 @@ TEST(SlidingWindowSmoother, RangeImuWalkStateByStateNewestStaysCloseToBatch) {
 }
 
 TEST(SlidingWindowSmoother, RangeImuWalkOnlineNewestStaysCloseToBatch) {
-  // The seed's setting (40 Hz ranging with NLOS, asymmetric loss) through the
+  // The Ranging-IMU Fusion paper's setting (40 Hz ranging with NLOS, asymmetric loss) through the
   // online estimator, service defaults otherwise (1-2 iterations per update).
   // Measured (worst / mean position, tilt, yaw sigmas): window 2 s 7.6 /
   // 2.5 cm, 17 mrad, 0.25 (FEJ 10.8 / 4.2 cm, 17 mrad, 0.82); 0.5 s 8.5 /
@@ -520,7 +520,7 @@ TEST(SlidingWindowSmoother, RangeImuWalkOnlineNewestStaysCloseToBatch) {
 }
 
 TEST(SlidingWindowSmoother, OnlineEstimatorTracksTheTruth) {
-  // The seed's setting through RangeImuEstimator (states predicted from the
+  // The Ranging-IMU Fusion paper's setting through RangeImuEstimator (states predicted from the
   // smoother's own estimate): the newest state stays near the truth.
   sim::ScenarioParams sp;
   sp.duration_s = 15.0;

@@ -2,8 +2,8 @@
 
 #include <random>
 
-#include "estimation/math/pose3.h"
-#include "estimation/math/so3.h"
+#include "math/pose3.h"
+#include "math/so3.h"
 #include "support/random_states.h"
 
 namespace rilo {

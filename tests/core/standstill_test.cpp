@@ -1,6 +1,6 @@
 // StandstillDetector: a still, a turning and a walking body-worn IMU, the
 // window's coverage, what dropBefore keeps, and malformed parameters.
-#include "estimation/pipeline/standstill.h"
+#include "estimation/measurements/standstill.h"
 
 #include <gtest/gtest.h>
 

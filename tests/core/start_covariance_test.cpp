@@ -15,13 +15,14 @@
 #include <random>
 #include <vector>
 
+#include "estimation/assembly/range_imu_graph_stream.h"
+#include "estimation/assembly/start_covariance.h"
 #include "estimation/factors/prior_factors.h"
 #include "estimation/factors/range_factor.h"
-#include "estimation/pipeline/ekf_estimator.h"
-#include "estimation/pipeline/initializer.h"
-#include "estimation/pipeline/range_imu_graph_stream.h"
-#include "estimation/pipeline/start_covariance.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "estimation/init/initializer.h"
+#include "estimation/tracking/ekf_estimator.h"
+#include "estimation/tracking/hand_over.h"
+#include "sim/range_imu_scenario.h"
 #include "support/initializer_scenarios.h"
 #include "support/online_run.h"
 

@@ -11,9 +11,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "estimation/assembly/measurement_noise.h"
 #include "estimation/noise/tdoa_gap_excess.h"
-#include "estimation/pipeline/ekf_estimator.h"
-#include "estimation/pipeline/measurement_noise.h"
+#include "estimation/tracking/ekf_estimator.h"
 
 namespace rilo {
 namespace {

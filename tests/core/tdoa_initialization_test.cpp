@@ -1,5 +1,5 @@
 // Initialization and tracking from UWB TDoA (and ultrasonic ranges) alone:
-// seed 002's system without any two-way range. The Localizer's initializer
+// the IMU-Ultrasonic-UWB paper's system without any two-way range. The Localizer's initializer
 // takes the TDoA fix (spherical intersection, ultrasonic-enhanced) as the
 // window start, aligns yaw with the measurements of every kind and solves
 // the batch window with TDoA and ultrasonic factors; the tracking estimator
@@ -10,10 +10,10 @@
 #include <cstdio>
 #include <vector>
 
-#include "estimation/pipeline/localizer.h"
-#include "hal/sim/office_scenario.h"
-#include "hal/sim/office_tdoa.h"
-#include "hal/sim/office_ultrasonic.h"
+#include "estimation/tracking/localizer.h"
+#include "sim/office_scenario.h"
+#include "sim/office_tdoa.h"
+#include "sim/office_ultrasonic.h"
 #include "support/tdoa_row.h"
 
 namespace rilo {

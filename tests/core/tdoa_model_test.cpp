@@ -1,7 +1,7 @@
 // TdoaModel: how a TDoA row enters the estimators from its packets' receive
 // diagnostics (no diagnostics or unflagged: as configured; one packet flagged:
 // oriented so the flagged path is b's, NLOS-tail loss; both: widened).
-#include "estimation/pipeline/tdoa_model.h"
+#include "estimation/measurements/tdoa_model.h"
 
 #include <gtest/gtest.h>
 

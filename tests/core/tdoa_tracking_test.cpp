@@ -1,4 +1,4 @@
-// The range + IMU graph fed UWB TDoA instead of two-way ranges (seed 002's
+// The range + IMU graph fed UWB TDoA instead of two-way ranges (the IMU-Ultrasonic-UWB paper's
 // ranging), tracked by the incremental smoothers from the truth on a clean
 // simulated office walk: the stream's TDoA path end to end (measurement
 // grouping, TdoaFactor with anchors as variables, robust loss).
@@ -6,11 +6,11 @@
 
 #include <memory>
 
-#include "estimation/pipeline/localizer.h"
-#include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
-#include "hal/sim/office_scenario.h"
-#include "hal/sim/office_tdoa.h"
+#include "estimation/tracking/localizer.h"
+#include "estimation/tracking/range_imu_estimator.h"
+#include "sim/office_scenario.h"
+#include "sim/office_tdoa.h"
 
 namespace rilo {
 namespace {

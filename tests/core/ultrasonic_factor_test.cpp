@@ -7,8 +7,8 @@
 #include <random>
 #include <stdexcept>
 
-#include "estimation/math/so3.h"
 #include "estimation/noise/huber_loss.h"
+#include "math/so3.h"
 #include "support/numerical_jacobian.h"
 #include "support/random_states.h"
 #include "support/test_losses.h"

@@ -1,4 +1,4 @@
-// Tracking at the seed's lowest ranging rate (1 Hz total, Table II) on a
+// Tracking at the Ranging-IMU Fusion paper's lowest ranging rate (1 Hz total, Table II) on a
 // clean simulated office walk, started at the truth: what is left is the
 // estimator's own behaviour, not initialization or NLOS. Before D-iSAM2 took
 // the Gauss-Newton step for IMU-only states (SmootherParams,
@@ -12,11 +12,11 @@
 #include <string>
 #include <memory>
 
-#include "estimation/pipeline/localizer.h"
-#include "estimation/pipeline/range_imu_estimator.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
+#include "estimation/tracking/localizer.h"
+#include "estimation/tracking/range_imu_estimator.h"
 #include "evaluation/range_thinning.h"
-#include "hal/sim/office_scenario.h"
+#include "sim/office_scenario.h"
 
 namespace rilo {
 namespace {

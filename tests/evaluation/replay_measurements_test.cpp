@@ -1,4 +1,4 @@
-// replayRecording on second-system recordings (seed 002): range.csv is
+// replayRecording on second-system recordings (IMU-Ultrasonic-UWB paper): range.csv is
 // optional, --measurements chooses the kinds fed to the pipeline, --reception
 // drops UWB packets (a TDoA epoch's rows together, a range alone) from a seed,
 // and the per-kind counts say what was recorded, used and dropped.
@@ -13,7 +13,7 @@
 #include "eval_test_support.h"
 #include "evaluation/replay_run.h"
 #include "hal/recording/recording_reader.h"
-#include "hal/sim/office_recording.h"
+#include "sim/office_recording.h"
 
 namespace rilo {
 namespace {

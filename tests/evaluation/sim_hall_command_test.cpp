@@ -11,7 +11,7 @@
 #include "eval_test_support.h"
 #include "hal/recording/recording_files.h"
 #include "hal/recording/recording_reader.h"
-#include "hal/sim/office_recording.h"
+#include "sim/office_recording.h"
 
 namespace rilo {
 namespace {

@@ -1,4 +1,4 @@
-// The second system's table (seed 002 Table I; tdoa_report.h and
+// The second system's table (IMU-Ultrasonic-UWB paper, Table I; tdoa_report.h and
 // tdoa_report_markdown.h): the runs planned, the options refused, the
 // improvement figure, the tables and csv written from known results (a failed
 // baseline never flatters the proposal), one real run over a short simulated
@@ -126,21 +126,24 @@ TEST(TdoaReportMarkdown, TableOneImprovementPooledFiguresAndDivergedRuns) {
   const std::vector<ReportRecording> recs = twoRecordings();
   const std::string md = tdoaReportMarkdown(recs, res, ReportHeader());
   // Table I, online, full reception: cm per recording, pooled over poses, improvement.
-  EXPECT_NE(md.find("| Sliding window (seed 002) | 10.0 | 20.0 | 18.0 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| Sliding window (IMU-Ultrasonic-UWB paper) | 10.0 | 20.0 | 18.0 |"), std::string::npos) << md;
   EXPECT_NE(md.find("| EKF | 20.0 | 25.0 | 23.8 |"), std::string::npos) << md;
-  EXPECT_NE(md.find("| Improvement of Sliding window (seed 002) over EKF | +50 % | +20 % | +24 % |"), std::string::npos)
+  EXPECT_NE(md.find("| Improvement of Sliding window (IMU-Ultrasonic-UWB paper) over EKF | +50 % | +20 % | +24 % |"),
+            std::string::npos)
       << md;
   // 40 %: the diverged EKF run is Fail, left out of its pooled figure, and no improvement is claimed over it.
   const std::size_t reduced = md.find("## 40 % packet reception");
   ASSERT_NE(reduced, std::string::npos);
   const std::string tail = md.substr(reduced);
   EXPECT_NE(tail.find("| EKF | 30.0 | Fail | 30.0 (1 failed left out) |"), std::string::npos) << tail;
-  EXPECT_NE(tail.find("| Sliding window (seed 002) | 20.0 | 25.0 (1 re-init) |"), std::string::npos) << tail;
+  EXPECT_NE(tail.find("| Sliding window (IMU-Ultrasonic-UWB paper) | 20.0 | 25.0 (1 re-init) |"), std::string::npos)
+      << tail;
   EXPECT_NE(tail.find("over EKF | +33 % | – | – |"), std::string::npos) << tail;
-  EXPECT_NE(tail.find("| Sliding window (seed 002) | 1 of 2 | office-1 |"), std::string::npos) << tail;
+  EXPECT_NE(tail.find("| Sliding window (IMU-Ultrasonic-UWB paper) | 1 of 2 | office-1 |"), std::string::npos)
+      << tail;
   EXPECT_NE(tail.find("| EKF | 1 of 2 | office-1 |"), std::string::npos) << tail;
   EXPECT_NE(md.find("mean online error 40.00 m"), std::string::npos);
-  EXPECT_NE(md.find("12.3 cm"), std::string::npos);  // the seed's figures beside ours
+  EXPECT_NE(md.find("12.3 cm"), std::string::npos);  // the IMU-Ultrasonic-UWB paper's figures beside ours
   EXPECT_NE(md.find("21 ms"), std::string::npos);
   EXPECT_NE(md.find("first-path power by more than 15 dB gated"), std::string::npos) << md;  // the replay's default
 

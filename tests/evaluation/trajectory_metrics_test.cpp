@@ -6,7 +6,7 @@
 #include <cmath>
 #include <functional>
 
-#include "estimation/math/so3.h"
+#include "math/so3.h"
 
 namespace rilo {
 namespace {

@@ -7,8 +7,8 @@
 #include <ostream>
 #include <string>
 
-#include "estimation/math/so3.h"
 #include "eval_test_support.h"
+#include "math/so3.h"
 
 namespace rilo {
 namespace {

@@ -1,4 +1,4 @@
-// Office sessions with the second system (seed 002) written as recordings:
+// Office sessions with the second system (IMU-Ultrasonic-UWB paper) written as recordings:
 // TDoA and ultrasonic samples read back identically and replay through the
 // replay source, and the files of a session without them are exactly those
 // of before they existed (the committed golden-walk recording; imu, range
@@ -15,10 +15,10 @@
 #include "hal/recording/recording_files.h"
 #include "hal/recording/recording_reader.h"
 #include "hal/replay/replay_source.h"
-#include "hal/sim/office_recording.h"
-#include "hal/sim/office_tdoa.h"
-#include "hal/sim/office_ultrasonic.h"
 #include "replay_test_util.h"
+#include "sim/office_recording.h"
+#include "sim/office_tdoa.h"
+#include "sim/office_ultrasonic.h"
 #include "support/source_tree.h"
 
 namespace rilo::sim {

@@ -11,8 +11,8 @@
 #include "hal/recording/recording_files.h"
 #include "hal/recording/recording_reader.h"
 #include "hal/replay/replay_source.h"
-#include "hal/sim/office_recording.h"
 #include "replay_test_util.h"
+#include "sim/office_recording.h"
 
 namespace rilo {
 namespace {

@@ -15,12 +15,12 @@
 #include <utility>
 #include <vector>
 
-#include "hal/import/physics_check.h"
-#include "hal/import/util_import.h"
 #include "hal/recording/number_text.h"
 #include "hal/recording/recording_reader.h"
-#include "hal/sim/trajectory.h"
+#include "import/physics_check.h"
+#include "import/util_import.h"
 #include "replay_test_util.h"
+#include "sim/trajectory.h"
 
 namespace rilo {
 namespace {

@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "estimation/math/so3.h"
+#include "math/so3.h"
 #include "runtime/support/analytic_motion.h"
 
 namespace rilo {

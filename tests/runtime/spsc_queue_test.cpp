@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <thread>
 
-#include "hal/samples.h"
+#include "sensors/samples.h"
 
 namespace rilo {
 namespace {

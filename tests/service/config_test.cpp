@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "estimation/pipeline/localizer.h"
+#include "estimation/tracking/localizer.h"
 #include "rilod/config_reader.h"
 #include "rilod/service_setup.h"
 #include "service/service_test_support.h"
@@ -208,15 +208,15 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_EQ(s.max_relinearized_variables, 9);
   EXPECT_EQ(s.always_relinearize_recent_updates, 2);
   EXPECT_DOUBLE_EQ(s.wildfire_threshold, 0.002);
-  EXPECT_DOUBLE_EQ(s.lambda_initial, 1e-4);
-  EXPECT_DOUBLE_EQ(s.lambda_min, 1e-8);
-  EXPECT_DOUBLE_EQ(s.lambda_max, 1e4);
-  EXPECT_DOUBLE_EQ(s.lambda_increase, 5.0);
-  EXPECT_DOUBLE_EQ(s.lambda_decrease, 0.5);
-  EXPECT_FALSE(s.widen_damping);
-  EXPECT_EQ(s.acceptance, SmootherParams::Acceptance::kGlobal);
-  EXPECT_DOUBLE_EQ(s.trust_radius_initial, 0.5);
-  EXPECT_DOUBLE_EQ(s.trust_radius_min, 1e-6);
+  EXPECT_DOUBLE_EQ(s.d_isam2.lambda_initial, 1e-4);
+  EXPECT_DOUBLE_EQ(s.d_isam2.lambda_min, 1e-8);
+  EXPECT_DOUBLE_EQ(s.d_isam2.lambda_max, 1e4);
+  EXPECT_DOUBLE_EQ(s.d_isam2.lambda_increase, 5.0);
+  EXPECT_DOUBLE_EQ(s.d_isam2.lambda_decrease, 0.5);
+  EXPECT_FALSE(s.d_isam2.widen_damping);
+  EXPECT_EQ(s.d_isam2.acceptance, DIsam2Params::Acceptance::kGlobal);
+  EXPECT_DOUBLE_EQ(s.dogleg.trust_radius_initial, 0.5);
+  EXPECT_DOUBLE_EQ(s.dogleg.trust_radius_min, 1e-6);
 
   const RangeImuGraphParams& g = c.estimator.graph;
   EXPECT_EQ(g.range_loss, "huber");
@@ -313,7 +313,7 @@ TEST_F(ConfigTest, SmootherNamesMapToMethods) {
                                      std::pair{"dogleg", SmootherParams::Method::kDogleg}}) {
     const ServiceConfig c = parse(valid(std::string("estimator:\n  smoother: ") + name + "\n"));
     EXPECT_EQ(c.estimator.smoother.method, method) << name;
-    EXPECT_EQ(smootherName(method), name);
+    EXPECT_EQ(std::string_view(smootherMethodName(method)), name);
   }
 }
 

@@ -4,8 +4,8 @@
 
 #include <gtest/gtest.h>
 
-#include "estimation/math/so3.h"
 #include "estimation/noise/noise_model_factory.h"
+#include "math/so3.h"
 
 namespace rilo {
 namespace {

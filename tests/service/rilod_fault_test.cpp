@@ -16,9 +16,9 @@
 #include <vector>
 
 #include "hal/recording/recording_reader.h"
-#include "hal/sim/office_recording.h"
 #include "rilod_runner.h"
 #include "service_test_support.h"
+#include "sim/office_recording.h"
 
 namespace rilo {
 namespace {

@@ -1,5 +1,5 @@
 // rilod's Service with a source that also delivers UWB TDoA rows and
-// ultrasonic ranges (seed 002's system): they are counted on the status and
+// ultrasonic ranges (the IMU-Ultrasonic-UWB paper's system): they are counted on the status and
 // reach the estimator (more states, so more pose publications, than the same
 // session without them); rows naming anchors or beacons the configuration
 // does not know are counted but skipped, without ending tracking.
@@ -20,8 +20,8 @@
 #include "hal/recording/recording_reader.h"
 #include "hal/source.h"
 #include "rilod/service.h"
-#include "service_test_support.h"
 #include "service/support/vector_source.h"
+#include "service_test_support.h"
 
 namespace rilo {
 namespace {

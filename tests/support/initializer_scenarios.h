@@ -4,8 +4,8 @@
 // parameters for a scenario, bias priors as the device's turn-on spread.
 #include <cstdint>
 
-#include "estimation/pipeline/initializer.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "estimation/init/initializer.h"
+#include "sim/range_imu_scenario.h"
 #include "support/online_run.h"
 
 namespace rilo::testing {

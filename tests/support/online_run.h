@@ -4,8 +4,8 @@
 // a sample, process what is ready.
 #include <functional>
 
-#include "estimation/pipeline/range_imu_estimator.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "estimation/tracking/range_imu_estimator.h"
+#include "sim/range_imu_scenario.h"
 
 namespace rilo::testing {
 

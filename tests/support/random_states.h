@@ -3,8 +3,8 @@
 // engine in a fixed order, so a given seed reproduces the same states in every test.
 #include <random>
 
-#include "estimation/math/pose3.h"
-#include "estimation/math/types.h"
+#include "math/pose3.h"
+#include "math/types.h"
 
 namespace rilo::testing {
 

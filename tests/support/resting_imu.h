@@ -7,7 +7,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "hal/sim/range_imu_scenario.h"
+#include "sim/range_imu_scenario.h"
 
 namespace rilo::testing {
 

@@ -34,11 +34,11 @@ namespace rilo::testing {
 inline SmootherParams exactParams(SmootherParams::Method method) {
   SmootherParams p;
   p.method = method;
-  // The seed's literal acceptance (whole-graph error), whose guarantee the
+  // The Ranging-IMU Fusion paper's literal acceptance (whole-graph error), whose guarantee the
   // damped tests check; the service's default is kDampedFactors.
-  p.acceptance = SmootherParams::Acceptance::kGlobal;
+  p.d_isam2.acceptance = DIsam2Params::Acceptance::kGlobal;
   p.relinearize_max_age_s = 0.0;  // reference checks relinearize every state
-  p.widen_damping = true;         // what kGlobal needs
+  p.d_isam2.widen_damping = true;  // what kGlobal needs
   p.wildfire_threshold = 0.0;
   p.always_relinearize_recent_updates = 0;
   p.default_pose_threshold.setConstant(1e9);
@@ -51,11 +51,11 @@ inline SmootherParams exactParams(SmootherParams::Method method) {
 inline SmootherParams relinearizingParams(SmootherParams::Method method, double threshold) {
   SmootherParams p;
   p.method = method;
-  // The seed's literal acceptance (whole-graph error), whose guarantee the
+  // The Ranging-IMU Fusion paper's literal acceptance (whole-graph error), whose guarantee the
   // damped tests check; the service's default is kDampedFactors.
-  p.acceptance = SmootherParams::Acceptance::kGlobal;
+  p.d_isam2.acceptance = DIsam2Params::Acceptance::kGlobal;
   p.relinearize_max_age_s = 0.0;  // reference checks relinearize every state
-  p.widen_damping = true;         // what kGlobal needs
+  p.d_isam2.widen_damping = true;  // what kGlobal needs
   p.wildfire_threshold = 0.0;
   p.default_pose_threshold.setConstant(threshold);
   p.default_bias_threshold.setConstant(threshold);

@@ -2,7 +2,7 @@
 // One TDoA row for tests that feed estimators by hand.
 #include <cstdint>
 
-#include "hal/samples.h"
+#include "sensors/samples.h"
 
 namespace rilo::testing {
 

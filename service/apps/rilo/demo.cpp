@@ -3,10 +3,10 @@
 #include <chrono>
 #include <cstdio>
 
-#include "estimation/pipeline/range_imu_graph.h"
-#include "estimation/pipeline/trajectory_error.h"
+#include "estimation/assembly/range_imu_graph.h"
 #include "estimation/solver/batch_lm.h"
-#include "hal/sim/range_imu_scenario.h"
+#include "evaluation/trajectory_error.h"
+#include "sim/range_imu_scenario.h"
 
 namespace rilo::tool {
 namespace {

@@ -11,8 +11,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "evaluation/tum.h"
 #include "evaluation/json_text.h"
+#include "evaluation/tum.h"
 #include "hal/recording/number_text.h"
 #include "hal/recording/recording_files.h"
 #include "hal/recording/recording_reader.h"

@@ -12,10 +12,10 @@
 #include <string_view>
 #include <vector>
 
-#include "hal/import/physics_check.h"
-#include "hal/import/util_import.h"
 #include "hal/recording/number_text.h"
 #include "hal/recording/recording_files.h"
+#include "import/physics_check.h"
+#include "import/util_import.h"
 
 namespace rilo::tool {
 namespace {

@@ -260,7 +260,7 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
         .print();
     return;
   }
-  char tdoa[96] = "";  // seed 002's system only
+  char tdoa[96] = "";  // the IMU-Ultrasonic-UWB paper's system only
   if (s.tdoa_samples > 0 || s.ultrasonic_samples > 0) {
     std::snprintf(tdoa, sizeof tdoa, "  tdoa %llu (deep NLOS %llu)  ultrasonic %llu",
                   static_cast<unsigned long long>(s.tdoa_samples), static_cast<unsigned long long>(s.deep_nlos_tdoa_rows),

@@ -12,7 +12,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "estimation/pipeline/localizer.h"
+#include "estimation/tracking/localizer.h"
 #include "evaluation/report.h"
 #include "evaluation/report_markdown.h"
 #include "evaluation/tdoa_report.h"
@@ -110,7 +110,7 @@ sim::OfficePlanKind planKind(const std::string& name) {
   return name == "hall" ? sim::OfficePlanKind::kHall : name == "random" ? sim::OfficePlanKind::kRandom : sim::OfficePlanKind::kDefault;
 }
 
-/// `rilo report --system tdoa`: seed 002's table (evaluation/tdoa_report.h).
+/// `rilo report --system tdoa`: the IMU-Ultrasonic-UWB paper's table (evaluation/tdoa_report.h).
 int runTdoaReportCommand(const ReportCommandOptions& o) {
   TdoaReportOptions options;
   if (o.smoothers_given) options.estimators = o.smoothers;
@@ -275,8 +275,9 @@ void addReportCommand(CLI::App& app) {
       ->check(CLI::IsMember({"default", "random", "hall"}));
   cmd->add_option("--lag", o->lag_s, "Fixed lag of every smoother (s)")->capture_default_str()->check(CLI::Range(0.5, 600.0));
   cmd->add_option("--system", o->system,
-                  "twr: the matrix of seed 000 (two-way ranges); tdoa: the table of seed 002 (TDoA + ultrasonic: "
-                  "sliding window vs EKF vs D-iSAM2, full and reduced packet reception)")
+                  "twr: the Ranging-IMU Fusion paper's matrix (two-way ranges); tdoa: the IMU-Ultrasonic-UWB "
+                  "paper's table (TDoA + ultrasonic: sliding window vs EKF vs D-iSAM2, full and reduced packet "
+                  "reception)")
       ->capture_default_str()
       ->check(CLI::IsMember({"twr", "tdoa"}));
   cmd->add_option("--receptions", o->receptions,

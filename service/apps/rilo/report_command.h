@@ -1,11 +1,11 @@
 #pragma once
-// `rilo report REC... --out DIR`: runs the evaluation matrix of seed 000
+// `rilo report REC... --out DIR`: runs the evaluation matrix of the Ranging-IMU Fusion paper
 // Sec. VI (Tables I-III, Fig. 7, Fig. 1; evaluation/report.h) over recordings,
 // on worker threads with a progress bar on stderr, and writes DIR/report.md,
 // DIR/results.csv and DIR/figures/*.svg (evaluation/report_markdown.h).
 // With --sim-seeds it first simulates office sessions (the library behind
 // `rilo sim`) into DIR/recordings/.
-// --system tdoa runs the second system's table instead (seed 002 Table I:
+// --system tdoa runs the second system's table instead (IMU-Ultrasonic-UWB paper, Table I:
 // sliding window vs EKF vs D-iSAM2 on TDoA + ultrasonic recordings, at full
 // and reduced packet reception; evaluation/tdoa_report.h), with --sim-seeds
 // simulating TDoA + ultrasonic sessions (SS-TWR kept).
@@ -32,7 +32,7 @@ struct ReportCommandOptions {
   std::string sim_plan = "default";  ///< default | random | hall (as rilo sim --plan)
   double lag_s = 5.0;
   // --system tdoa
-  std::string system = "twr";  ///< twr (seed 000's matrix) | tdoa (seed 002's table)
+  std::string system = "twr";  ///< twr (Ranging-IMU Fusion paper's matrix) | tdoa (IMU-Ultrasonic-UWB paper's table)
   bool smoothers_given = false;  ///< --smoothers given: the TDoA table's estimators
   std::vector<double> receptions{1.0, 0.4};
   std::string measurements = "tdoa,ultrasonic";

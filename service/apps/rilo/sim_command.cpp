@@ -13,7 +13,7 @@
 #include <string>
 
 #include "hal/recording/recording_files.h"
-#include "hal/sim/office_recording.h"
+#include "sim/office_recording.h"
 
 namespace rilo::tool {
 namespace {
@@ -283,12 +283,13 @@ void addSimCommand(CLI::App& app) {
       cmd->add_flag("--tdoa", o->tdoa,
                     "UWB TDoA instead of SS-TWR: the anchors transmit in turn, the tag writes range differences "
                     "(tdoa.csv, meta ranging: tdoa)");
-  cmd->add_option("--tdoa-hz", o->tdoa_hz, "TDoA rounds per second, one packet from every anchor each (seed: 20 Hz)")
+  cmd->add_option("--tdoa-hz", o->tdoa_hz,
+                  "TDoA rounds per second, one packet from every anchor each (the IMU-Ultrasonic-UWB paper: 20 Hz)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 200.0))
       ->needs(tdoa);
   cmd->add_option("--packet-reception", o->packet_reception,
-                  "Probability that the tag receives a TDoA packet of an anchor it hears (seed's worst case: 0.4)")
+                  "Probability that the tag receives a TDoA packet of an anchor it hears (that paper's worst case: 0.4)")
       ->capture_default_str()
       ->check(CLI::Range(0.01, 1.0))
       ->needs(tdoa);
@@ -300,12 +301,12 @@ void addSimCommand(CLI::App& app) {
   CLI::Option* ultrasonic = cmd->add_flag(
       "--ultrasonic", o->ultrasonic,
       "Ultrasonic beacons on the ceiling and a receiver on the body (anchors of kind ultrasonic, ultrasonic.csv)");
-  cmd->add_option("--ultrasonic-beacons", o->ultrasonic_beacons, "Number of ultrasonic beacons (seed: 4)")
+  cmd->add_option("--ultrasonic-beacons", o->ultrasonic_beacons, "Number of ultrasonic beacons (the paper: 4)")
       ->capture_default_str()
       ->check(CLI::Range(1, 64))
       ->needs(ultrasonic);
   cmd->add_option("--ultrasonic-hz", o->ultrasonic_hz,
-                  "Pings per beacon per second (seed: 10 Hz; beacons x rate x max range / 343 m/s must stay below 1)")
+                  "Pings per beacon per second (the paper: 10 Hz; beacons x rate x max range / 343 m/s must stay below 1)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 100.0))
       ->needs(ultrasonic);

@@ -1,15 +1,15 @@
 #pragma once
 // `rilo sim OUT`: simulate a person walking through an office with a UWB tag
-// and an IMU (hal/sim/office_scenario.h) and write the session as a recording
+// and an IMU (sim/office_scenario.h) and write the session as a recording
 // folder (docs/recording-format.md), then print a short summary. With --tdoa
-// the tag listens to UWB TDoA instead of SS-TWR ranging (hal/sim/office_tdoa.h),
+// the tag listens to UWB TDoA instead of SS-TWR ranging (sim/office_tdoa.h),
 // with --ultrasonic ceiling beacons add ultrasonic ranges (office_ultrasonic.h).
 // --plan hall simulates an open hall with the anchors around it instead of an
-// office floor (hal/sim/office_hall.h).
+// office floor (sim/office_hall.h).
 #include <cstdint>
 #include <string>
 
-#include "hal/sim/walk.h"
+#include "sim/walk.h"
 
 namespace CLI {
 class App;
@@ -35,15 +35,15 @@ struct SimOptions {
   double body_height_m = sim::WalkParams{}.body_height_m;  ///< IMU height of the standing wearer (m); the tag sits 0.1 m above it
   bool force = false;            ///< replace a recording already in `out`
 
-  // Second system (seed 002): UWB TDoA and ultrasonic beacons, off by default.
+  // Second system (IMU-Ultrasonic-UWB paper): UWB TDoA and ultrasonic beacons, off by default.
   bool tdoa = false;             ///< TDoA instead of SS-TWR (meta ranging: tdoa)
-  double tdoa_hz = 20.0;         ///< TDoA rounds per second, one packet per anchor each (seed: 20 Hz)
-  double packet_reception = 0.95;  ///< P(a heard TDoA packet is received) (seed's worst case: 0.4)
+  double tdoa_hz = 20.0;         ///< TDoA rounds per second, one packet per anchor each (paper: 20 Hz)
+  double packet_reception = 0.95;  ///< P(a heard TDoA packet is received) (paper's worst case: 0.4)
   double tdoa_sigma = 0.15;      ///< LOS noise of a TDoA difference (m)
   bool keep_twr = false;         ///< with tdoa: also write the SS-TWR ranges
   bool ultrasonic = false;       ///< ultrasonic beacons and ultrasonic.csv
-  int ultrasonic_beacons = 4;    ///< seed: 4 transceivers
-  double ultrasonic_hz = 10.0;   ///< pings per beacon per second (seed: 10 Hz)
+  int ultrasonic_beacons = 4;    ///< paper: 4 transceivers
+  double ultrasonic_hz = 10.0;   ///< pings per beacon per second (paper: 10 Hz)
   double ultrasonic_range = 8.0; ///< max range (m)
   double ultrasonic_sigma = 0.02;  ///< range noise (m)
   double sound_speed_error = 0.0;  ///< ranges (1 + e) times too long (temperature)

@@ -81,7 +81,7 @@ struct EkfParams {
 
   /// EkfEstimator: per-link measurement sigmas from DynamicCovariance, fed
   /// with each update's innovation and its predicted variance H P H^T
-  /// (estimation/pipeline/measurement_noise.h). The filter itself ignores it.
+  /// (estimation/assembly/measurement_noise.h). The filter itself ignores it.
   DynamicCovarianceOptions dynamic_covariance;
 
   /// Throws std::invalid_argument naming the first bad field (also ImuParams'

@@ -11,8 +11,8 @@
 // choice: the position covariance is the world covariance the publisher
 // wants). The smoother's Pose3 chart has rho = R^T dp in the body frame;
 // poseCovarianceInRetractionChart() in error_state_ekf.h converts.
-#include "estimation/math/imu_bias.h"
-#include "estimation/math/pose3.h"
+#include "math/imu_bias.h"
+#include "math/pose3.h"
 
 namespace rilo {
 

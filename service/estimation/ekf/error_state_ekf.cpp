@@ -9,7 +9,6 @@
 #include <string>
 
 #include "estimation/ekf/ekf_propagation.h"
-#include "estimation/pipeline/range_imu_graph_stream.h"
 
 namespace rilo {
 namespace {

@@ -1,7 +1,7 @@
 #pragma once
 // Error-state EKF for UWB ranging (TWR), TDoA and ultrasonic ranges with IMU
 // propagation: the filtering baseline rilo's smoother is compared against
-// (seed 002's "EKF" column) and a cheap fallback estimator.
+// (the IMU-Ultrasonic-UWB paper's "EKF" column) and a cheap fallback estimator.
 //
 // State and chart: ekf_state.h (nominal R_w_b, p_w_b, v_w, b_a, b_g; 15-dim
 // error [dtheta body/right, dp world, dv world, dba, dbg]).
@@ -60,23 +60,23 @@
 // TDoA groups, gate recovery (updateTdoaGroup) lets such rows back in once the
 // refused share stays high, and EkfParams::velocity_noise_density keeps the
 // velocity from being trusted beyond what persistent NLOS errors allow
-// (issue 7: office sims 4, 6, 7, 11 ran away at 2-3 m/s with both off). In
-// simulation (tests/core/ekf_tracking_test.cpp) the mean NEES is 17-19.5 for
-// 15 dof, the theta and gyro-bias blocks slightly overconfident (3.4-4.2 for
-// 3): the usual EKF linearization optimism, no stabilising noise is added.
-// On the office TDoA sims (NLOS excess persistent over seconds, treated as
-// white) the position sigma stays 5-15 cm against 0.2-1 m errors; and a
-// start whose velocity is metres per second off with a tight covariance
-// (office sims 4 and 6, where D-iSAM2 runs away too and the sliding window
-// does not) slides along a TDoA hyperbola the few audible anchors cannot
-// pin, with small innovations, until the Localizer's rejection share
-// re-initializes it.
+// (issue 7: office sims ran away with both off). In simulation
+// (tests/core/ekf_tracking_test.cpp) the mean NEES is a little above its
+// dof, the theta and gyro-bias blocks slightly overconfident: the usual EKF
+// linearization optimism, no stabilising noise is added. On the office TDoA
+// sims (NLOS excess persistent over seconds, treated as white) the position
+// sigma stays several times below the error; and a start whose velocity is
+// metres per second off with a tight covariance (where D-iSAM2 runs away too
+// and the sliding window does not) slides along a TDoA hyperbola the few
+// audible anchors cannot pin, with small innovations, until the Localizer's
+// rejection share re-initializes it. Figures: docs/noise-models.md, Figures
+// behind the defaults.
 //
 // TDoA groups (updateTdoaGroup) exist because, on the office sims, one-by-one
 // scalar updates of a group's rows with a 1-dof gate each were both more
-// erratic (online RMSE 48 / 80 / 37 cm on seeds 1-3 against 52 / 47 / 30 cm
-// grouped, same per-link sigmas) and wrong in principle: rows of one TDMA
-// round share anchors, so their errors are correlated.
+// erratic (measured: docs/noise-models.md, Figures behind the defaults) and
+// wrong in principle: rows of one TDMA round share anchors, so their errors
+// are correlated.
 #include <cstdint>
 #include <optional>
 
@@ -85,12 +85,11 @@
 #include "estimation/ekf/ekf_results.h"
 #include "estimation/ekf/ekf_state.h"
 #include "estimation/factors/ultrasonic_factor.h"
+#include "estimation/imu/state_estimate.h"
 #include "estimation/noise/robust_loss.h"
-#include "hal/samples.h"
+#include "sensors/samples.h"
 
 namespace rilo {
-
-struct StateEstimate;  // estimation/pipeline/range_imu_graph_stream.h
 
 /// One TDoA row of a group update: diff_m = |tag - B| - |tag - A| (m) with
 /// std-dev sigma_m; the anchor ids say which rows share a path (correlation).
@@ -194,7 +193,7 @@ class ErrorStateEkf {
   const EkfState& state() const { return x_; }
   const Mat15& covariance() const { return P_; }      ///< error covariance, order of ekf_state.h
   /// The state as the pipeline reports it (t_ns, pose, velocity, bias; index
-  /// as given to initialize()). Callers include range_imu_graph_stream.h.
+  /// as given to initialize()).
   StateEstimate estimate() const;
   /// 6x6 pose covariance in the smoother's Pose3 chart [phi; rho], rho = R^T dp (body).
   Mat6 poseCovarianceInRetractionChart() const;

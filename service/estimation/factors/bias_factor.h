@@ -1,5 +1,5 @@
 #pragma once
-// Between-factor of the IMU bias process (seed 000 Sec. III-A): each of the
+// Between-factor of the IMU bias process (Ranging-IMU Fusion paper, Sec. III-A): each of the
 // six bias axes follows a first-order Gauss-Markov process
 //   db/dt = -b / tau + w,  w white with driving density q   (see ImuParams),
 // so over dt

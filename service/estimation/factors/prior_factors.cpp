@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "estimation/math/so3.h"
+#include "math/so3.h"
 
 namespace rilo {
 namespace {

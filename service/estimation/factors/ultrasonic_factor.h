@@ -1,8 +1,8 @@
 #pragma once
-// Ultrasonic range with an optional elevation constraint (seed 002,
+// Ultrasonic range with an optional elevation constraint (IMU-Ultrasonic-UWB paper,
 // Sec. III-C4 eq. 18-20 and Sec. III-D3 eq. 26).
 //
-// The seed's formulas did not survive text extraction; its prose defines a
+// The IMU-Ultrasonic-UWB paper's formulas did not survive text extraction; its prose defines a
 // range residual to an ultrasonic anchor, plus "an elevation constraint based
 // on the vertical component of the tag position", n^T (p_tag - p_anchor) -
 // delta_h with n the vertical normal and delta_h the height difference between
@@ -19,7 +19,7 @@
 // tag on a vehicle; sigma_height says how well that height is known.
 //
 // Signs: row 0 follows the range convention (r > 0 <=> measured longer than
-// predicted, the NLOS side). Row 1 is as in the seed, predicted minus expected
+// predicted, the NLOS side). Row 1 is as in the IMU-Ultrasonic-UWB paper, predicted minus expected
 // height difference (r > 0 <=> the tag is higher than delta_h says).
 //
 // Robust losses: the 1-dim form passes the signed residual to any loss. The

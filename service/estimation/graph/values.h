@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "estimation/graph/key.h"
-#include "estimation/math/imu_bias.h"
-#include "estimation/math/pose3.h"
+#include "math/imu_bias.h"
+#include "math/pose3.h"
 
 namespace rilo {
 

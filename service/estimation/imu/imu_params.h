@@ -6,7 +6,7 @@
 // density / sqrt(dt)).
 //
 // Bias model, per axis, accelerometer and gyroscope separately: first-order
-// Gauss-Markov (seed 000 Sec. III-A)
+// Gauss-Markov (Ranging-IMU Fusion paper, Sec. III-A)
 //     db/dt = -b / tau + w,   w white with driving density q.
 // Parametrized by (q, tau) so that both cases are one formula:
 //   - tau finite: transition Phi(dt) = exp(-dt/tau), added variance
@@ -17,7 +17,7 @@
 // set*BiasGaussMarkov(sigma, tau), which sets q = sigma sqrt(2/tau).
 #include <limits>
 
-#include "estimation/math/types.h"
+#include "math/types.h"
 
 namespace rilo {
 
@@ -44,7 +44,7 @@ struct ImuParams {
   // steady-state sigmas, 0.026 dps and 2.3 mg, are of the size of the
   // in-run (temperature) drift after factory calibration; the turn-on offset
   // belongs in the bias prior. UNVERIFIED for the BMI263: fit them to an
-  // Allan-variance recording of the device, as seed 000 did.
+  // Allan-variance recording of the device, as the Ranging-IMU Fusion paper did.
   double gyro_bias_random_walk = 2.0e-5;   ///< q_g, rad/s^2/sqrt(Hz)
   double accel_bias_random_walk = 1.0e-3;  ///< q_a, m/s^3/sqrt(Hz)
   double gyro_bias_tau_s = 1000.0;         ///< gyro bias correlation time (s); kRandomWalk = random walk
@@ -62,11 +62,11 @@ struct ImuParams {
   // Such an interval gets, on top of the white noise, a per-interval input
   // variance of (gap sigma)^2, i.e. an unknown constant accel/rate deviation
   // over the gap: velocity sigma gap_accel * dt, rotation sigma gap_gyro * dt.
-  // Without it a 0.6 s gap was integrated as exactly known and the smoother
-  // pushed the error into the biases (gyro bias 5-9x its value, tracking
-  // 0.39 -> 0.52 m; 0.9 s gaps ended tracking 23 s later). Defaults: a
-  // walking person's accel and turn-rate variability. Must exceed the
-  // nominal sample interval (0.02 s: IMU rates >= 50 Hz).
+  // Without it a gap was integrated as exactly known and the smoother pushed
+  // the error into the biases (measured: docs/noise-models.md, Figures behind
+  // the defaults). Defaults: a walking person's accel and turn-rate
+  // variability. Must exceed the nominal sample interval (0.02 s: IMU rates
+  // >= 50 Hz).
   double gap_threshold_s = 0.02;
   double gap_accel_sigma_m_s2 = 2.0;
   double gap_gyro_sigma_rad_s = 0.5;

@@ -44,8 +44,8 @@
 // Limits: theta must stay below 2 pi (Jr^-1 is singular there), i.e. well
 // under one full turn between two states. integrate() never allocates.
 #include "estimation/imu/imu_params.h"
-#include "estimation/math/imu_bias.h"
-#include "estimation/math/pose3.h"
+#include "math/imu_bias.h"
+#include "math/pose3.h"
 
 namespace rilo {
 

@@ -1,5 +1,5 @@
 #pragma once
-// Asymmetric LOS/NLOS range loss of seed 000 (Sec. III-B, eq. 6-7, Fig. 2),
+// Asymmetric LOS/NLOS range loss of the Ranging-IMU Fusion paper (Sec. III-B, eq. 6-7, Fig. 2),
 // implemented as a max-mixture (Olson & Agarwal 2013).
 //
 // Model of the whitened range excess eps = (measured - true range) / sigma_los:

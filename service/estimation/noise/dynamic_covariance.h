@@ -1,8 +1,8 @@
 #pragma once
-// Online per-link noise level from recent residuals: seed 002's "dynamic
+// Online per-link noise level from recent residuals: the IMU-Ultrasonic-UWB paper's "dynamic
 // covariance estimation mechanism, which automatically adjusts measurement
 // weights based on real-time channel conditions" (abstract, Sec. VI) and its
-// "adaptive TDoA covariance scaling" (contributions). The seed gives no
+// "adaptive TDoA covariance scaling" (contributions). The paper gives no
 // formula for it; this is our design.
 //
 // One entry per key: a UWB anchor for ranges, an ultrasonic beacon, an anchor
@@ -78,7 +78,7 @@ struct NoiseKindParams {
 };
 
 struct DynamicCovarianceParams {
-  NoiseKindParams range{0.15, 0.05, 2.0};       ///< UWB TWR (seed 000: 0.1-0.2 m LOS)
+  NoiseKindParams range{0.15, 0.05, 2.0};       ///< UWB TWR (Ranging-IMU Fusion paper: 0.1-0.2 m LOS)
   NoiseKindParams tdoa{0.15, 0.05, 2.0};        ///< UWB TDoA difference
   NoiseKindParams ultrasonic{0.02, 0.005, 0.5}; ///< ultrasonic (cm-level in LOS)
   int max_keys = 64;                ///< table capacity (keys of all kinds together)
@@ -102,13 +102,13 @@ struct DynamicCovarianceOptions {
   /// Kinds whose sigmas are estimated (the others keep their configured
   /// sigma). Two-way ranges are off: their asymmetric loss already models the
   /// NLOS tail, and a second moment inflated by it widens the loss's Gaussian
-  /// core (replays of the office and hall sims: 4-50 % worse RMSE with them).
+  /// core (worse RMSE on the office and hall sims; measured:
+  /// docs/noise-models.md, Figures behind the defaults).
   bool range = false;
   bool tdoa = true;
   /// Ultrasonic beacons: off for the same reason (their loss is the
-  /// asymmetric one too). Six TDoA + ultrasonic sims, online RMSE: sliding
-  /// window 0.234 -> 0.220 m, at 40 % reception 0.277 -> 0.269; the EKF is
-  /// mixed (0.276 -> 0.283, at 40 % 0.338 -> 0.322).
+  /// asymmetric one too); measured: docs/noise-models.md, "TDoA rows the
+  /// receiver flags (session 15)".
   bool ultrasonic = false;
 };
 

@@ -1,5 +1,5 @@
 #pragma once
-// The NLOS component of the asymmetric model (asymmetric_loss.h, seed 000
+// The NLOS component of the asymmetric model (asymmetric_loss.h, Ranging-IMU Fusion paper,
 // eq. 7) alone, for a range that the receiver itself flags as NLOS (the
 // DW1000/DW3000 RX-level-minus-first-path-power indicator; RangeNoiseParams::
 // nlos_power_gap_db). The mixture would treat such a range as LOS whenever

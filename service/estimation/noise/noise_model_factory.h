@@ -15,11 +15,11 @@
 namespace rilo {
 
 struct RangeNoiseParams {
-  /// IQR of N(0, 1): 2 * 0.6744897501960817. The seed (000, Sec. III-B)
+  /// IQR of N(0, 1): 2 * 0.6744897501960817. The Ranging-IMU Fusion paper (Sec. III-B)
   /// derives the half-Cauchy scale from the IQR of the Gaussian ranging noise.
   static constexpr double kGaussianIqrPerSigma = 1.3489795003921634;
 
-  double sigma_m = 0.15;      ///< LOS range std-dev [m] (seed 000: 0.1-0.2 m for UWB first-path noise)
+  double sigma_m = 0.15;      ///< LOS range std-dev [m] (Ranging-IMU Fusion paper: 0.1-0.2 m for UWB first-path noise)
   double huber_k = 1.345;     ///< Huber threshold [sigmas]
   double cauchy_c = 2.3849;   ///< Cauchy scale [sigmas]
   /// Half-Cauchy scale gamma of the NLOS excess [m]; unset: IQR heuristic
@@ -42,22 +42,18 @@ struct RangeNoiseParams {
   /// Half-Cauchy scale of a flagged range's excess [m]; unset: with the
   /// component, kDefaultFlaggedComponentScaleM widened for the ranging rate
   /// (flaggedComponentScaleAt, at most NlosComponentLoss::kMaxGamma LOS
-  /// sigmas); with the mixture, nlos_scale_m. Fixed 0.7 / 1 / 1.5 / 2 / 3 m:
-  /// 0.347 / 0.339 / 0.319 / 0.316 / 0.317 m online on the 11 issue-4 sims
-  /// at 40 Hz; at 1 Hz 2 m gave 0.629 against 0.599 for 1 m.
+  /// sigmas); with the mixture, nlos_scale_m. Fixed scales measured in
+  /// docs/noise-models.md ("Figures behind the defaults").
   std::optional<double> flagged_nlos_scale_m;
   static constexpr double kDefaultFlaggedComponentScaleM = 1.0;
   /// Two-way ranging faster than this (Hz) widens the component's default
   /// scale by sqrt(rate / this) (flaggedComponentScaleAt; the Localizer
   /// applies it with the rate of the data tracking starts on). Why: an NLOS
   /// excess persists for seconds, so successive flagged ranges of an anchor
-  /// share most of it, while the factors treat them as independent. With
-  /// this rule (about 2 m at 40 Hz) the 11 issue-4 sims at 40 Hz went 0.339
-  /// -> 0.319 m online (10 held-out 0.347 -> 0.325, 6 NLOS-severity sims
-  /// 0.310 -> 0.287), 20 Hz 0.367 -> 0.365; a fixed 2 m was slightly worse
-  /// at 4 Hz (0.435 -> 0.442) and clearly at 1 Hz (0.599 -> 0.629), hence
-  /// no widening up to 10 Hz. Worse on the 24 s golden walk (84 % NLOS,
-  /// 0.56 -> 0.76 m; docs/noise-models.md). 0: off.
+  /// share most of it, while the factors treat them as independent. The rule
+  /// (about 2 m at 40 Hz) helps at high rates, while a fixed wide scale hurts
+  /// at low ones, hence no widening up to 10 Hz; measured in
+  /// docs/noise-models.md ("Figures behind the defaults"). 0: off.
   double flagged_scale_reference_hz = 10.0;
 
   /// gamma in metres after applying the default.
@@ -98,7 +94,7 @@ inline RangeNoiseParams withSigma(RangeNoiseParams params, double sigma_m) {
 const std::vector<std::string>& rangeLossNames();
 
 /// "gaussian" | "huber" | "cauchy" | "asymmetric" (convolved NLOS component,
-/// seed 000 eq. 7) | "asymmetric-half-cauchy" (seed 000 Fig. 2b). Never returns
+/// Ranging-IMU Fusion paper, eq. 7) | "asymmetric-half-cauchy" (Ranging-IMU Fusion paper, Fig. 2b). Never returns
 /// null. Throws std::invalid_argument for an unknown name (the message lists the
 /// valid ones) or an invalid parameter (the message names it).
 RobustLossPtr makeRangeLoss(const std::string& name, const RangeNoiseParams& params = {});

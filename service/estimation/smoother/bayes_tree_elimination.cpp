@@ -316,21 +316,6 @@ void BayesTreeSmoother::scatterRows(const RowMajorMatrixXd& blocks, const std::v
   }
 }
 
-Vec6 BayesTreeSmoother::informationDiagonal(VarId v) const {
-  Vec6 h = Vec6::Zero();
-  for (FactorId f : vars_[v].factors) {
-    const FactorSlot& fs = factors_[f];
-    int src = 0;
-    for (VarId u : fs.vars) {
-      if (u == v) {
-        h.head(vars_[v].dim) += fs.linear.middleCols(src, vars_[v].dim).colwise().squaredNorm().transpose();
-      }
-      src += vars_[u].dim;
-    }
-  }
-  return h;
-}
-
 void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& stats) {
   Clique& q = cliques_[c];
   int col = 0;
@@ -368,15 +353,14 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     }
   };
   for (int attempt = 0; attempt < 2; ++attempt) {
-    // Row sources: assigned factors, children's messages, damping rows, and
+    // Row sources: assigned factors, children's messages, D-iSAM2's damping
+    // rows (d_isam2_step.cpp), and
     // (second attempt) regularization rows; each row with a lower bound of
     // its first nonzero column, for the staircase QR.
     int rows = 0;
     for (FactorId f : q.factors) rows += static_cast<int>(factors_[f].linear.rows());
     for (CliqueId ch : q.children) rows += static_cast<int>(cliques_[ch].message.rows());
-    for (VarId v : q.frontals) {
-      if (lambda > 0.0 && vars_[v].damped == damp_stamp_) rows += vars_[v].dim;
-    }
+    rows += dampingRowCount(q, lambda);
     if (regularize) rows += fd;
 
     row_leading_.resize(rows);
@@ -387,11 +371,7 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
     for (CliqueId ch : q.children) {
       appendTriangularLeading(cliques_[ch].separator, static_cast<int>(cliques_[ch].message.rows()), r);
     }
-    for (VarId v : q.frontals) {
-      if (lambda > 0.0 && vars_[v].damped == damp_stamp_) {
-        for (int i = 0; i < vars_[v].dim; ++i) row_leading_[r++] = vars_[v].col + i;
-      }
-    }
+    appendDampingLeading(q, lambda, r);
     if (regularize) {
       for (int i = 0; i < fd; ++i) row_leading_[r++] = i;
     }
@@ -423,21 +403,7 @@ void BayesTreeSmoother::eliminateClique(CliqueId c, double lambda, UpdateStats& 
       scatterRows(cliques_[ch].message, cliques_[ch].separator, W, n, dest.data() + r, 0);
       r += static_cast<int>(cliques_[ch].message.rows());
     }
-    // Levenberg-Marquardt rows sqrt(lambda * h_ii) (delta_i - c_i), h_ii the
-    // diagonal of J^T J (Marquardt): lambda is dimensionless across a stiff
-    // IMU position (h ~ 1e10) and a weak yaw. Centred on the accepted delta c,
-    // so a large lambda keeps the variable where it is instead of pulling it
-    // back to theta.
-    for (VarId v : q.frontals) {
-      if (lambda > 0.0 && vars_[v].damped == damp_stamp_) {
-        const Vec6 h = informationDiagonal(v);
-        for (int i = 0; i < vars_[v].dim; ++i, ++r) {
-          const double scale = std::sqrt(lambda * std::clamp(h[i], kMinDampingDiagonal, kMaxDampingDiagonal));
-          W(dest[r], vars_[v].col + i) = scale;
-          W(dest[r], n) = scale * vars_[v].damping_center[i];
-        }
-      }
-    }
+    writeDampingRows(q, lambda, W, n, dest.data(), r);
     if (regularize) {
       const double s = std::sqrt(params_.regularization);
       for (int i = 0; i < fd; ++i, ++r) W(dest[r], i) = s;

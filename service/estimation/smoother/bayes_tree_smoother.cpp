@@ -18,8 +18,8 @@ constexpr int kErrorResumInterval = 256;  // updates between exact re-sums of th
 
 BayesTreeSmoother::BayesTreeSmoother(SmootherParams params) : params_(std::move(params)) {
   params_.validate();
-  lambda_ = params_.lambda_initial;
-  trust_radius_ = params_.trust_radius_initial;
+  lambda_ = params_.d_isam2.lambda_initial;
+  trust_radius_ = params_.dogleg.trust_radius_initial;
 }
 
 BayesTreeSmoother::~BayesTreeSmoother() = default;
@@ -149,48 +149,14 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
   relinearize(marked, marginalizable, stats);
   markForCleanMarginalization(marginalizable, marked, stats);
 
-  // D-iSAM2 damps the new variables: they are ordered last, into the root.
-  damp_stamp_ = newStamp();
-  // D-iSAM2 damps the new variables (ordered last, into the root); an update
-  // without new variables damps the keys of its new factors, and one without
-  // either (an extra iteration) the whole re-eliminated top.
+  // Marked before the tree is updated: its elimination adds the damping rows.
   std::vector<VarId> damped;
-  double added_error = 0.0;  // of the new factors at the estimate before the step
-  for (FactorId f : added) added_error += factors_[f].error;
-  const bool damp = params_.method == SmootherParams::Method::kDamped &&
-                    (added.empty() || added_error > params_.damping_min_new_error);
-  if (damp) {
-    for (const auto& [key, value] : new_values) damped.push_back(key_to_var_.at(key));
-    if (damped.empty()) {
-      for (FactorId f : added) damped.insert(damped.end(), factors_[f].vars.begin(), factors_[f].vars.end());
-    }
-    for (VarId v : damped) {
-      vars_[v].damped = damp_stamp_;
-      vars_[v].damping_center = vars_[v].step;
-    }
-  }
+  const bool damp = markDampedVariables(added, new_values, damped);
   updateTree(marked, added, stats);
 
   switch (params_.method) {
     case SmootherParams::Method::kGaussNewton: stepGaussNewton(stats); break;
-    case SmootherParams::Method::kDamped: {
-      if (!damp) {  // the new factors agree with the estimate: nothing to damp (SmootherParams)
-        stepGaussNewton(stats);
-        break;
-      }
-      const bool damp_top = damped.empty();
-      if (damp_top) {
-        for (CliqueId c : top_cliques_) {
-          for (VarId v : cliques_[c].frontals) {
-            vars_[v].damped = damp_stamp_;
-            vars_[v].damping_center = vars_[v].step;
-            damped.push_back(v);
-          }
-        }
-      }
-      stepDamped(damped, damp_top, stats);
-      break;
-    }
+    case SmootherParams::Method::kDamped: stepDamped(damp, damped, stats); break;
     case SmootherParams::Method::kDogleg: stepDogleg(stats); break;
   }
   for (CliqueId c : top_cliques_) cliques_[c].replaced = false;  // only the top was re-eliminated

@@ -1,8 +1,9 @@
 #pragma once
 // Incremental smoothing on our own Bayes tree (iSAM2, Kaess et al. 2012), with
-// the step policies of seed 000: plain iSAM2 (Gauss-Newton), D-iSAM2
-// (Levenberg-Marquardt damping on the newest variables, Alg. 1) and RISE
-// (incremental Powell's dog-leg); optional fixed-lag marginalization.
+// the step policies of the Ranging-IMU Fusion paper, one file each: plain iSAM2 (Gauss-Newton,
+// isam2_step.cpp), D-iSAM2 (Levenberg-Marquardt damping on the newest
+// variables, Alg. 1: d_isam2_step.cpp) and RISE (incremental Powell's
+// dog-leg: dogleg_step.cpp); optional fixed-lag marginalization.
 //
 // update():
 //   1. insert new variables (delta 0) and pick the variables to marginalize;
@@ -155,8 +156,15 @@ class BayesTreeSmoother final : public Smoother {
   void markForCleanMarginalization(const std::vector<VarId>& marginalizable, std::vector<VarId>& marked,
                                    UpdateStats& stats);
   void updateTree(const std::vector<VarId>& marked, const std::vector<FactorId>& new_factors, UpdateStats& stats);
+  // Step policies, one file each: isam2_step.cpp, d_isam2_step.cpp, dogleg_step.cpp.
   void stepGaussNewton(UpdateStats& stats);
-  void stepDamped(const std::vector<VarId>& damped_vars, bool eliminate_first, UpdateStats& stats);
+  /// D-iSAM2: marks the variables this update damps (damp_stamp_) and says
+  /// whether it damps at all; before updateTree, whose elimination adds the
+  /// damping rows.
+  bool markDampedVariables(const std::vector<FactorId>& added, const Values& new_values, std::vector<VarId>& damped);
+  /// D-iSAM2's lambda loop over the damped variables (the Gauss-Newton step
+  /// when `damp` is false; the whole re-eliminated top when none are marked).
+  void stepDamped(bool damp, std::vector<VarId>& damped_vars, UpdateStats& stats);
   void stepDogleg(UpdateStats& stats);
   void marginalize(const std::vector<VarId>& marginalizable, UpdateStats& stats);
 
@@ -194,6 +202,13 @@ class BayesTreeSmoother final : public Smoother {
   double dampedFactorsErrorChange() const;
   /// Diagonal of J^T J for variable v over its factors (scales the damping).
   Vec6 informationDiagonal(VarId v) const;
+  /// D-iSAM2's damping rows on the damped frontals of clique q (none at
+  /// lambda 0): their count, their leading columns (row_leading_ from r), and
+  /// their values in W (rows dest[r...], right-hand side at rhs_col).
+  int dampingRowCount(const Clique& q, double lambda) const;
+  void appendDampingLeading(const Clique& q, double lambda, int& r);
+  void writeDampingRows(const Clique& q, double lambda, Eigen::Ref<RowMajorMatrixXd> W, int rhs_col, const int* dest,
+                        int& r) const;
   void clearUndo();
 
   // Pools

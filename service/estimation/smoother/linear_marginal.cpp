@@ -2,7 +2,7 @@
 
 #include <stdexcept>
 
-#include "estimation/math/so3.h"
+#include "math/so3.h"
 
 namespace rilo {
 namespace {

@@ -1,5 +1,5 @@
 #pragma once
-// Parameters of SlidingWindowSmoother (seed 002, Sec. III-C6 / III-D4):
+// Parameters of SlidingWindowSmoother (IMU-Ultrasonic-UWB paper, Sec. III-C6 / III-D4):
 // window length, the Levenberg-Marquardt iterations run in every update, and
 // how the marginalization prior is linearized. Errors are FactorGraph::error
 // values (sum of robust losses of whitened residuals); steps are tangent
@@ -59,7 +59,7 @@ struct SlidingWindowParams {
   ///    information the priors hold about a variable shares one
   ///    linearization point: the priors add no information along directions
   ///    the linearized data leave unobservable (the consistency argument of
-  ///    seed 002 and of FEJ estimators).
+  ///    the IMU-Ultrasonic-UWB paper and of FEJ estimators).
   /// Without FEJ the prior's Jacobian is exact at the estimate and every
   /// marginalization linearizes at the estimate. The nonlinear factors in the
   /// window are relinearized at the estimate either way. For Vec3 and ImuBias
@@ -71,9 +71,8 @@ struct SlidingWindowParams {
   /// priors fix the gauge and the yaw is weakly observable, not unobservable;
   /// a first estimate that is one update old is then a poorer linearization
   /// than the current one (the FEJ2 argument), and FEJ made the estimate both
-  /// farther from batch and overconfident: newest-state yaw 1.2 of its own
-  /// sigmas from batch with a 2 s window (0.14 without), 4-8 sigmas with a
-  /// one-state window (0.6 without); position 2.4 vs 1.8 cm mean.
+  /// farther from batch and overconfident (docs/smoother.md, Figures behind
+  /// the defaults).
   bool first_estimate_jacobians = false;
   /// Marginalization eliminates by column-pivoting QR: a pivot below this
   /// fraction of the largest marks the marginalized block rank deficient

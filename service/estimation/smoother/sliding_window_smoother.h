@@ -1,5 +1,5 @@
 #pragma once
-// Sliding-window smoother with marginalization (seed 002, Sec. III-C6 and
+// Sliding-window smoother with marginalization (IMU-Ultrasonic-UWB paper, Sec. III-C6 and
 // III-D4): Levenberg-Marquardt over every factor of a time window plus the
 // marginal priors left by the states that fell out of it.
 //

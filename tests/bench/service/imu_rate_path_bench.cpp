@@ -32,13 +32,13 @@
 #include "dds/publisher.h"
 #include "dds/subscriber.h"
 #include "hal/bus/clock.h"
-#include "hal/sim/trajectory.h"
 #include "rilod/sample_screen.h"
 #include "runtime/latest_value.h"
 #include "runtime/output_predictor.h"
 #include "runtime/runtime_counters.h"
 #include "runtime/spsc_queue.h"
 #include "runtime/wake_signal.h"
+#include "sim/trajectory.h"
 
 namespace rilo {
 namespace {

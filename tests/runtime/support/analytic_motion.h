@@ -6,9 +6,9 @@
 #include <cmath>
 #include <cstdint>
 
-#include "estimation/math/types.h"
-#include "hal/samples.h"
+#include "math/types.h"
 #include "runtime/navigation_state.h"
+#include "sensors/samples.h"
 
 namespace rilo::testing {
 

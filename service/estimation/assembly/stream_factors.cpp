@@ -1,0 +1,97 @@
+// The factors a state of the graph stream gets besides its IMU factor: where a
+// measurement becomes a factor (addRangeFactors: a two-way range, a TDoA row
+// or an ultrasonic range, with the sigma and loss its model gives), the motion
+// priors (height band, vertical speed, zero velocity at a standstill), and the
+// anchors' survey priors when anchors are variables. The rest of the stream
+// (planning states, preintegrating, emitting) is range_imu_graph_stream.cpp.
+#include <optional>
+
+#include "estimation/assembly/range_imu_graph_stream.h"
+#include "estimation/factors/prior_factors.h"
+#include "estimation/factors/range_factor.h"
+#include "estimation/factors/tdoa_factor.h"
+#include "estimation/factors/ultrasonic_factor.h"
+
+namespace rilo {
+
+void RangeImuGraphStream::addMotionPriors(std::uint64_t i, GraphIncrement& inc) const {
+  const HeightBand& band = params_.height_band;
+  if (band.enabled) {
+    inc.factors.emplace<HeightBandFactor>(sym::X(i), band.minZ() - params_.p_b_tag.z(), band.maxZ() - params_.p_b_tag.z(),
+                                          band.sigma_m);
+  }
+  if (params_.vertical_speed_sigma_m_s > 0.0) {
+    // Horizontal speed is free (1e4 m/s std-dev); only v_z is held near zero.
+    inc.factors.emplace<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(1e4, 1e4, params_.vertical_speed_sigma_m_s));
+  }
+}
+
+bool RangeImuGraphStream::addStandstillPrior(std::uint64_t i, std::int64_t t_prev_ns, std::int64_t t_ns,
+                                             const Vec3& v_w_prev, GraphIncrement& inc) const {
+  if (params_.zero_velocity_sigma_m_s <= 0.0 || !standstill_.stillFor(t_prev_ns, t_ns, v_w_prev)) return false;
+  const double sigma = standstillPriorSigma(params_.zero_velocity_sigma_m_s, t_ns - t_prev_ns);
+  inc.factors.emplace<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(Vec3::Constant(sigma)));
+  return true;
+}
+
+Key RangeImuGraphStream::uwbAnchorKey(std::uint32_t id, GraphIncrement& inc) const {
+  const Key l = sym::L(id);
+  if (!anchor_in_graph_[id] && !inc.values.exists(l)) {
+    inc.values.insert(l, p_w_anchors_[id]);
+    inc.new_anchor_keys.push_back(l);
+  }
+  return l;
+}
+
+void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const {
+  const bool vars = params_.anchors_as_variables;
+  for (std::size_t k = first; k < first + n; ++k) {
+    const Measurement& m = ranges_[k];
+    const double sigma_m = tdoa_model_.vouchedLos(m) ? noise_.nominalSigma(m.kind) : noise_.sigma(m);
+    switch (m.kind) {
+      case Measurement::Kind::kRange: {
+        const RangeTerm t = range_model_.term(m, sigma_m);
+        if (vars) {
+          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m, params_.p_b_tag,
+                                           t.loss);
+        } else {
+          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, params_.p_b_tag, t.loss);
+        }
+        break;
+      }
+      case Measurement::Kind::kTdoa: {
+        // The packets' learnt NLOS excess off the difference, before the
+        // model orients the row (it may swap a and b and negate the value).
+        Measurement corrected = m;
+        corrected.value_m -= noise_.tdoaExcessCorrection(m);
+        const TdoaTerm t = tdoa_model_.term(corrected, sigma_m);
+        if (vars) {
+          const Key a = uwbAnchorKey(t.anchor_a, inc);
+          inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(t.anchor_b, inc), t.value_m, t.sigma_m, params_.p_b_tag,
+                                          t.loss);
+        } else {
+          inc.factors.emplace<TdoaFactor>(x, p_w_anchors_[t.anchor_a], p_w_anchors_[t.anchor_b], t.value_m, t.sigma_m,
+                                          params_.p_b_tag, t.loss);
+        }
+        break;
+      }
+      case Measurement::Kind::kUltrasonic:
+        inc.factors.emplace<UltrasonicFactor>(x, params_.p_w_ultrasonic[m.anchor], m.value_m, sigma_m,
+                                              params_.p_b_ultrasonic, std::nullopt, ultrasonic_loss_);
+        break;
+    }
+    ++inc.range_factors;
+  }
+}
+
+void RangeImuGraphStream::addAnchorPriors(GraphIncrement& inc) const {
+  for (Key l : inc.new_anchor_keys) {
+    inc.factors.emplace<PriorVec3Factor>(l, p_w_anchors_[keyIndex(l)], Vec3(Vec3::Constant(params_.anchor_sigma_m)));
+  }
+}
+
+void RangeImuGraphStream::commitAnchors(const GraphIncrement& inc) {
+  for (Key l : inc.new_anchor_keys) anchor_in_graph_[keyIndex(l)] = true;
+}
+
+}  // namespace rilo

@@ -1,0 +1,48 @@
+#include "estimation/measurements/range_model.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace rilo {
+
+RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noise)
+    : loss_(makeRangeLoss(loss_name, noise)), gap_db_(noise.nlos_power_gap_db) {
+  if (noise.flagged_nlos_scale_m && !(std::isfinite(*noise.flagged_nlos_scale_m) && *noise.flagged_nlos_scale_m > 0.0)) {
+    throw std::invalid_argument("range_noise.flagged_nlos_scale_m must be finite and > 0 (m), got " +
+                                std::to_string(*noise.flagged_nlos_scale_m));
+  }
+  if (!(std::isfinite(noise.flagged_scale_reference_hz) && noise.flagged_scale_reference_hz >= 0.0)) {
+    throw std::invalid_argument("range_noise.flagged_scale_reference_hz must be finite and >= 0 (Hz; 0: off), got " +
+                                std::to_string(noise.flagged_scale_reference_hz));
+  }
+  if (std::isnan(noise.nlos_power_gap_db)) {
+    throw std::invalid_argument("range_noise.nlos_power_gap_db must be a number (dB) or +inf to disable, got NaN");
+  }
+  // Only the convolved asymmetric model has an NLOS component with a Gaussian
+  // core (the half-Cauchy variant's is 0 below zero excess); the symmetric
+  // models have none, so the indicator leaves them as configured.
+  if (loss_name != "asymmetric" || !std::isfinite(gap_db_)) return;
+  const RangeNoiseParams flagged = noise.flagged();  // validated by the factory
+  if (noise.flagged_nlos_component) {
+    component_ = makeNlosComponentLoss(flagged);
+    flagged_loss_ = component_;
+  } else {
+    flagged_loss_ = makeRangeLoss(loss_name, flagged);
+  }
+}
+
+RangeTerm RangeModel::term(const Measurement& m, double sigma_m) const {
+  if (!flagsNlos(m)) return {m.value_m, sigma_m, loss_, false};
+  // The gap's own bin, where the calibration measured one, else the site's.
+  const double bin_excess_m = gap_excess_.at(m.power_gap_db);
+  if (!component_) {
+    return {m.value_m - (std::isfinite(bin_excess_m) ? bin_excess_m : flagged_excess_m_), sigma_m, flagged_loss_, true};
+  }
+  const double shift_m = std::isfinite(bin_excess_m) ? bin_excess_m
+                         : excess_set_              ? flagged_excess_m_
+                                                    : component_->modeSigmas() * sigma_m;
+  return {m.value_m - shift_m, sigma_m * component_->sigmaScale(), flagged_loss_, true};
+}
+
+}  // namespace rilo

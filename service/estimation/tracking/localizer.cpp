@@ -1,0 +1,355 @@
+#include "estimation/tracking/localizer.h"
+
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include "estimation/smoother/bayes_tree_smoother.h"
+#include "estimation/smoother/sliding_window_smoother.h"
+#include "estimation/tracking/ekf_estimator.h"
+
+namespace rilo {
+
+void LocalizerParams::validate() const {
+  auto fail = [](const char* field, const char* rule) {
+    throw std::invalid_argument(std::string("LocalizerParams.") + field + " " + rule);
+  };
+  if (!(max_speed_m_s > 0.0)) fail("max_speed_m_s", "must be > 0");
+  if (!(max_accel_bias_m_s2 > 0.0)) fail("max_accel_bias_m_s2", "must be > 0");
+  if (!(max_gyro_bias_rad_s > 0.0)) fail("max_gyro_bias_rad_s", "must be > 0");
+  if (!(max_imu_gap_s > 0.0)) fail("max_imu_gap_s", "must be > 0");
+  if (!(max_outside_anchors_m > 0.0)) fail("max_outside_anchors_m", "must be > 0 (+inf: off)");
+  if (max_consecutive_rejections < 1) fail("max_consecutive_rejections", "must be >= 1");
+  range_consistency.validate();
+  flagged_excess.validate();
+  los_gap.validate();
+  if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
+  if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
+  height_band.validate("LocalizerParams.height_band");
+  if (with_tdoa.state_window_ns < 0 || with_tdoa.state_window_ns >= graph.max_state_interval_ns) {
+    fail("with_tdoa.state_window_ns", "must be in [0, graph.max_state_interval_ns) (0: the graph's window)");
+  }
+  if (vertical_speed_sigma_m_s && !(*vertical_speed_sigma_m_s >= 0.0 && std::isfinite(*vertical_speed_sigma_m_s))) {
+    fail("vertical_speed_sigma_m_s", "must be finite and >= 0 (or unset: auto)");
+  }
+  if (!(zero_velocity_sigma_m_s >= 0.0 && std::isfinite(zero_velocity_sigma_m_s))) {
+    fail("zero_velocity_sigma_m_s", "must be finite and >= 0 (0: off)");
+  }
+  smoother.validate();
+  sliding_window.validate();
+  init.validate();
+}
+
+const std::vector<std::string>& estimatorNames() {
+  static const std::vector<std::string> kNames = [] {
+    std::vector<std::string> names;
+    for (const auto& [name, method] : kSmootherMethodNames) names.emplace_back(name);
+    names.insert(names.end(), {"sliding-window", "ekf"});
+    return names;
+  }();
+  return kNames;
+}
+
+void setEstimatorByName(LocalizerParams& params, const std::string& name) {
+  if (name == "ekf") {
+    params.estimator = LocalizerParams::Estimator::kEkf;
+    return;
+  }
+  if (name == "sliding-window") {
+    params.estimator = LocalizerParams::Estimator::kSlidingWindow;
+    return;
+  }
+  try {
+    params.smoother.method = smootherMethodFromName(name);
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument("unknown estimator '" + name + "' (expected d-isam2, isam2, dogleg, sliding-window or ekf)");
+  }
+  params.estimator = LocalizerParams::Estimator::kSmoother;
+}
+
+namespace {
+
+/// The single height band and vertical speed settings pushed into the parts;
+/// a band whose floor does not fit the anchors is dropped (see plausibleFor).
+LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors, std::string& note) {
+  if (p.height_band.enabled && !p.height_band.plausibleFor(p_w_anchors)) {
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "height band off: the anchors do not look mounted 1-6 m above a floor at z = %.2f m", p.height_band.floor_z_m);
+    note = text;
+    p.height_band.enabled = false;
+  }
+  p.init.height_band = p.height_band;
+  p.graph.height_band = p.track_height_band ? p.height_band : HeightBand::off();
+  p.graph.vertical_speed_sigma_m_s = p.vertical_speed_sigma_m_s.value_or(0.0);  // auto: see startTracking
+  // The initializer's batch window and small solvers use the estimator's
+  // graph (IMU model, noise, lever arms, TDoA and ultrasonic settings).
+  p.graph.zero_velocity_sigma_m_s = p.zero_velocity_sigma_m_s;
+  p.init.graph = p.graph;
+  p.init.graph.zero_velocity_sigma_m_s = 0.0;  // its batch has its own (InitializerParams)
+  p.init.tdoa_state_window_ns = p.with_tdoa.state_window_ns;
+  return p;
+}
+
+/// Two-way ranges per second in `buffered` (0 with fewer than two, or over less than a second).
+double twoWayRangeRateHz(const std::vector<Measurement>& buffered) {
+  int count = 0;
+  std::int64_t first_ns = 0, last_ns = 0;
+  for (const Measurement& m : buffered) {
+    if (m.kind != Measurement::Kind::kRange) continue;
+    if (count == 0) first_ns = m.t_ns;
+    last_ns = std::max(last_ns, m.t_ns);
+    ++count;
+  }
+  const double span_s = static_cast<double>(last_ns - first_ns) * 1e-9;
+  return count >= 2 && span_s >= 1.0 ? static_cast<double>(count - 1) / span_s : 0.0;
+}
+
+/// The calibration runs only where the receiver's indicator is in use.
+LosGapParams losGapFor(const LocalizerParams& p) {
+  LosGapParams g = p.los_gap;
+  g.enabled = g.enabled && p.graph.range_loss == "asymmetric" && std::isfinite(p.graph.range_noise.nlos_power_gap_db);
+  return g;
+}
+
+}  // namespace
+
+Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
+    : p_w_anchors_(std::move(p_w_anchors)),
+      params_(resolved(std::move(params), p_w_anchors_, height_band_note_)),
+      tdoa_model_(tdoaModelParams(params_.graph), params_.graph.range_noise),
+      initializer_(p_w_anchors_, params_.init),
+      consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
+                   params_.graph.same_state_window_ns, params_.range_consistency,
+                   params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_)) {
+  params_.validate();
+  tracking_range_noise_ = params_.graph.range_noise;
+  // Flagged ranges take the estimated shift, whether modelled by the NLOS
+  // component or the mixture (range_model.h).
+  const RangeNoiseParams& n = params_.graph.range_noise;
+  estimate_flagged_excess_ = params_.flagged_excess.quantile > 0.0 && params_.graph.range_loss == "asymmetric" &&
+                             std::isfinite(n.nlos_power_gap_db);
+  if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
+}
+
+void Localizer::addImu(const ImuSample& sample) {
+  if (have_imu_ && phase_ == Phase::kTracking &&
+      static_cast<double>(sample.t_ns - last_imu_ns_) * 1e-9 > params_.max_imu_gap_s) {
+    char why[96];
+    std::snprintf(why, sizeof why, "IMU silent for %.2f s", static_cast<double>(sample.t_ns - last_imu_ns_) * 1e-9);
+    fail(why);
+  }
+  have_imu_ = true;
+  last_imu_ns_ = sample.t_ns;
+  if (phase_ == Phase::kTracking) {
+    guarded([&] { estimator_->addImu(sample); });
+  } else {
+    initializer_.addImu(sample);
+  }
+}
+
+void Localizer::addRange(const RangeSample& sample) {
+  if (sample.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
+  if (phase_ == Phase::kTracking) {
+    ranging_support_.note(sample.t_ns);
+    consistency_.onRange(sample);
+    guarded([&] { estimator_->addRange(sample); });
+  } else {
+    initializer_.addRange(sample);
+  }
+}
+
+bool Localizer::addTdoa(const TdoaSample& sample) {
+  if (sample.anchor_a >= p_w_anchors_.size() || sample.anchor_b >= p_w_anchors_.size()) return false;  // as addRange
+  if (tdoa_model_.gated(Measurement::of(sample))) {
+    ++tdoa_rows_gated_;
+    return false;
+  }
+  if (phase_ == Phase::kTracking) {
+    ranging_support_.note(sample.t_ns);
+    guarded([&] { estimator_->addTdoa(sample); });
+  } else {
+    initializer_.addTdoa(sample);
+  }
+  return true;
+}
+
+void Localizer::addUltrasonic(const UltrasonicSample& sample) {
+  if (sample.anchor_id >= params_.graph.p_w_ultrasonic.size()) return;  // unknown beacon
+  if (phase_ == Phase::kTracking) {
+    ranging_support_.note(sample.t_ns);
+    guarded([&] { estimator_->addUltrasonic(sample); });
+  } else {
+    initializer_.addUltrasonic(sample);
+  }
+}
+
+int Localizer::process(std::vector<UpdateStats>* stats) {
+  if (phase_ == Phase::kInitializing) {
+    if (!initializer_.process()) return 0;
+    startTracking();
+    if (phase_ != Phase::kTracking) return 0;
+  }
+  scratch_.clear();
+  int updates = 0;
+  guarded([&] { updates = estimator_->process(&scratch_); });
+  if (phase_ != Phase::kTracking) return updates;
+  for (const UpdateStats& s : scratch_) {
+    if (stats) stats->push_back(s);
+    checkHealth(s);
+    if (phase_ != Phase::kTracking) break;
+  }
+  if (phase_ == Phase::kTracking && updates > 0) checkConsistency();
+  return updates;
+}
+
+void Localizer::finish() {
+  if (phase_ == Phase::kTracking) guarded([&] { estimator_->finish(); });
+}
+
+template <typename F>
+void Localizer::guarded(F&& f) {
+  // A diverged state can make the estimator refuse its input (a bias so
+  // large that one preintegration window rotates more than it supports):
+  // that is a tracking failure to recover from, never a crash.
+  try {
+    f();
+  } catch (const std::exception& e) {
+    fail(std::string("estimator error: ") + e.what());
+  }
+}
+
+void Localizer::startTracking() {
+  RangeImuGraphParams graph = params_.graph;
+  RangeImuStreamOptions stream = params_.stream;
+  // The data the tracker starts on say which ranging is in use.
+  const std::vector<Measurement>& buffered = initializer_.measurementBuffer();
+  const bool tdoa = std::any_of(buffered.begin(), buffered.end(),
+                                [](const Measurement& m) { return m.kind == Measurement::Kind::kTdoa; });
+  if (!params_.vertical_speed_sigma_m_s) graph.vertical_speed_sigma_m_s = defaultVerticalSpeedSigma(tdoa);  // "auto"
+  if (tdoa && params_.with_tdoa.state_window_ns > 0) graph.same_state_window_ns = params_.with_tdoa.state_window_ns;
+  // Unless configured, flagged ranges get the component scale for the
+  // two-way ranging rate of those data (flagged_scale_reference_hz).
+  RangeNoiseParams& noise = graph.range_noise;
+  if (noise.flagged_nlos_component && !noise.flagged_nlos_scale_m) {
+    noise.flagged_nlos_scale_m = noise.flaggedComponentScaleAt(twoWayRangeRateHz(buffered));
+  }
+  tracking_range_noise_ = noise;
+  tracking_started_ = true;
+  EkfParams ekf = params_.ekf;
+  if (tdoa && params_.with_tdoa.dynamic_covariance) {
+    stream.dynamic_covariance.enabled = true;
+    ekf.dynamic_covariance.enabled = true;
+  }
+  tracking_vertical_speed_sigma_m_s_ = graph.vertical_speed_sigma_m_s;
+  tracking_state_window_ns_ = graph.same_state_window_ns;
+  consistency_.setStateWindow(graph.same_state_window_ns);
+  tracking_dynamic_covariance_ = params_.estimator == LocalizerParams::Estimator::kEkf
+                                     ? ekf.dynamic_covariance.enabled
+                                     : stream.dynamic_covariance.enabled;
+  if (params_.estimator == LocalizerParams::Estimator::kEkf) {
+    estimator_ = std::make_unique<EkfEstimator>(p_w_anchors_, graph, ekf);
+  } else if (params_.estimator == LocalizerParams::Estimator::kSlidingWindow) {
+    estimator_ = std::make_unique<RangeImuEstimator>(
+        p_w_anchors_, graph, std::make_unique<SlidingWindowSmoother>(params_.sliding_window), stream);
+  } else {
+    estimator_ = std::make_unique<RangeImuEstimator>(p_w_anchors_, graph,
+                                                     std::make_unique<BayesTreeSmoother>(params_.smoother), stream);
+  }
+  // The new estimator starts without a shift (not the component's mode)
+  // until the estimate has enough flagged ranges.
+  flagged_excess_m_ = 0.0;
+  if (estimate_flagged_excess_) estimator_->setFlaggedExcess(flagged_excess_m_);
+  gap_db_in_use_ = params_.graph.range_noise.nlos_power_gap_db;  // the calibration restarts below
+  // Starts at the initializer's state and replays what it buffered after
+  // it, so no sample is lost.
+  phase_ = Phase::kTracking;
+  guarded([&] { handOver(initializer_, *estimator_); });
+  if (phase_ != Phase::kTracking) return;
+  consecutive_rejections_ = 0;
+  consistency_.reset();
+  ranging_support_.reset();
+  if (rejection_window_) rejection_window_->reset();
+  ++initializations_;
+}
+
+void Localizer::checkHealth(const UpdateStats& stats) {
+  const StateEstimate& s = estimator_->latest();
+  const double t_s = static_cast<double>(s.t_ns) * 1e-9;
+  char why[128];
+  const double speed = s.v_w.norm();
+  const Vec6 b = s.bias.vector();
+  if (!std::isfinite(speed) || !s.T_w_b.p.allFinite() || !b.allFinite()) {
+    std::snprintf(why, sizeof why, "non-finite state at t=%.3f s", t_s);
+    fail(why);
+  } else if (speed > params_.max_speed_m_s) {
+    std::snprintf(why, sizeof why, "speed %.1f m/s at t=%.3f s (limit %.1f)", speed, t_s, params_.max_speed_m_s);
+    fail(why);
+  } else if (const double outside = anchor_box_.outside(s.T_w_b.p);
+             outside > params_.max_outside_anchors_m && ranging_support_.supports(s.t_ns)) {
+    std::snprintf(why, sizeof why, "position (%.1f, %.1f) m is %.1f m outside the anchors' area at t=%.3f s (limit %.1f)",
+                  s.T_w_b.p.x(), s.T_w_b.p.y(), outside, t_s, params_.max_outside_anchors_m);
+    fail(why);
+  } else if (b.head<3>().cwiseAbs().maxCoeff() > params_.max_accel_bias_m_s2 ||
+             b.tail<3>().cwiseAbs().maxCoeff() > params_.max_gyro_bias_rad_s) {
+    std::snprintf(why, sizeof why, "implausible IMU bias (accel %.2f m/s^2, gyro %.3f rad/s) at t=%.3f s",
+                  b.head<3>().cwiseAbs().maxCoeff(), b.tail<3>().cwiseAbs().maxCoeff(), t_s);
+    fail(why);
+  } else if (!stats.step_accepted && ++consecutive_rejections_ >= params_.max_consecutive_rejections) {
+    std::snprintf(why, sizeof why, "%d updates in a row kept the previous estimate at t=%.3f s", consecutive_rejections_, t_s);
+    fail(why);
+  } else if (rejection_window_ && rejection_window_->note(stats.step_accepted)) {
+    std::snprintf(why, sizeof why, "%d of the last %d updates kept the previous estimate at t=%.3f s (limit %.0f %%)",
+                  rejection_window_->rejected(), rejection_window_->length(), t_s, 100.0 * params_.max_rejection_share);
+    fail(why);
+  } else if (stats.step_accepted) {
+    consecutive_rejections_ = 0;
+  }
+}
+
+void Localizer::checkConsistency() {
+  const StateEstimate& s = estimator_->latest();
+  const bool consistent = consistency_.judge(s.t_ns, s.T_w_b);
+  if (estimate_flagged_excess_) {
+    const FlaggedExcessParams& fx = params_.flagged_excess;
+    const double e = consistency_.flaggedQuantile(fx.quantile, fx.min_ranges);
+    if (std::isfinite(e)) {
+      flagged_excess_m_ = std::clamp(e, 0.0, fx.max_m);
+      estimator_->setFlaggedExcess(flagged_excess_m_);
+    }
+  }
+  if (const double gap_db = consistency_.flagGapDb(); gap_db != gap_db_in_use_) {
+    gap_db_in_use_ = gap_db;
+    estimator_->setNlosGapDb(gap_db);
+  }
+  estimator_->setGapExcess(consistency_.losGap().excessTable());  // 32 doubles: a copy per update is cheaper than tracking changes
+  if (consistent) return;
+  char why[160];
+  std::snprintf(why, sizeof why, "%.0f%% of the last %d ranges much shorter than the estimate predicts at t=%.3f s",
+                100.0 * consistency_.shortShare(), consistency_.judgedInWindow(), static_cast<double>(s.t_ns) * 1e-9);
+  fail(why);
+}
+
+void Localizer::fail(std::string why) {
+  last_failure_ = std::move(why);
+  if (phase_ == Phase::kTracking) ++reinitializations_;
+  phase_ = Phase::kInitializing;
+  if (estimator_) standstill_priors_ended_ += estimator_->standstillPriors();
+  estimator_.reset();
+  initializer_.reset();
+}
+
+std::optional<CovarianceBlock> Localizer::latestPoseCovariance() {
+  if (!tracking()) return std::nullopt;
+  return estimator_->latestPoseCovariance();
+}
+
+std::optional<CovarianceBlock> Localizer::latestVelocityCovariance() {
+  if (!tracking()) return std::nullopt;
+  return estimator_->latestVelocityCovariance();
+}
+
+}  // namespace rilo

@@ -2,6 +2,7 @@
 
 #include "estimation/assembly/range_imu_graph.h"  // tdoa_max_power_gap_db
 #include "evaluation/replay_run.h"  // kTdoaVerticalSpeedSigmaMs
+#include "evaluation/report_cells.h"
 #include "evaluation/report_text.h"
 
 #include <algorithm>
@@ -33,10 +34,7 @@ std::string cat(const Parts&... parts) {
 std::string estimatorLabel(const std::string& e) {
   if (e == "sliding-window") return "Sliding window (IMU-Ultrasonic-UWB paper)";
   if (e == "ekf") return "EKF";
-  if (e == "d-isam2") return "D-iSAM2";
-  if (e == "isam2") return "iSAM2";
-  if (e == "dogleg") return "RISE (dog-leg)";
-  return e;
+  return report_detail::smootherLabel(e);  // the smoothers' labels, as in the two-way report
 }
 
 std::string receptionLabel(double p) { return strf("%g %%", 100.0 * p); }

@@ -139,6 +139,9 @@ struct EstimatorConfig {
   double flagged_excess_quantile = FlaggedExcessParams().quantile;
   /// Lower nlos_power_gap_db to where the ranges show the LOS gaps end (LosGapParams).
   bool los_gap_calibration = LosGapParams().enabled;
+  /// Ranges without first-path power: the RX level's deficit below the
+  /// learnt LOS envelope as their NLOS indicator (RxLevelEnvelopeParams).
+  bool rx_level_indicator = RxLevelEnvelopeParams().enabled;
   /// Tag height band above the floor (a wearable's height; see
   /// estimation/measurements/height_band.h): initialization and every state.
   HeightBand height_band;

@@ -40,6 +40,7 @@ LocalizerParams localizerParams(const ServiceConfig& cfg) {
   lp.max_outside_anchors_m = cfg.estimator.max_outside_anchors_m;
   lp.flagged_excess.quantile = cfg.estimator.flagged_excess_quantile;
   lp.los_gap.enabled = cfg.estimator.los_gap_calibration;
+  lp.rx_level_envelope.enabled = cfg.estimator.rx_level_indicator;
   lp.with_tdoa = cfg.estimator.with_tdoa;
   return lp;
 }

@@ -523,6 +523,41 @@ TEST(Localizer, EstimatesTheExcessOfFlaggedRangesAndTakesItOff) {
   EXPECT_LT(clear, 0.7 * clear_mode) << "no flagged range shortened for nothing";
 }
 
+// Without the receiver's first-path power (other modules, other firmware),
+// the RX level's deficit below the LOS envelope learnt on line stands in for
+// the gap (rx_level_envelope.h): on the office sim without its fp_power_dbm
+// column the error and the height bias are lower with it than without, and
+// where the receiver reports the first-path power the envelope is not used.
+TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
+  sim::OfficeScenarioParams op;
+  op.seed = 1;
+  op.duration_s = 60.0;
+  const sim::Scenario with_fp = sim::simulateOfficeScenario(op);
+  sim::Scenario s = with_fp;
+  for (RangeSample& r : s.ranges) r.fp_power_dbm = std::numeric_limits<double>::quiet_NaN();
+  auto run = [&](const sim::Scenario& sc, bool indicator, bool* fitted) {
+    LocalizerParams p = paramsFor(sc);
+    p.rx_level_envelope.enabled = indicator;
+    Localizer localizer(sc.p_w_anchors, p);
+    const FeedResult fed = feed(sc, localizer);
+    EXPECT_GT(fed.tracked_updates, 100);
+    *fitted = localizer.rxLevelEnvelope().fitted();
+    return fed;
+  };
+  bool fitted_on = false, fitted_off = true, fitted_fp = true;
+  const FeedResult on = run(s, true, &fitted_on);
+  const FeedResult off = run(s, false, &fitted_off);
+  const FeedResult fp = run(with_fp, true, &fitted_fp);
+  std::printf("no first-path power: mean error %.3f m (height %+.3f) with the RX-level indicator, %.3f m (%+.3f) "
+              "without; with the first-path power %.3f m (%+.3f)\n", on.mean_error_m, on.mean_height_error_m,
+              off.mean_error_m, off.mean_height_error_m, fp.mean_error_m, fp.mean_height_error_m);
+  EXPECT_TRUE(fitted_on);
+  EXPECT_FALSE(fitted_off) << "disabled: nothing learnt";
+  EXPECT_FALSE(fitted_fp) << "the receiver's own indicator is used where it is reported";
+  EXPECT_LT(on.mean_error_m, off.mean_error_m);
+  EXPECT_LT(std::abs(on.mean_height_error_m), std::abs(off.mean_height_error_m));
+}
+
 // LocalizerParams::max_outside_anchors_m: only the five anchors at y <= 0
 // are surveyed (their box: y in [-5.5, 0]) while the walk goes to y > 0.
 // With a limit below how far the walk leaves the box, tracking ends saying

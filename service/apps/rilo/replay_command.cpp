@@ -220,6 +220,9 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--los-gap-calibration", options->settings.los_gap_calibration,
                   "Lower the NLOS flag threshold (--nlos-gap-db, an upper bound) to where the ranges' residuals show "
                   "the LOS gaps end, learnt on line (true/false; default true)");
+  cmd->add_option("--rx-level-indicator", options->settings.rx_level_indicator,
+                  "Where ranges carry the RX level but no first-path power, flag as NLOS those far below the LOS "
+                  "path-loss envelope learnt on line (true/false; default true)");
   cmd->add_option("--max-outside-anchors", options->settings.max_outside_anchors_m,
                   "Re-initialize when the tag is estimated farther than this beyond the anchors' horizontal box while "
                   "ranging holds it (m; default 10; inf: off)")

@@ -124,7 +124,8 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       initializer_(p_w_anchors_, params_.init),
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
                    params_.graph.same_state_window_ns, params_.range_consistency,
-                   params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_)) {
+                   params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_)),
+      rx_level_envelope_(params_.rx_level_envelope) {
   params_.validate();
   tracking_range_noise_ = params_.graph.range_noise;
   // Flagged ranges take the estimated shift, whether modelled by the NLOS
@@ -151,8 +152,9 @@ void Localizer::addImu(const ImuSample& sample) {
   }
 }
 
-void Localizer::addRange(const RangeSample& sample) {
-  if (sample.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
+void Localizer::addRange(const RangeSample& received) {
+  if (received.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
+  const RangeSample sample = withRxLevelIndicator(received);
   if (phase_ == Phase::kTracking) {
     ranging_support_.note(sample.t_ns);
     consistency_.onRange(sample);
@@ -160,6 +162,18 @@ void Localizer::addRange(const RangeSample& sample) {
   } else {
     initializer_.addRange(sample);
   }
+}
+
+RangeSample Localizer::withRxLevelIndicator(const RangeSample& sample) {
+  if (!std::isnan(sample.fp_power_dbm) || !std::isfinite(sample.rssi_dbm)) return sample;
+  rx_level_envelope_.add(sample.range_m, sample.rssi_dbm);
+  const double deficit_db = rx_level_envelope_.deficitDb(sample.range_m, sample.rssi_dbm);
+  if (!std::isfinite(deficit_db)) return sample;
+  // The first-path power a receiver would report with this gap: everything
+  // downstream reads the indicator as RX level minus first-path power.
+  RangeSample s = sample;
+  s.fp_power_dbm = s.rssi_dbm - deficit_db;
+  return s;
 }
 
 bool Localizer::addTdoa(const TdoaSample& sample) {

@@ -16,6 +16,7 @@
 #include "estimation/init/initializer.h"
 #include "estimation/measurements/anchor_box.h"
 #include "estimation/measurements/range_consistency.h"
+#include "estimation/measurements/rx_level_envelope.h"
 #include "estimation/measurements/tdoa_model.h"
 #include "estimation/smoother/sliding_window_params.h"
 #include "estimation/smoother/smoother_method_names.h"
@@ -126,6 +127,11 @@ struct LocalizerParams {
   /// The flag threshold of two-way ranges learnt from their residuals by gap
   /// (los_gap_calibration.h); never above range_noise.nlos_power_gap_db.
   LosGapParams los_gap;
+  /// Where a two-way range carries the RX level but no first-path power, the
+  /// NLOS indicator is its deficit below the learnt LOS path-loss envelope
+  /// (rx_level_envelope.h), judged like the receiver's gap. enabled = false:
+  /// such ranges go unflagged.
+  RxLevelEnvelopeParams rx_level_envelope;
   /// Windowed rejection share (RejectionWindow, see its notes for the
   /// measurements behind the defaults): fail when more than
   /// max_rejection_share of the last rejection_window updates were rejected.
@@ -180,6 +186,8 @@ class Localizer {
   double flaggedExcess() const { return flagged_excess_m_; }
   /// The two-way ranges' NLOS flag threshold in use (dB; LosGapParams).
   double nlosGapDb() const { return consistency_.flagGapDb(); }
+  /// The RX-level indicator's envelope (fitted() false: not in use yet).
+  const RxLevelEnvelope& rxLevelEnvelope() const { return rx_level_envelope_; }
   /// The smoothed trajectory so far (see TrackingEstimator::drainSmoothed);
   /// nothing while initializing.
   void drainSmoothed(std::vector<TimedPose>& out, bool all = false) {
@@ -222,6 +230,9 @@ class Localizer {
   const std::string& lastFailure() const { return last_failure_; }
 
  private:
+  /// sample with the RX-level indicator as its first-path power where the
+  /// receiver reported none (and the envelope is fitted); else sample.
+  RangeSample withRxLevelIndicator(const RangeSample& sample);
   void startTracking();
   void checkHealth(const UpdateStats& stats);
   void checkConsistency();
@@ -239,6 +250,9 @@ class Localizer {
   Initializer initializer_;
   std::unique_ptr<TrackingEstimator> estimator_;
   RangeConsistencyMonitor consistency_;
+  /// The site's LOS path-loss envelope: kept over re-initializations (the
+  /// building and the hardware stay).
+  RxLevelEnvelope rx_level_envelope_;
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
   double gap_db_in_use_ = 0.0;  ///< last threshold handed to the estimator

@@ -40,14 +40,19 @@ Ranged draw(const Site& s, std::mt19937& rng) {
   return {d, s.a_dbm - 10.0 * s.n * std::log10(d) + fade(rng) - (nlos ? loss(rng) : 0.0), nlos};
 }
 
+/// n ranges of the site into env.
+void learn(RxLevelEnvelope& env, const Site& site, int n, std::mt19937& rng) {
+  for (int i = 0; i < n; ++i) {
+    const Ranged x = draw(site, rng);
+    env.add(x.range_m, x.rssi_dbm);
+  }
+}
+
 TEST(RxLevelEnvelope, SeparatesAttenuatedRangesUnderAnNlosMajority) {
   const Site site;
   RxLevelEnvelope env;
   std::mt19937 rng(3);
-  for (int i = 0; i < 3000; ++i) {
-    const Ranged x = draw(site, rng);
-    env.add(x.range_m, x.rssi_dbm);
-  }
+  learn(env, site, 3000, rng);
   ASSERT_TRUE(env.fitted());
   EXPECT_NEAR(env.exponent(), site.n, 0.25);
   // Below the true LOS level, never above it: with 70 % NLOS the upper half
@@ -76,10 +81,7 @@ TEST(RxLevelEnvelope, MostlyLosSiteKeepsLosRangesBelowTheFlag) {
   site.nlos_share = 0.1;
   RxLevelEnvelope env;
   std::mt19937 rng(5);
-  for (int i = 0; i < 3000; ++i) {
-    const Ranged x = draw(site, rng);
-    env.add(x.range_m, x.rssi_dbm);
-  }
+  learn(env, site, 3000, rng);
   int los = 0, los_flagged = 0;
   for (int i = 0; i < 4000; ++i) {
     const Ranged x = draw(site, rng);
@@ -96,10 +98,7 @@ TEST(RxLevelEnvelope, NothingBeforeMinRanges) {
   RxLevelEnvelope env(p);
   std::mt19937 rng(1);
   const Site site;
-  for (int i = 0; i < 49; ++i) {
-    const Ranged x = draw(site, rng);
-    env.add(x.range_m, x.rssi_dbm);
-  }
+  learn(env, site, 49, rng);
   EXPECT_FALSE(env.fitted());
   EXPECT_TRUE(std::isnan(env.deficitDb(5.0, -70.0)));
   EXPECT_TRUE(std::isnan(env.exponent()));
@@ -116,10 +115,7 @@ TEST(RxLevelEnvelope, FreeSpaceWithoutSpreadOfDistance) {
   site.n = 3.5;  // not observable from one distance: free space is assumed
   RxLevelEnvelope env;
   std::mt19937 rng(2);
-  for (int i = 0; i < 500; ++i) {
-    const Ranged x = draw(site, rng);
-    env.add(x.range_m, x.rssi_dbm);
-  }
+  learn(env, site, 500, rng);
   ASSERT_TRUE(env.fitted());
   EXPECT_DOUBLE_EQ(env.exponent(), 2.0);
 }
@@ -130,10 +126,7 @@ TEST(RxLevelEnvelope, ExponentStaysInItsBounds) {
   site.nlos_share = 0.0;
   RxLevelEnvelope env;
   std::mt19937 rng(4);
-  for (int i = 0; i < 1000; ++i) {
-    const Ranged x = draw(site, rng);
-    env.add(x.range_m, x.rssi_dbm);
-  }
+  learn(env, site, 1000, rng);
   EXPECT_NEAR(env.exponent(), RxLevelEnvelopeParams().max_exponent, 1e-9);
 }
 
@@ -191,10 +184,7 @@ TEST(RxLevelEnvelope, AddingNeverAllocates) {
   std::uint64_t news = 0;
   {
     testing::NewCounter counter;
-    for (int i = 0; i < 5000; ++i) {
-      const Ranged x = draw(site, rng);
-      env.add(x.range_m, x.rssi_dbm);
-    }
+    learn(env, site, 5000, rng);
     news = counter.count();
   }
   EXPECT_EQ(news, 0u);

@@ -106,6 +106,10 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
             0.02);
   EXPECT_TRUE(c.estimator.los_gap_calibration);
   EXPECT_FALSE(localizerParams(parse(valid("estimator:\n  range: {los_gap_calibration: false}\n"))).los_gap.enabled);
+  EXPECT_TRUE(c.estimator.rx_level_indicator);
+  EXPECT_TRUE(localizerParams(c).rx_level_envelope.enabled);
+  EXPECT_FALSE(
+      localizerParams(parse(valid("estimator:\n  range: {rx_level_indicator: false}\n"))).rx_level_envelope.enabled);
   EXPECT_EQ(c.estimator.max_outside_anchors_m, LocalizerParams().max_outside_anchors_m);
   EXPECT_EQ(parse(valid("estimator:\n  max_outside_anchors_m: .inf\n")).estimator.max_outside_anchors_m,
             std::numeric_limits<double>::infinity());
@@ -640,6 +644,8 @@ std::vector<BadCase> badCases() {
        "estimator.zero_velocity_sigma_m_s", "expected a number", 11},
       {"los_gap_calibration_not_a_boolean", valid("estimator:\n  range: {los_gap_calibration: maybe}\n"),
        "estimator.range.los_gap_calibration", "expected true or false", 11},
+      {"rx_level_indicator_not_a_boolean", valid("estimator:\n  range: {rx_level_indicator: maybe}\n"),
+       "estimator.range.rx_level_indicator", "expected true or false", 11},
       {"lag_zero", valid("estimator:\n  lag_s: 0\n"), "estimator.lag_s", "the service must bound its memory", 11},
       {"lag_negative", valid("estimator:\n  lag_s: -1\n"), "estimator.lag_s", "expected a number in [0, 3600], got -1",
        11},

@@ -28,7 +28,8 @@ double RxLevelEnvelope::log10Range(double range_m) noexcept {
 }
 
 void RxLevelEnvelope::add(double range_m, double rssi_dbm) noexcept {
-  if (!params_.enabled || !std::isfinite(range_m) || !std::isfinite(rssi_dbm)) return;
+  // One absurd value would poison the sums for a whole window.
+  if (!params_.enabled || !(range_m > 0.0 && range_m < 1e4) || !(rssi_dbm >= -150.0 && rssi_dbm <= 0.0)) return;
   x_[static_cast<std::size_t>(next_)] = log10Range(range_m);
   y_[static_cast<std::size_t>(next_)] = rssi_dbm;
   next_ = (next_ + 1) % params_.window_ranges;
@@ -37,9 +38,14 @@ void RxLevelEnvelope::add(double range_m, double rssi_dbm) noexcept {
   if (filled_ >= params_.min_ranges && (!fitted_ || since_fit_ >= params_.refit_every)) refit();
 }
 
+double RxLevelEnvelope::losLevelDbm(double range_m) const noexcept {
+  if (!fitted_ || !std::isfinite(range_m)) return std::numeric_limits<double>::quiet_NaN();
+  return intercept_ + slope_ * log10Range(range_m) + los_level_;
+}
+
 double RxLevelEnvelope::deficitDb(double range_m, double rssi_dbm) const noexcept {
-  if (!fitted_ || !std::isfinite(range_m) || !std::isfinite(rssi_dbm)) return std::numeric_limits<double>::quiet_NaN();
-  const double los_dbm = intercept_ + slope_ * log10Range(range_m) + los_level_;
+  const double los_dbm = losLevelDbm(range_m);
+  if (!std::isfinite(los_dbm) || !std::isfinite(rssi_dbm)) return std::numeric_limits<double>::quiet_NaN();
   return std::max(0.0, los_dbm - rssi_dbm);
 }
 
@@ -62,7 +68,7 @@ void RxLevelEnvelope::refit() noexcept {
   const double x10 = quantile(s, n, 0.1), x90 = quantile(s, n, 0.9);
   const bool fit_slope = x90 - x10 >= params_.min_log10_span;
   const double slope_min = -10.0 * params_.max_exponent, slope_max = -10.0 * params_.min_exponent;
-  double a = 0.0, b = -20.0;  // free space until the data say otherwise
+  double a = 0.0, b = std::clamp(-20.0, slope_min, slope_max);  // free space until the data say otherwise
   std::fill_n(keep_.begin(), n, std::uint8_t{1});
   for (int it = 0; it < params_.fit_iterations; ++it) {
     double sx = 0, sy = 0, sxx = 0, sxy = 0, m = 0;
@@ -75,6 +81,7 @@ void RxLevelEnvelope::refit() noexcept {
     if (fit_slope && var_x > 1e-9) b = std::clamp((sxy / m - (sx / m) * (sy / m)) / var_x, slope_min, slope_max);
     a = sy / m - b * sx / m;
     for (int i = 0; i < n; ++i) s[i] = y_[static_cast<std::size_t>(i)] - (a + b * x_[static_cast<std::size_t>(i)]);
+    if (it + 1 == params_.fit_iterations) break;  // the last line is kept: no new mask
     const double median = quantile(s, n, 0.5);
     for (int i = 0; i < n; ++i) {
       const double r = y_[static_cast<std::size_t>(i)] - (a + b * x_[static_cast<std::size_t>(i)]);

@@ -26,6 +26,7 @@ void LocalizerParams::validate() const {
   range_consistency.validate();
   flagged_excess.validate();
   los_gap.validate();
+  rx_level_envelope.validate();
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   height_band.validate("LocalizerParams.height_band");
@@ -115,6 +116,14 @@ LosGapParams losGapFor(const LocalizerParams& p) {
   return g;
 }
 
+/// The envelope learns only where a flag is read: the asymmetric model with a
+/// finite threshold (range_model.h), as the gap calibration.
+RxLevelEnvelopeParams rxLevelEnvelopeFor(const LocalizerParams& p) {
+  RxLevelEnvelopeParams e = p.rx_level_envelope;
+  e.enabled = e.enabled && p.graph.range_loss == "asymmetric" && std::isfinite(p.graph.range_noise.nlos_power_gap_db);
+  return e;
+}
+
 }  // namespace
 
 Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
@@ -125,7 +134,7 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
                    params_.graph.same_state_window_ns, params_.range_consistency,
                    params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_)),
-      rx_level_envelope_(params_.rx_level_envelope) {
+      rx_level_envelope_(rxLevelEnvelopeFor(params_)) {
   params_.validate();
   tracking_range_noise_ = params_.graph.range_noise;
   // Flagged ranges take the estimated shift, whether modelled by the NLOS

@@ -242,6 +242,8 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   const std::size_t progress_every = std::max<std::size_t>(1, total / 100);
   const auto wall_start = std::chrono::steady_clock::now();
   std::size_t i = 0, r = 0;
+  const std::int64_t t0_ns = items.empty() ? rec.imu.front().t_ns : std::min(rec.imu.front().t_ns, items.front().t_ns);
+  std::uint64_t provisional_written = 0;  // sequences start at 1
   while (i < rec.imu.size() || r < items.size()) {
     if (settings.progress && (i + r) % progress_every == 0) {
       settings.progress(static_cast<double>(i + r) / static_cast<double>(total));
@@ -252,8 +254,20 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
       localizer.addImu(rec.imu[i++]);
     }
     stats.clear();
-    if (localizer.process(&stats) == 0 || !localizer.tracking()) continue;
+    const int updates = localizer.process(&stats);
+    if (!localizer.tracking()) {
+      if (const auto fix = localizer.provisionalPosition(); fix && fix->sequence != provisional_written) {
+        provisional_written = fix->sequence;
+        out.online.push_back({fix->t_ns, Pose3(Mat3::Identity(), fix->p_w_b)});
+        ++out.provisional_poses;
+        if (!out.first_position_s) out.first_position_s = static_cast<double>(fix->t_ns - t0_ns) * 1e-9;
+      }
+      continue;
+    }
+    if (updates == 0) continue;
     const StateEstimate& s = localizer.latest();
+    if (!out.first_full_state_s) out.first_full_state_s = static_cast<double>(s.t_ns - t0_ns) * 1e-9;
+    if (!out.first_position_s) out.first_position_s = out.first_full_state_s;
     out.online.push_back({s.t_ns, s.T_w_b});
     for (const UpdateStats& u : stats) out.updates.push_back({s.t_ns, u});
     localizer.drainSmoothed(out.smoothed);
@@ -264,6 +278,9 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   if (settings.progress) settings.progress(1.0);
   std::sort(out.smoothed.begin(), out.smoothed.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
+  // The first full state may be older than the last fix before it (the batch
+  // hands over a state inside its window).
+  std::stable_sort(out.online.begin(), out.online.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
 
   out.data_s = static_cast<double>(rec.imu.back().t_ns - rec.imu.front().t_ns) * 1e-9;
   out.online_tracked_share = trackedShare(out.online, rec.imu.front().t_ns, rec.imu.back().t_ns);

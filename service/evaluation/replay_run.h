@@ -137,9 +137,16 @@ struct MeasurementCounts {
 };
 
 struct ReplayResult {
-  std::vector<RangeImuEstimator::TimedPose> online;    ///< newest state after each update
+  /// What the service publishes, in time order: the newest state after each
+  /// update and, while initializing, each new position-only fix
+  /// (Localizer::provisionalPosition; identity orientation, which is unknown).
+  std::vector<RangeImuEstimator::TimedPose> online;
   std::vector<RangeImuEstimator::TimedPose> smoothed;  ///< final estimate of every state, time order
   std::vector<ReplayUpdate> updates;
+  std::size_t provisional_poses = 0;  ///< position-only poses in `online`
+  /// Data time from the first sample to the first published position, and
+  /// to the first full state (s; nullopt: none).
+  std::optional<double> first_position_s, first_full_state_s;
   std::size_t ranges_used = 0;        ///< after --range-hz thinning and reception
   bool dynamic_covariance = false;    ///< the last tracker used per-link sigmas (Localizer::trackingDynamicCovariance)
   MeasurementCounts measurements;     ///< per kind: recorded, used, dropped

@@ -206,7 +206,9 @@ std::string ReportOptions::headlineNoise() const {
 bool ReportRun::failed(double fail_mean_m) const {
   if (threw) return true;
   if (!has_truth) return false;
-  return ape_online.ape_3d.count == 0 || !(ape_online.ape_3d.mean <= fail_mean_m);
+  // Position-only poses (published while initializing) do not make a run
+  // that never reached the full state a success.
+  return initializations == 0 || ape_online.ape_3d.count == 0 || !(ape_online.ape_3d.mean <= fail_mean_m);
 }
 
 const ReportRun* ReportResults::find(std::size_t recording, const std::string& smoother, const std::string& noise,

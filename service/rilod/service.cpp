@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
@@ -107,6 +108,13 @@ class Service::LaneSink final : public SampleSink {
 namespace {
 
 std::int64_t secondsToNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
+std::string initPositionText(const Localizer::ProvisionalPosition& fix) {
+  char text[128];
+  std::snprintf(text, sizeof text, "(%.2f, %.2f, %.2f) m, sigma %.2f m", fix.p_w_b.x(), fix.p_w_b.y(), fix.p_w_b.z(),
+                std::sqrt(fix.cov_p_w.trace()));
+  return text;
+}
 
 std::int64_t checkedTimeoutNs(double s, const char* name) {
   if (!(std::isfinite(s) && s > 0.0)) throw std::invalid_argument(std::string("Service: ") + name + " must be > 0");
@@ -324,13 +332,20 @@ void Service::estimatorLoop() {
       if (options_.on_event) options_.on_event("tracking lost: " + localizer_.lastFailure() + "; re-initializing");
     }
     if (!was_tracking && localizer_.tracking()) {
+      {
+        std::lock_guard<std::mutex> lock(stats_mutex_);
+        position_only_ = false;
+      }
       trust_.reset();
       trust_.setStateWindow(localizer_.trackingStateWindowNs());
       request_status = true;
       init_attempts_seen_ = 0;
       if (options_.on_event) options_.on_event("initialized: " + localizer_.initStatus().message);
     }
-    if (!localizer_.tracking()) noteInitProgress(now);
+    if (!localizer_.tracking()) {
+      noteInitProgress(now);
+      publishProvisional();
+    }
     tracking_.store(localizer_.tracking() ? TrackingState::kTracking : TrackingState::kInitializing);
     // A change of state is published at once, from here (the periodic status
     // might come only after it is over: a 30 s blackout takes a few ms in a
@@ -383,6 +398,28 @@ void Service::noteInitProgress(std::int64_t now_ns) {
   if (options_.on_event) {
     options_.on_event("initializing (attempt " + std::to_string(init.attempts) + "): " + init.message);
   }
+}
+
+void Service::publishProvisional() {
+  const std::optional<Localizer::ProvisionalPosition> fix = localizer_.provisionalPosition();
+  if (!fix || fix->sequence == provisional_published_) return;
+  provisional_published_ = fix->sequence;
+  NavigationState n;
+  n.t_ns = fix->t_ns;
+  n.p_w_b = fix->p_w_b;
+  n.valid = true;  // a pose message, never the odometry's dead-reckoning start (smoothed_ is not written)
+  n.pose_covariance.setZero();
+  n.pose_covariance.topLeftCorner<3, 3>() = fix->cov_p_w;
+  // Orientation unknown: the variance of an angle uniform over (-pi, pi].
+  n.pose_covariance.bottomRightCorner<3, 3>() = Mat3::Identity() * (std::numbers::pi * std::numbers::pi / 3.0);
+  (void)publisher_.publishPose(n);
+  bool first = false;
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    first = !position_only_;
+    position_only_ = true;
+  }
+  if (first && options_.on_event) options_.on_event("publishing position only while initializing: " + initPositionText(*fix));
 }
 
 void Service::publishSmoothed(const NavigationState& state) {
@@ -480,6 +517,7 @@ void Service::explain(ServiceStatus& s, const ServiceStatus& previous, std::int6
   std::lock_guard<std::mutex> lock(stats_mutex_);
   if (s.state == TrackingState::kInitializing) {
     appendReason(s.reason, used, "initializing: %s", init_message_.c_str());
+    if (position_only_) appendReason(s.reason, used, "publishing position only (orientation unknown)");
     return;
   }
   if (s.state == TrackingState::kLost) {

@@ -112,6 +112,9 @@ class Service {
   bool rangingArrived(std::int64_t t_ns);
   bool allSourcesDone() const;
   void noteInitProgress(std::int64_t now_ns);
+  /// While initializing: a new position-only fix (Localizer::provisionalPosition)
+  /// goes out on the pose topic, orientation unknown in its covariance.
+  void publishProvisional();
   void judgeRanges();
   void publishSmoothed(const NavigationState& state);
   /// Why the state is `state` (see service_status.h), into status.reason.
@@ -152,6 +155,7 @@ class Service {
   double pose_latency_ms_ = 0.0;
   std::string last_fault_;
   std::string init_message_ = "waiting: no samples";  ///< the initializer's status message
+  bool position_only_ = false;  ///< a position-only pose went out since initializing began
   std::string last_failure_;                           ///< why tracking last ended
   std::int64_t last_imu_gap_ns_ = 0;
   double period_max_update_ms_ = 0.0;                  ///< slowest update since the last status
@@ -160,6 +164,7 @@ class Service {
   int init_attempts_seen_ = 0;
   InitState init_state_logged_ = InitState::kWaitingForData;
   std::int64_t init_logged_ns_ = 0;
+  std::uint64_t provisional_published_ = 0;  ///< sequence of the last position-only fix published
 };
 
 }  // namespace rilo

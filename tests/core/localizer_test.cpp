@@ -38,9 +38,11 @@ struct FeedResult {
 };
 
 /// Feeds the scenario in time order, dropping IMU samples in [gap_from, gap_to);
-/// `on_estimate` sees the newest estimate after every tracked update.
+/// `on_estimate` sees the newest estimate after every tracked update,
+/// `on_initializing` is called after every sample while not tracking.
 FeedResult feed(const sim::Scenario& s, Localizer& localizer, std::int64_t gap_from_ns = -1, std::int64_t gap_to_ns = -1,
-                const std::function<void(const StateEstimate&)>& on_estimate = {}) {
+                const std::function<void(const StateEstimate&)>& on_estimate = {},
+                const std::function<void()>& on_initializing = {}) {
   FeedResult run;
   std::size_t i = 0, r = 0;
   double sum = 0.0, sum_dz = 0.0, sum_abs_dz = 0.0;
@@ -52,7 +54,9 @@ FeedResult feed(const sim::Scenario& s, Localizer& localizer, std::int64_t gap_f
       if (m.t_ns >= gap_from_ns && m.t_ns < gap_to_ns) continue;
       localizer.addImu(m);
     }
-    if (localizer.process() > 0 && localizer.tracking()) {
+    const int updates = localizer.process();
+    if (!localizer.tracking() && on_initializing) on_initializing();
+    if (updates > 0 && localizer.tracking()) {
       if (run.first_track_ns < 0) run.first_track_ns = localizer.latest().t_ns;
       const Vec3 e = localizer.latest().T_w_b.p - s.truthAt(localizer.latest().t_ns).T_w_b.p;
       sum += e.norm();
@@ -556,6 +560,75 @@ TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
   EXPECT_FALSE(fitted_fp) << "the receiver's own indicator is used where it is reported";
   EXPECT_LT(on.mean_error_m, off.mean_error_m);
   EXPECT_LT(std::abs(on.mean_height_error_m), std::abs(off.mean_height_error_m));
+}
+
+// While the full state waits for motion, a position-only fix of the newest
+// ranges (Initializer::provisionalFix): on the office sim at 40 Hz the first
+// comes within a second of data, each is near the truth for what its
+// covariance says (the height from the band: its middle, its spread), none is
+// offered while tracking, and the first full state lands within three sigmas
+// of the last fix. At 1 Hz none is offered: seconds of ranges hold too few
+// for a walker's fix.
+TEST(Localizer, PublishesAPositionWhileTheFullStateWaits) {
+  sim::OfficeScenarioParams op;
+  op.seed = 1;
+  op.duration_s = 40.0;
+  const sim::Scenario s = sim::simulateOfficeScenario(op);
+  LocalizerParams p = paramsFor(s);
+  Localizer localizer(s.p_w_anchors, p);
+  std::uint64_t last_sequence = 0;
+  int fixes = 0, within_3_sigma = 0;
+  std::int64_t first_fix_ns = -1;
+  std::optional<Localizer::ProvisionalPosition> last_fix;
+  bool fix_while_tracking = false;
+  std::optional<Vec3> first_tracked_p;
+  std::int64_t first_tracked_ns = 0;
+  const auto on_estimate = [&](const StateEstimate& x) {
+    fix_while_tracking = fix_while_tracking || localizer.provisionalPosition().has_value();
+    if (first_tracked_p) return;
+    first_tracked_p = x.T_w_b.p;
+    first_tracked_ns = x.t_ns;
+  };
+  const auto on_initializing = [&] {
+    const auto fix = localizer.provisionalPosition();
+    if (!fix || fix->sequence == last_sequence) return;
+    last_sequence = fix->sequence;
+    last_fix = fix;
+    ++fixes;
+    if (first_fix_ns < 0) first_fix_ns = fix->t_ns;
+    ASSERT_TRUE(fix->cov_p_w.allFinite());
+    EXPECT_NEAR(fix->p_w_b.z(), p.height_band.midZ() - p.graph.p_b_tag.z(), 1e-9) << "the band's middle";
+    const Vec3 e = fix->p_w_b - s.truthAt(fix->t_ns).T_w_b.p;
+    const double chi2 = e.dot(fix->cov_p_w.inverse() * e);
+    within_3_sigma += chi2 <= 14.2 ? 1 : 0;  // chi^2(3) at 99.7 %
+  };
+  const FeedResult run = feed(s, localizer, -1, -1, on_estimate, on_initializing);
+  ASSERT_TRUE(localizer.tracking()) << localizer.initStatus().message;
+  EXPECT_FALSE(fix_while_tracking);
+  EXPECT_EQ(localizer.initializations(), 1u) << "the fixes are checked up to the first start only";
+  ASSERT_TRUE(first_tracked_p.has_value());
+  ASSERT_TRUE(last_fix.has_value());
+  std::printf("first position after %.2f s of data, %d fixes, %d within 3 sigma, first full state after %.1f s\n",
+              static_cast<double>(first_fix_ns - s.imu.front().t_ns) * 1e-9, fixes, within_3_sigma,
+              static_cast<double>(run.first_track_ns - s.imu.front().t_ns) * 1e-9);
+  EXPECT_LT(static_cast<double>(first_fix_ns - s.imu.front().t_ns) * 1e-9, 1.0);
+  EXPECT_GE(fixes, 5);
+  EXPECT_GE(within_3_sigma, (fixes * 2) / 3) << "covariances about as wide as the errors";
+  // The fix ages as the wearer walks on (up to 2 m/s), and the full state
+  // starts at the newest data.
+  const double age_s = static_cast<double>(first_tracked_ns - last_fix->t_ns) * 1e-9;
+  const Mat3 cov_then = last_fix->cov_p_w + Mat3::Identity() * std::pow(2.0 * age_s, 2);
+  const Vec3 jump = *first_tracked_p - last_fix->p_w_b;
+  std::printf("hand-over after %.2f s: %.2f m from the last fix\n", age_s, jump.norm());
+  EXPECT_LE(jump.dot(cov_then.inverse() * jump), 14.2) << "hand-over within three sigmas";
+
+  sim::OfficeScenarioParams sparse = op;
+  sparse.range_rate_hz = 1.0;
+  const sim::Scenario s1 = sim::simulateOfficeScenario(sparse);
+  Localizer at_1hz(s1.p_w_anchors, paramsFor(s1));
+  bool any = false;
+  feed(s1, at_1hz, -1, -1, {}, [&] { any = any || at_1hz.provisionalPosition().has_value(); });
+  EXPECT_FALSE(any) << "no fix from seconds of 1 Hz ranging";
 }
 
 // LocalizerParams::max_outside_anchors_m: only the five anchors at y <= 0

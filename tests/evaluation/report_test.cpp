@@ -465,9 +465,13 @@ TEST(ReportPlan, BadOptionsThrowNamingTheOption) {
 TEST(ReportRunTest, FailedFollowsThePaperRule) {
   ReportRun r;
   r.has_truth = true;
+  r.initializations = 1;
   r.ape_online.ape_3d.count = 10;
   r.ape_online.ape_3d.mean = 0.5;
   EXPECT_FALSE(r.failed(10.0));
+  r.initializations = 0;  // position-only poses while initializing, never a full state
+  EXPECT_TRUE(r.failed(10.0));
+  r.initializations = 1;
   r.ape_online.ape_3d.mean = 10.5;
   EXPECT_TRUE(r.failed(10.0));
   r.ape_online.ape_3d.mean = 0.5;

@@ -5,7 +5,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -31,6 +33,13 @@ std::vector<std::vector<double>> readTum(const std::filesystem::path& file) {
   return rows;
 }
 
+/// The number after `key` in `text` (NaN when the key is missing or null).
+double numberAfter(const std::string& text, const std::string& key) {
+  const std::size_t at = text.find(key);
+  if (at == std::string::npos) return std::nan("");
+  return std::strtod(text.c_str() + at + key.size(), nullptr);
+}
+
 TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
   testing::TempDir out("rilo-replay");
   const std::string exe = (testing::binaryDir() / "rilo").string();
@@ -49,7 +58,14 @@ TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
   const auto online = readTum(out / "online.tum");
   const auto smoothed = readTum(out / "smoothed.tum");
   ASSERT_GT(online.size(), 1000u);  // 45 s at 40 Hz, after a ~10 s initialization
-  ASSERT_GE(smoothed.size(), online.size());
+  {
+    std::ifstream summary(out / "summary.json");
+    std::stringstream text;
+    text << summary.rdbuf();
+    const double provisional = numberAfter(text.str(), "\"provisional_poses\": ");
+    ASSERT_GE(static_cast<double>(smoothed.size()), static_cast<double>(online.size()) - provisional)
+        << "a smoothed state for every full state published";
+  }
   for (const auto& row : smoothed) ASSERT_EQ(row.size(), 8u);
   for (std::size_t i = 1; i < smoothed.size(); ++i) ASSERT_GT(smoothed[i][0], smoothed[i - 1][0]);
   for (const auto& row : online) {
@@ -63,6 +79,14 @@ TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
   EXPECT_NE(text.find("\"ape_online\""), std::string::npos);
   EXPECT_NE(text.find("\"ape_smoothed\""), std::string::npos);
   EXPECT_NE(text.find("\"reinitializations\": 0"), std::string::npos) << text;
+  // What the service publishes: position-only fixes from the first second,
+  // then the full states, one time order in online.tum.
+  const double first_position_s = numberAfter(text, "\"first_position_s\": ");
+  const double first_full_state_s = numberAfter(text, "\"first_full_state_s\": ");
+  EXPECT_LE(first_position_s, 3.0) << text;
+  EXPECT_LT(first_position_s, first_full_state_s) << text;
+  EXPECT_GT(numberAfter(text, "\"provisional_poses\": "), 0.0) << text;
+  for (std::size_t i = 1; i < online.size(); ++i) ASSERT_GE(online[i][0], online[i - 1][0]);
   std::ifstream timing(out / "timing.csv");
   std::string header;
   std::getline(timing, header);

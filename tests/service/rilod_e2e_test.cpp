@@ -75,7 +75,7 @@ TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {
   EXPECT_GT(odometry.size(), 5000u);
   EXPECT_GT(poses.size(), 300u);
   ASSERT_FALSE(status.empty());
-  bool saw_tracking = false, saw_init_reason = false, saw_latency = false;
+  bool saw_tracking = false, saw_init_reason = false, saw_latency = false, saw_position_only = false;
   for (const auto& s : status) {
     saw_tracking |= s.state_name == "tracking" || s.state_name == "degraded";
     // While initializing, the reason is the initializer's own message.
@@ -83,11 +83,13 @@ TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {
       const std::string reason(s.status.reason.data());
       EXPECT_EQ(reason.rfind("initializing: ", 0), 0u) << reason;
       saw_init_reason |= reason.size() > 14;
+      saw_position_only |= reason.find("publishing position only") != std::string::npos;
     }
     saw_latency |= s.status.odometry_latency_ms > 0.0 && s.status.odometry_latency_ms < 1000.0;
   }
   EXPECT_TRUE(saw_tracking);
   EXPECT_TRUE(saw_init_reason);
+  EXPECT_TRUE(saw_position_only) << "the status says when poses carry a position only";
   EXPECT_TRUE(saw_latency) << "odometry latency (sample in to DDS write) filled while tracking";
   // The demo office is 74 % NLOS: the robust range model down-weights a good
   // share of the ranges, never all of them (rilo replay: ~30 %).
@@ -97,6 +99,18 @@ TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {
   EXPECT_LT(last.status.rejected_ranges, last.status.range_samples / 2);
   ASSERT_FALSE(poses.empty());
   EXPECT_EQ(poses.front().frame_id, "map");
+  // While initializing, position-only poses: orientation unknown in the
+  // covariance (an angle uniform over a turn), position as the fix knows it;
+  // then full states, whose rotation the smoother knows to degrees.
+  std::size_t position_only = 0;
+  while (position_only < poses.size() && poses[position_only].covariance(5, 5) > 3.0) ++position_only;
+  EXPECT_GT(position_only, 0u);
+  for (std::size_t i = 0; i < position_only; ++i) {
+    const double position_variance = poses[i].covariance.topLeftCorner<3, 3>().trace();
+    EXPECT_LT(position_variance, 1.0);
+    EXPECT_GT(position_variance, 0.0);
+  }
+  for (std::size_t i = position_only; i < poses.size(); ++i) ASSERT_LT(poses[i].covariance(5, 5), 0.1);
 
   // Smoothed poses against the recording's ground truth (no alignment: the
   // anchors fix the frame).

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <vector>
 
@@ -29,6 +30,14 @@ std::string statsJson(const PositionErrorStats& s) {
                 "\"horizontal_mean_m\": %.4f, \"vertical_mean_m\": %.4f, \"vertical_bias_m\": %.4f}",
                 s.ape_3d.count, s.ape_3d.mean, s.ape_3d.median, s.ape_3d.rmse, s.ape_3d.max, s.ape_horizontal.mean,
                 s.ape_vertical.mean, s.vertical_bias_m);
+  return buf;
+}
+
+/// A figure, or null when there is none.
+std::string optionalJson(const std::optional<double>& v) {
+  if (!v || !std::isfinite(*v)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", *v);
   return buf;
 }
 
@@ -105,6 +114,9 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"standstill_priors\": " << run.standstill_priors
           << ",\n  \"init_attempts\": " << run.init_attempts << ",\n  \"init_status\": " << jsonString(run.init_status)
           << ",\n  \"last_failure\": " << jsonString(run.last_failure)
+          << ",\n  \"provisional_poses\": " << run.provisional_poses
+          << ",\n  \"first_position_s\": " << optionalJson(run.first_position_s)
+          << ",\n  \"first_full_state_s\": " << optionalJson(run.first_full_state_s)
           << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")
           << ",\n  \"height_band_note\": " << jsonString(run.height_band_note)
           << ",\n  \"flagged_nlos_excess_m\": " << run.flagged_excess_m
@@ -132,6 +144,11 @@ int runReplay(const ReplayOptions& o) {
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
               max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations),
               100.0 * run.online_tracked_share);
+  if (run.first_position_s) {
+    std::printf("  first position after %.1f s of data (%zu position-only while initializing), first full state %s\n",
+                *run.first_position_s, run.provisional_poses,
+                run.first_full_state_s ? (std::to_string(*run.first_full_state_s).substr(0, 5) + " s").c_str() : "never");
+  }
   {
     const MeasurementCounts& m = run.measurements;
     std::printf("  measurements used (dropped by --reception %.2f):", o.settings.reception);

@@ -73,6 +73,16 @@ void InitializerParams::validate() const {
   if (!(window_s >= min_window_s)) fail("window_s", "must be >= min_window_s");
   if (!(max_window_s >= window_s)) fail("max_window_s", "must be >= window_s");
   if (min_window_ranges < 0) fail("min_window_ranges", "must be >= 0");
+  if (!(provisional_fix_interval_s >= 0.0 && std::isfinite(provisional_fix_interval_s))) {
+    fail("provisional_fix_interval_s", "must be finite and >= 0 (0: off)");
+  }
+  if (!(provisional_fix_window_s > 0.0 && provisional_fix_max_window_s >= provisional_fix_window_s &&
+        std::isfinite(provisional_fix_max_window_s))) {
+    fail("provisional_fix_window_s", "must be > 0 and at most provisional_fix_max_window_s (finite)");
+  }
+  if (!(provisional_min_inlier_fraction >= 0.0 && provisional_min_inlier_fraction <= 1.0)) {
+    fail("provisional_min_inlier_fraction", "must be in [0, 1]");
+  }
   if (min_alignment_ranges < 4) fail("min_alignment_ranges", "must be >= 4");
   if (!(attempt_interval_s > 0.0)) fail("attempt_interval_s", "must be > 0");
   if (!(max_attempt_interval_s >= attempt_interval_s)) fail("max_attempt_interval_s", "must be >= attempt_interval_s");
@@ -166,6 +176,7 @@ void Initializer::reset() {
   last_batch_ns_ = 0;
   rejected_input_.reset();
   result_.reset();
+  provisional_.reset();
 }
 
 void Initializer::addImu(const ImuSample& s) {
@@ -219,6 +230,7 @@ const InitResult& Initializer::result() const {
 
 bool Initializer::process() {
   if (initialized()) return true;
+  updateProvisionalFix();
   if (imu_.empty()) {
     setStatus(InitState::kWaitingForData, meas_.empty() ? "waiting: no samples" : "waiting: no IMU samples (ranges only)");
     return false;
@@ -330,6 +342,16 @@ bool Initializer::runAttempt() {
   return ok;
 }
 
+// Enough for a fix: by multilateration's counts when there are two-way
+// ranges, else by the TDoA fix's.
+bool Initializer::enoughForFix(std::size_t f0, std::size_t f1) const {
+  const bool ranges = std::any_of(meas_.begin() + static_cast<std::ptrdiff_t>(f0), meas_.begin() + static_cast<std::ptrdiff_t>(f1),
+                                  [](const Measurement& m) { return m.kind == Measurement::Kind::kRange; });
+  const int anchors = ranges ? params_.fix.min_anchors : params_.tdoa_fix.min_anchors;
+  const int count = ranges ? params_.fix.min_ranges : params_.tdoa_fix.min_measurements;
+  return sourcesHeard(f0, f1) >= anchors && static_cast<int>(f1 - f0) >= count;
+}
+
 int Initializer::sourcesHeard(std::size_t begin, std::size_t end) const {
   std::set<std::uint32_t> anchors, beacons;
   for (std::size_t k = begin; k < end; ++k) {
@@ -417,15 +439,6 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
 
   // 1. A fix near the window start (its own window grown until it holds
   // enough anchors and measurements); if that fails, a little later.
-  // Enough for a fix: by multilateration's counts when there are two-way
-  // ranges, else by the TDoA fix's.
-  auto enough_for_fix = [&](std::size_t f0, std::size_t f1) {
-    const bool ranges = std::any_of(meas_.begin() + static_cast<std::ptrdiff_t>(f0), meas_.begin() + static_cast<std::ptrdiff_t>(f1),
-                                    [](const Measurement& m) { return m.kind == Measurement::Kind::kRange; });
-    const int anchors = ranges ? P.fix.min_anchors : P.tdoa_fix.min_anchors;
-    const int count = ranges ? P.fix.min_ranges : P.tdoa_fix.min_measurements;
-    return sourcesHeard(f0, f1) >= anchors && static_cast<int>(f1 - f0) >= count;
-  };
   TagFix first_fix;
   bool have_fix = false;
   for (int k = 0; k < kFixStarts && !have_fix; ++k) {
@@ -435,7 +448,7 @@ Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std:
     std::size_t f1 = f0;
     for (double len = P.fix_window_s;; len = std::min(fix_max_window_s, 1.5 * len)) {
       f1 = std::min(end, rangeIndexFrom(meas_, t_fix + toNs(len)));
-      if (enough_for_fix(f0, f1) || len >= fix_max_window_s || f1 >= end) break;
+      if (enoughForFix(f0, f1) || len >= fix_max_window_s || f1 >= end) break;
     }
     w.fix = fixOf(f0, f1, t_fix, &w.fix_from_tdoa);
     if (k == 0) first_fix = w.fix;

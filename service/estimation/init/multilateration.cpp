@@ -246,6 +246,8 @@ TagFix multilaterate(std::span<const RangeSample> ranges, std::int64_t t_ns, con
     const Mat6d cov = eigH.eigenvectors() * eigH.eigenvalues().cwiseInverse().asDiagonal() *
                       eigH.eigenvectors().transpose();
     fix.sigma_p_m = std::sqrt(std::max(0.0, cov.topLeftCorner<3, 3>().trace()));
+    const double scale = std::isfinite(fix.rms_m) ? std::max(1.0, fix.rms_m / params.sigma_m) : 1.0;
+    fix.cov_p_w = cov.topLeftCorner<3, 3>() * (scale * scale);
   }
 
   const std::string summary =

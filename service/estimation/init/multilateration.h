@@ -61,6 +61,10 @@ struct TagFix {
   double rms_m = std::numeric_limits<double>::infinity();     ///< inlier residual RMS (m)
   double pdop = std::numeric_limits<double>::infinity();      ///< of the inlier anchor directions
   double sigma_p_m = std::numeric_limits<double>::infinity(); ///< sqrt(trace) of the position covariance (m)
+  /// Position covariance (m^2, world), widened by the inliers' residual scale
+  /// where it exceeds the nominal sigma (the data are noisier than modelled);
+  /// infinite diagonal when not determined.
+  Mat3 cov_p_w = Mat3::Identity() * std::numeric_limits<double>::infinity();
   double cost = std::numeric_limits<double>::infinity();      ///< final robust cost (whitened, ~chi^2/2)
   double second_cost_gap = std::numeric_limits<double>::infinity();  ///< cost of the best distinct other solution minus cost
   bool mirror_ambiguous = false;

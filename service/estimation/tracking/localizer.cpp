@@ -365,6 +365,22 @@ void Localizer::fail(std::string why) {
   initializer_.reset();
 }
 
+std::optional<Localizer::ProvisionalPosition> Localizer::provisionalPosition() const {
+  const std::optional<ProvisionalFix>& fix = initializer_.provisionalFix();
+  if (phase_ == Phase::kTracking || !fix) return std::nullopt;
+  const Vec3& lever = params_.graph.p_b_tag;
+  ProvisionalPosition out;
+  out.t_ns = fix->t_ns;
+  out.p_w_b = fix->p_w_tag - Vec3(0.0, 0.0, lever.z());
+  // Any yaw: the horizontal lever arm lies anywhere on its circle (variance r^2 / 2 per axis).
+  const double r2 = lever.head<2>().squaredNorm();
+  out.cov_p_w = fix->cov_p_w;
+  out.cov_p_w(0, 0) += 0.5 * r2;
+  out.cov_p_w(1, 1) += 0.5 * r2;
+  out.sequence = fix->sequence;
+  return out;
+}
+
 std::optional<CovarianceBlock> Localizer::latestPoseCovariance() {
   if (!tracking()) return std::nullopt;
   return estimator_->latestPoseCovariance();

@@ -186,6 +186,18 @@ class Localizer {
   double flaggedExcess() const { return flagged_excess_m_; }
   /// The two-way ranges' NLOS flag threshold in use (dB; LosGapParams).
   double nlosGapDb() const { return consistency_.flagGapDb(); }
+  /// While initializing, the body position of the initializer's newest
+  /// provisional fix (Initializer::provisionalFix), nullopt while tracking or
+  /// before a fix. Orientation is unknown: the wearer is taken upright (the
+  /// lever arm's z is taken off the antenna's height) and the lever arm's
+  /// horizontal part, of unknown direction, widens the covariance.
+  struct ProvisionalPosition {
+    std::int64_t t_ns = 0;
+    Vec3 p_w_b = Vec3::Zero();  ///< body position (m, world)
+    Mat3 cov_p_w = Mat3::Identity();  ///< m^2
+    std::uint64_t sequence = 0;  ///< ProvisionalFix::sequence: a new fix has a new number
+  };
+  std::optional<ProvisionalPosition> provisionalPosition() const;
   /// The RX-level indicator's envelope (fitted() false: not in use yet).
   const RxLevelEnvelope& rxLevelEnvelope() const { return rx_level_envelope_; }
   /// The smoothed trajectory so far (see TrackingEstimator::drainSmoothed);

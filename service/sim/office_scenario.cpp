@@ -224,7 +224,7 @@ bool OfficeRangeStream::next(RangeSample& sample, RangeTruth& truth) {
     sample.tag_id = 0;
     sample.range_m = std::max(0.0, L.true_range_m + error);
     sample.rssi_dbm = rssi;
-    sample.fp_power_dbm = rssi - gap;
+    sample.fp_power_dbm = p_.report_first_path ? rssi - gap : std::numeric_limits<double>::quiet_NaN();
     sample.los = L.los ? 1 : 0;
 
     truth = RangeTruth{};

@@ -77,6 +77,10 @@ struct OfficeScenarioParams {
   double nlos_noise_factor = 1.5;         ///< noise multiplier under NLOS
   double anchor_bias_sigma_m = 0.02;      ///< per-anchor antenna-delay calibration residual (m)
   double packet_loss = 0.05;              ///< probability a range packet is lost
+  /// The receiver reports its first-path power (fp_power_dbm, the NLOS
+  /// indicator). false: RX level only, as other modules and firmware (and
+  /// the independent office sims of issue 36) report.
+  bool report_first_path = true;
   double outlier_probability = 0.005;     ///< large multipath error on any range
   double outlier_scale_m = 2.0;           ///< median of the long outliers beyond 1 m (half-Cauchy)
   double outlier_max_m = 15.0;

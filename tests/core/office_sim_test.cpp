@@ -466,6 +466,23 @@ TEST(OfficeScenario, DeterministicPerSeed) {
   EXPECT_NE(c.imu[100].accel_m_s2, a.imu[100].accel_m_s2);
 }
 
+// A receiver without the first-path power: the same session, the same
+// ranges and RX levels, the indicator's column empty.
+TEST(OfficeScenario, ReceiverWithoutFirstPathPowerReportsTheRxLevelOnly) {
+  OfficeScenarioParams p = shortParams(2, 10.0);
+  const Scenario with = simulateOfficeScenario(p);
+  p.report_first_path = false;
+  const Scenario without = simulateOfficeScenario(p);
+  ASSERT_EQ(with.ranges.size(), without.ranges.size());
+  ASSERT_GT(without.ranges.size(), 100u);
+  for (std::size_t i = 0; i < with.ranges.size(); ++i) {
+    ASSERT_EQ(with.ranges[i].range_m, without.ranges[i].range_m);
+    ASSERT_EQ(with.ranges[i].rssi_dbm, without.ranges[i].rssi_dbm);
+    ASSERT_TRUE(std::isfinite(with.ranges[i].fp_power_dbm));
+    ASSERT_TRUE(std::isnan(without.ranges[i].fp_power_dbm));
+  }
+}
+
 TEST(OfficeScenario, PacketLossAndOutliersAtTheirRates) {
   OfficeScenarioParams p = shortParams(7, 300.0);
   p.packet_loss = 0.2;

@@ -104,6 +104,7 @@ int runSim(const SimOptions& o) {
     p.imu_rate_hz = o.imu_hz;
     p.ranges_per_cycle = o.ranges_per_cycle;
     p.packet_loss = o.packet_loss;
+    p.report_first_path = o.first_path;
     p.walk.start_moving = o.start_moving;
     p.walk.body_height_m = o.body_height_m;
     p.tdoa.enabled = o.tdoa;
@@ -158,6 +159,7 @@ int runSim(const SimOptions& o) {
                   o.start_moving ? " (moving at start)" : "", o.range_hz, o.ranges_per_cycle, o.packet_loss,
                   o.nlos_severity);
     ro.description = description;
+    if (!o.first_path) ro.description += "; RX level only (no first-path power)";
     if (o.body_height_m != SimOptions{}.body_height_m) {
       std::snprintf(description, sizeof(description), "; body frame %.2f m above the floor", o.body_height_m);
       ro.description += description;
@@ -273,6 +275,8 @@ void addSimCommand(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(1.0, 4000.0));
   cmd->add_flag("--start-moving", o->start_moving, "Start the session while walking instead of standing still");
+  cmd->add_flag("--no-first-path{false}", o->first_path,
+                "The receiver reports the RX level only, no first-path power (no NLOS indicator in range.csv)");
   cmd->add_option("--body-height", o->body_height_m,
                   "Height of the body frame (IMU) above the floor while standing (m; the UWB antenna is 0.1 m above "
                   "it): about 1.25 for a chest-worn tag, 1.6 for glasses, 0.95 for a belt")

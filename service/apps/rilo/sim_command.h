@@ -32,6 +32,7 @@ struct SimOptions {
   double hall_width = 10.0;      ///< --plan hall: size along y (m)
   double truth_hz = 200.0;
   bool start_moving = false;
+  bool first_path = true;        ///< the receiver reports first-path power (false: --no-first-path)
   double body_height_m = sim::WalkParams{}.body_height_m;  ///< IMU height of the standing wearer (m); the tag sits 0.1 m above it
   bool force = false;            ///< replace a recording already in `out`
 

@@ -258,8 +258,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
     if (!localizer.tracking()) {
       if (const auto fix = localizer.provisionalPosition(); fix && fix->sequence != provisional_written) {
         provisional_written = fix->sequence;
-        out.online.push_back({fix->t_ns, Pose3(Mat3::Identity(), fix->p_w_b)});
-        ++out.provisional_poses;
+        out.position_only.push_back({fix->t_ns, Pose3(Mat3::Identity(), fix->p_w_b)});
         if (!out.first_position_s) out.first_position_s = static_cast<double>(fix->t_ns - t0_ns) * 1e-9;
       }
       continue;
@@ -278,12 +277,15 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   if (settings.progress) settings.progress(1.0);
   std::sort(out.smoothed.begin(), out.smoothed.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
-  // The first full state may be older than the last fix before it (the batch
-  // hands over a state inside its window).
-  std::stable_sort(out.online.begin(), out.online.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
+  // What was published, both kinds, in time order (the first full state may
+  // be older than the last fix before it: the batch hands over a state inside
+  // its window).
+  std::vector<RangeImuEstimator::TimedPose> published = out.online;
+  published.insert(published.end(), out.position_only.begin(), out.position_only.end());
+  std::stable_sort(published.begin(), published.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
 
   out.data_s = static_cast<double>(rec.imu.back().t_ns - rec.imu.front().t_ns) * 1e-9;
-  out.online_tracked_share = trackedShare(out.online, rec.imu.front().t_ns, rec.imu.back().t_ns);
+  out.online_tracked_share = trackedShare(published, rec.imu.front().t_ns, rec.imu.back().t_ns);
   counts.tdoa.deep_nlos = localizer.tdoaRowsGated();
   out.initializations = localizer.initializations();
   out.reinitializations = localizer.reinitializations();
@@ -302,7 +304,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.nlos = classifyRanges(ranges, out.smoothed, uwbAnchorsById(rec.anchors), params.graph.p_b_tag, range_model,
                             params.graph.range_noise.sigma_m);
   if (!rec.groundtruth.empty()) {
-    out.ape_online = positionErrorAgainst(out.online, rec.groundtruth);
+    out.ape_online = positionErrorAgainst(published, rec.groundtruth);
     out.ape_smoothed = positionErrorAgainst(out.smoothed, rec.groundtruth);
   }
   return out;

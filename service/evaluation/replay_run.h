@@ -137,13 +137,15 @@ struct MeasurementCounts {
 };
 
 struct ReplayResult {
-  /// What the service publishes, in time order: the newest state after each
-  /// update and, while initializing, each new position-only fix
-  /// (Localizer::provisionalPosition; identity orientation, which is unknown).
-  std::vector<RangeImuEstimator::TimedPose> online;
+  std::vector<RangeImuEstimator::TimedPose> online;    ///< newest state after each update
+  /// The position-only fixes published while initializing
+  /// (Localizer::provisionalPosition), in time order; their orientation is
+  /// unknown (identity here). Kept apart from `online` so that orientation
+  /// and relative-pose figures never read them; the online APE and tracked
+  /// share count both, as the service publishes both.
+  std::vector<RangeImuEstimator::TimedPose> position_only;
   std::vector<RangeImuEstimator::TimedPose> smoothed;  ///< final estimate of every state, time order
   std::vector<ReplayUpdate> updates;
-  std::size_t provisional_poses = 0;  ///< position-only poses in `online`
   /// Data time from the first sample to the first published position, and
   /// to the first full state (s; nullopt: none).
   std::optional<double> first_position_s, first_full_state_s;

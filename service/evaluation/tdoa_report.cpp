@@ -88,7 +88,8 @@ void TdoaReportOptions::validate() const {
 bool TdoaRun::failed(double fail_mean_m) const {
   if (threw) return true;
   if (!has_truth) return false;
-  return ape_online.ape_3d.count == 0 || !(ape_online.ape_3d.mean <= fail_mean_m);
+  // As ReportRun::failed: position-only poses are no success.
+  return initializations == 0 || ape_online.ape_3d.count == 0 || !(ape_online.ape_3d.mean <= fail_mean_m);
 }
 
 const TdoaRun* TdoaReportResults::find(std::size_t recording, const std::string& estimator, double reception) const {

@@ -516,12 +516,14 @@ void Service::explain(ServiceStatus& s, const ServiceStatus& previous, std::int6
   s.reason.fill('\0');
   std::lock_guard<std::mutex> lock(stats_mutex_);
   if (s.state == TrackingState::kInitializing) {
-    appendReason(s.reason, used, "initializing: %s", init_message_.c_str());
-    if (position_only_) appendReason(s.reason, used, "publishing position only (orientation unknown)");
+    // The note first: the initializer's message may fill the fixed buffer.
+    appendReason(s.reason, used, "initializing%s: %s", position_only_ ? " (publishing position only)" : "",
+                 init_message_.c_str());
     return;
   }
   if (s.state == TrackingState::kLost) {
-    appendReason(s.reason, used, "lost (%s); initializing: %s", last_failure_.c_str(), init_message_.c_str());
+    appendReason(s.reason, used, "lost (%s); initializing%s: %s", last_failure_.c_str(),
+                 position_only_ ? " (publishing position only)" : "", init_message_.c_str());
     return;
   }
   // Tracking: what is wrong now, then what went wrong during the period.

@@ -537,8 +537,8 @@ TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
   op.seed = 1;
   op.duration_s = 60.0;
   const sim::Scenario with_fp = sim::simulateOfficeScenario(op);
-  sim::Scenario s = with_fp;
-  for (RangeSample& r : s.ranges) r.fp_power_dbm = std::numeric_limits<double>::quiet_NaN();
+  op.report_first_path = false;
+  const sim::Scenario s = sim::simulateOfficeScenario(op);
   auto run = [&](const sim::Scenario& sc, bool indicator, bool* fitted) {
     LocalizerParams p = paramsFor(sc);
     p.rx_level_envelope.enabled = indicator;
@@ -564,7 +564,7 @@ TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
 
 // While the full state waits for motion, a position-only fix of the newest
 // ranges (Initializer::provisionalFix): on the office sim at 40 Hz the first
-// comes within a second of data, each is near the truth for what its
+// comes within a second of data (0.5 s), each is near the truth for what its
 // covariance says (the height from the band: its middle, its spread), none is
 // offered while tracking, and the first full state lands within three sigmas
 // of the last fix. At 1 Hz none is offered: seconds of ranges hold too few

@@ -82,6 +82,7 @@ int runReplay(const ReplayOptions& o) {
     if (!timing) throw std::runtime_error("cannot write " + (dir / "timing.csv").string());
   }
   writeTum(dir / "online.tum", run.online);
+  if (!run.position_only.empty()) writeTum(dir / "position_only.tum", run.position_only);
   writeTum(dir / "smoothed.tum", run.smoothed);
 
   std::vector<double> sorted;
@@ -114,7 +115,7 @@ int runReplay(const ReplayOptions& o) {
           << ",\n  \"standstill_priors\": " << run.standstill_priors
           << ",\n  \"init_attempts\": " << run.init_attempts << ",\n  \"init_status\": " << jsonString(run.init_status)
           << ",\n  \"last_failure\": " << jsonString(run.last_failure)
-          << ",\n  \"provisional_poses\": " << run.provisional_poses
+          << ",\n  \"position_only_poses\": " << run.position_only.size()
           << ",\n  \"first_position_s\": " << optionalJson(run.first_position_s)
           << ",\n  \"first_full_state_s\": " << optionalJson(run.first_full_state_s)
           << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")
@@ -145,9 +146,10 @@ int runReplay(const ReplayOptions& o) {
               max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations),
               100.0 * run.online_tracked_share);
   if (run.first_position_s) {
+    char full[32] = "never";
+    if (run.first_full_state_s) std::snprintf(full, sizeof full, "after %.1f s", *run.first_full_state_s);
     std::printf("  first position after %.1f s of data (%zu position-only while initializing), first full state %s\n",
-                *run.first_position_s, run.provisional_poses,
-                run.first_full_state_s ? (std::to_string(*run.first_full_state_s).substr(0, 5) + " s").c_str() : "never");
+                *run.first_position_s, run.position_only.size(), full);
   }
   {
     const MeasurementCounts& m = run.measurements;
@@ -181,7 +183,8 @@ int runReplay(const ReplayOptions& o) {
                   e.ape_vertical.mean, e.vertical_bias_m);
     }
   }
-  std::printf("  wrote %s/{online.tum,smoothed.tum,timing.csv,summary.json}\n", o.out.c_str());
+  std::printf("  wrote %s/{online.tum,%ssmoothed.tum,timing.csv,summary.json}\n", o.out.c_str(),
+              run.position_only.empty() ? "" : "position_only.tum,");
   return 0;
 }
 

@@ -177,6 +177,7 @@ void Initializer::reset() {
   rejected_input_.reset();
   result_.reset();
   provisional_.reset();
+  provisional_tried_ns_.reset();
 }
 
 void Initializer::addImu(const ImuSample& s) {

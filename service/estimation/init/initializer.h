@@ -451,6 +451,7 @@ class Initializer {
   std::optional<InitResult> result_;
   std::optional<ProvisionalFix> provisional_;
   std::uint64_t provisional_sequence_ = 0;
+  std::optional<std::int64_t> provisional_tried_ns_;  ///< newest measurement of the last fix tried (published or not)
 };
 
 }  // namespace rilo

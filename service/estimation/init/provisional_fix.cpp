@@ -20,14 +20,20 @@ void Initializer::updateProvisionalFix() {
   const InitializerParams& P = params_;
   if (P.provisional_fix_interval_s <= 0.0 || meas_.empty()) return;
   const std::int64_t t_end = meas_.back().t_ns;
-  if (provisional_ && t_end - provisional_->t_ns < toNs(P.provisional_fix_interval_s)) return;
+  // One try per interval, whether the last one was published or refused:
+  // a refused fix must not be retried at every sample.
+  if (provisional_tried_ns_ && t_end - *provisional_tried_ns_ < toNs(P.provisional_fix_interval_s)) return;
+  provisional_tried_ns_ = t_end;
   const std::size_t end = meas_.size();
   std::size_t f0 = end;
   for (double len = P.provisional_fix_window_s;; len = std::min(P.provisional_fix_max_window_s, 1.5 * len)) {
     f0 = rangeIndexFrom(meas_, t_end - toNs(len));
     if (enoughForFix(f0, end) || len >= P.provisional_fix_max_window_s || f0 == 0) break;
   }
-  if (!enoughForFix(f0, end)) return;
+  // Two-way ranges only: the TDoA fix's own consensus is not judged here.
+  const bool ranges = std::any_of(meas_.begin() + static_cast<std::ptrdiff_t>(f0), meas_.end(),
+                                  [](const Measurement& m) { return m.kind == Measurement::Kind::kRange; });
+  if (!ranges || !enoughForFix(f0, end)) return;
   bool from_tdoa = false;
   const TagFix fix = fixOf(f0, end, t_end, &from_tdoa);
   if (!fix.valid || !fix.cov_p_w.allFinite() || from_tdoa) return;

@@ -305,7 +305,6 @@ struct ProvisionalFix {
   Vec3 p_w_tag = Vec3::Zero();  ///< UWB antenna position (m, world)
   Mat3 cov_p_w = Mat3::Identity();  ///< its covariance (m^2), TagFix::cov_p_w
   std::uint64_t sequence = 0;   ///< counts the fixes since construction (not reset): a new one has a new number
-  std::string message;          ///< the fix's summary
 };
 
 /// The batch-solved window, for a caller that seeds its smoother with it.

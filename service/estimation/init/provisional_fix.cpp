@@ -44,7 +44,7 @@ void Initializer::updateProvisionalFix() {
   }
   // The newest fix stands for the time of its newest measurement; a failed
   // one keeps the previous (which a caller ages by its own t_ns).
-  provisional_ = ProvisionalFix{t_end, fix.p_w_tag, fix.cov_p_w, ++provisional_sequence_, fix.message};
+  provisional_ = ProvisionalFix{t_end, fix.p_w_tag, fix.cov_p_w, ++provisional_sequence_};
   const HeightBand& band = P.height_band;
   if (band.enabled) {
     // A second of ranges from anchors a few metres up leaves the height to

@@ -222,12 +222,16 @@ std::string formatMetaYaml(const RecordingMeta& meta) {
     }
     out << YAML::EndMap;
   }
-  out << YAML::Key << "uwb" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm" << YAML::Value;
-  emitVec3(out, meta.uwb_lever_arm_m, "uwb_lever_arm_m");
-  out << YAML::EndMap;
-  out << YAML::Key << "ultrasonic" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm" << YAML::Value;
-  emitVec3(out, meta.ultrasonic_lever_arm_m, "ultrasonic_lever_arm_m");
-  out << YAML::EndMap;
+  if (meta.uwb_lever_arm_m) {
+    out << YAML::Key << "uwb" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm" << YAML::Value;
+    emitVec3(out, *meta.uwb_lever_arm_m, "uwb_lever_arm_m");
+    out << YAML::EndMap;
+  }
+  if (meta.ultrasonic_lever_arm_m) {
+    out << YAML::Key << "ultrasonic" << YAML::Value << YAML::BeginMap << YAML::Key << "lever_arm" << YAML::Value;
+    emitVec3(out, *meta.ultrasonic_lever_arm_m, "ultrasonic_lever_arm_m");
+    out << YAML::EndMap;
+  }
   if (meta.ranging) out << YAML::Key << "ranging" << YAML::Value << std::string(toString(*meta.ranging));
   out << YAML::EndMap;
   if (!out.good()) throw std::invalid_argument("meta: cannot emit YAML: " + out.GetLastError());

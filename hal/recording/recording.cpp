@@ -39,12 +39,12 @@ const Anchor* Recording::findAnchor(std::uint32_t id) const {
   return nullptr;
 }
 
-const Vec3* Recording::findTagLeverArm(std::uint32_t tag_id) const {
-  if (tags.empty()) return tag_id == 0 ? &meta.uwb_lever_arm_m : nullptr;
+std::optional<Vec3> Recording::findTagLeverArm(std::uint32_t tag_id) const {
+  if (tags.empty()) return tag_id == 0 ? std::optional<Vec3>(meta.uwbLeverArm()) : std::nullopt;
   for (const Tag& t : tags) {
-    if (t.id == tag_id) return &t.p_b_tag;
+    if (t.id == tag_id) return t.p_b_tag;
   }
-  return nullptr;
+  return std::nullopt;
 }
 
 namespace {

@@ -69,15 +69,19 @@ struct RecordingMeta {
   std::optional<double> accel_noise_density;         ///< m/s^2/sqrt(Hz)
   std::optional<double> gyro_bias_random_walk;       ///< rad/s^2/sqrt(Hz)
   std::optional<double> accel_bias_random_walk;      ///< m/s^3/sqrt(Hz)
-  Vec3 uwb_lever_arm_m = Vec3::Zero();               ///< single UWB antenna, body frame (m); used when tags is empty
-  Vec3 ultrasonic_lever_arm_m = Vec3::Zero();        ///< ultrasonic receiver, body frame (m)
+  // The device's geometry. Absent when meta.yaml does not say it: a replay
+  // with a service configuration then keeps the configuration's.
+  std::optional<Vec3> uwb_lever_arm_m;               ///< single UWB antenna, body frame (m); used when tags is empty
+  std::optional<Vec3> ultrasonic_lever_arm_m;        ///< ultrasonic receiver, body frame (m)
+  Vec3 uwbLeverArm() const { return uwb_lever_arm_m.value_or(Vec3::Zero()); }          ///< absent: at the body origin
+  Vec3 ultrasonicLeverArm() const { return ultrasonic_lever_arm_m.value_or(Vec3::Zero()); }
   std::optional<RangingKind> ranging;
 };
 
 struct Recording {
   RecordingMeta meta;
   std::vector<Anchor> anchors;
-  std::vector<Tag> tags;                  ///< empty: one antenna (tag id 0) at meta.uwb_lever_arm_m
+  std::vector<Tag> tags;                  ///< empty: one antenna (tag id 0) at meta.uwbLeverArm()
   std::vector<ImuSample> imu;
   std::vector<double> imu_temp_c;         ///< empty if imu.csv has no temp_c column, else one per imu sample (NaN = blank)
   std::vector<RangeSample> ranges;
@@ -87,8 +91,9 @@ struct Recording {
 
   /// nullptr if there is no anchor with this id.
   const Anchor* findAnchor(std::uint32_t id) const;
-  /// Lever arm of the UWB antenna `tag_id`, nullptr if unknown (tags empty: only id 0).
-  const Vec3* findTagLeverArm(std::uint32_t tag_id) const;
+  /// Lever arm of the UWB antenna `tag_id` (body frame, m), nullopt if there
+  /// is no such antenna (tags empty: only id 0, at meta.uwbLeverArm()).
+  std::optional<Vec3> findTagLeverArm(std::uint32_t tag_id) const;
 };
 
 }  // namespace rilo

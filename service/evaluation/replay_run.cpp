@@ -24,6 +24,19 @@ ImuParams imuParamsFrom(const RecordingMeta& meta) {
   return imu;
 }
 
+/// The recording's device where its meta says it; the rest stays `graph`'s
+/// (ReplaySettings::device_from_recording). Gravity stays: it belongs to the
+/// site, and meta.yaml's is never absent (9.81 when not written).
+void takeDeviceFrom(const RecordingMeta& meta, RangeImuGraphParams& graph) {
+  ImuParams& imu = graph.imu;
+  if (meta.gyro_noise_density) imu.gyro_noise_density = *meta.gyro_noise_density;
+  if (meta.accel_noise_density) imu.accel_noise_density = *meta.accel_noise_density;
+  if (meta.gyro_bias_random_walk) imu.gyro_bias_random_walk = *meta.gyro_bias_random_walk;
+  if (meta.accel_bias_random_walk) imu.accel_bias_random_walk = *meta.accel_bias_random_walk;
+  if (meta.uwb_lever_arm_m) graph.p_b_tag = *meta.uwb_lever_arm_m;
+  if (meta.ultrasonic_lever_arm_m) graph.p_b_ultrasonic = *meta.ultrasonic_lever_arm_m;
+}
+
 /// Uniform [0, 1) from 53 bits: the same numbers on every platform (unlike
 /// std::uniform_real_distribution, whose algorithm the standard leaves open).
 double unitDraw(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
@@ -74,8 +87,10 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   LocalizerParams lp = s.service_params.value_or(LocalizerParams{});
   if (!from_service) {
     lp.graph.imu = imuParamsFrom(rec.meta);
-    lp.graph.p_b_tag = rec.meta.uwb_lever_arm_m;
-    lp.graph.p_b_ultrasonic = rec.meta.ultrasonic_lever_arm_m;
+    lp.graph.p_b_tag = rec.meta.uwbLeverArm();
+    lp.graph.p_b_ultrasonic = rec.meta.ultrasonicLeverArm();
+  } else if (s.device_from_recording) {
+    takeDeviceFrom(rec.meta, lp.graph);
   }
   lp.graph.range_loss = s.noise;
   if (s.range_sigma_m) lp.graph.range_noise.sigma_m = *s.range_sigma_m;

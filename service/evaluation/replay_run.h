@@ -37,13 +37,23 @@ std::string toString(const MeasurementKinds& kinds);
 struct ReplaySettings {
   /// The service's parameters (rilod's configuration, `rilo replay
   /// --config`): the replay starts from them instead of the library defaults,
-  /// and takes nothing from the recording but its data, anchors and
-  /// ultrasonic beacons (not its IMU densities or lever arms, nor the vertical
-  /// speed default below; the EKF's TDoA velocity noise stays, rilod has no
-  /// EKF), so it runs what rilod would run. smoother, noise and
-  /// lag_s still apply (a caller sets them from the same configuration unless
-  /// told otherwise), and so does every optional setting that is set.
+  /// so it runs the estimator rilod would run (not the vertical speed default
+  /// below; the EKF's TDoA velocity noise stays, rilod has no EKF). The
+  /// device is the recording's where its meta.yaml describes it
+  /// (device_from_recording). smoother, noise and lag_s still apply (a caller
+  /// sets them from the same configuration unless told otherwise), and so does
+  /// every optional setting that is set.
   std::optional<LocalizerParams> service_params;
+  /// With service_params: the IMU noise densities and the UWB and ultrasonic
+  /// lever arms that the recording's meta.yaml gives replace the
+  /// configuration's (each one given; the rest stay the configuration's). The
+  /// configuration describes the board rilod runs on, the recording the one
+  /// that recorded it: the independent office sims (antenna at the body
+  /// origin, a noisier accelerometer) replayed with rilod.yaml's 0.10 m arm
+  /// and BMI263 densities were 0.08-0.2 m worse (docs/noise-models.md).
+  /// false: the configuration's device throughout (a recording whose meta is
+  /// known to be wrong).
+  bool device_from_recording = true;
   std::string smoother = "d-isam2";  ///< d-isam2 | isam2 | dogleg | sliding-window | ekf
   std::string noise = "asymmetric";  ///< gaussian | huber | cauchy | asymmetric
   double range_hz = 0.0;             ///< thin ranges to this total rate (0: keep all)

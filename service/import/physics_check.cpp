@@ -194,7 +194,7 @@ TdoaCheck checkTdoa(const Recording& rec, const PhysicsCheckParams& params, cons
   for (const Anchor& a : rec.anchors) {
     if (a.kind == AnchorKind::kUwb) anchor_at.emplace(a.id, a.p_w_anchor);
   }
-  const Vec3 l = rec.meta.uwb_lever_arm_m;
+  const Vec3 l = rec.meta.uwbLeverArm();
 
   std::map<std::pair<std::uint32_t, std::uint32_t>, std::size_t> pair_index;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pair_ids;

@@ -61,6 +61,7 @@ RecordingMeta scenarioMeta(const ScenarioParams& params, const Eigen::Vector3d& 
   m.gyro_bias_random_walk = params.gyro_bias_walk;
   m.accel_bias_random_walk = params.accel_bias_walk;
   m.uwb_lever_arm_m = p_b_tag;
+  m.ultrasonic_lever_arm_m = Vec3::Zero();  // the simulated device states its whole geometry (set below with a receiver)
   m.ranging = RangingKind::kSsTwr;
   return m;
 }

@@ -248,8 +248,8 @@ TEST(RecordingRoundTrip, MinimalRecordingWithoutOptionalFiles) {
   EXPECT_TRUE(report.warnings.empty());
   expectSame(r, back);
   EXPECT_TRUE(back.imu_temp_c.empty());
-  ASSERT_NE(back.findTagLeverArm(0), nullptr);  // no tags.csv: one antenna at uwb.lever_arm
-  EXPECT_EQ(back.findTagLeverArm(1), nullptr);
+  ASSERT_TRUE(back.findTagLeverArm(0).has_value());  // no tags.csv: one antenna at uwb.lever_arm
+  EXPECT_FALSE(back.findTagLeverArm(1).has_value());
 }
 
 TEST(RecordingRoundTrip, WriterHeadersUseTheFormatColumns) {

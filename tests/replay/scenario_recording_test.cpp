@@ -43,7 +43,7 @@ void expectScenarioInRecording(const Scenario& s, const Recording& rec, const Sc
   EXPECT_EQ(rec.meta.accel_noise_density, s.params.accel_noise_density);
   EXPECT_EQ(rec.meta.gyro_bias_random_walk, s.params.gyro_bias_walk);
   EXPECT_EQ(rec.meta.accel_bias_random_walk, s.params.accel_bias_walk);
-  EXPECT_TRUE(same(rec.meta.uwb_lever_arm_m, s.p_b_tag));
+  EXPECT_TRUE(rec.meta.uwb_lever_arm_m && same(*rec.meta.uwb_lever_arm_m, s.p_b_tag));
   EXPECT_EQ(rec.meta.ranging, RangingKind::kSsTwr);
 
   ASSERT_EQ(rec.anchors.size(), s.p_w_anchors.size());

@@ -294,7 +294,7 @@ TEST(UtilImport, ImportsSyntheticFlightAndReadsItBack) {
   EXPECT_EQ(rec.meta.name, "const1-trial1-tdoa2");
   EXPECT_NE(rec.meta.description.find("const1-trial1-tdoa2.csv"), std::string::npos);
   EXPECT_NE(rec.meta.description.find("anchor_const1_survey.txt"), std::string::npos);
-  EXPECT_TRUE(rec.meta.uwb_lever_arm_m.isApprox(importer::kUtilTagLeverArm));
+  EXPECT_TRUE(rec.meta.uwbLeverArm().isApprox(importer::kUtilTagLeverArm));
   EXPECT_DOUBLE_EQ(rec.meta.gravity_m_s2, 9.81);
 
   // Written with RecordingWriter, the folder reads back identically.

@@ -1,7 +1,8 @@
-// `rilo replay --config`: the replay runs the parameters rilod derives from
+// `rilo replay --config`: the replay runs the estimator rilod derives from
 // its configuration (service_setup.h localizerParams), not the replay's own
-// defaults or the recording's sensor parameters, and explicit replay
-// settings still override them.
+// defaults, on the recording's device where its meta.yaml describes it (IMU
+// noise densities, lever arms), and explicit replay settings still override
+// them.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -64,12 +65,13 @@ TEST(ServiceLocalizerParams, CarryTheEstimatorAndImuSectionsAndTheUltrasonicBeac
   EXPECT_DOUBLE_EQ(so.localizer.smoother.lag_s, 7.0);
 }
 
-TEST(ReplayWithServiceParams, TakesTheServicesModelInsteadOfTheRecordingsSensorParameters) {
+TEST(ReplayWithServiceParams, TakesTheServicesEstimatorOnTheRecordingsDevice) {
   const Recording& rec = demo();
+  ASSERT_TRUE(rec.meta.uwb_lever_arm_m.has_value());
+  ASSERT_TRUE(rec.meta.gyro_noise_density.has_value());
   ReplaySettings own;
   const LocalizerParams replay_own = localizerParamsFor(rec, own);
-  EXPECT_TRUE(replay_own.graph.p_b_tag.isApprox(rec.meta.uwb_lever_arm_m));
-  ASSERT_TRUE(rec.meta.gyro_noise_density.has_value());
+  EXPECT_TRUE(replay_own.graph.p_b_tag.isApprox(*rec.meta.uwb_lever_arm_m));
   EXPECT_DOUBLE_EQ(replay_own.graph.imu.gyro_noise_density, *rec.meta.gyro_noise_density);
 
   ReplaySettings s;
@@ -78,8 +80,24 @@ TEST(ReplayWithServiceParams, TakesTheServicesModelInsteadOfTheRecordingsSensorP
   s.noise = "huber";
   s.lag_s = 7.0;
   const LocalizerParams lp = localizerParamsFor(rec, s);
-  EXPECT_TRUE(lp.graph.p_b_tag.isApprox(Vec3(0.0, 0.0, 0.2)));
-  EXPECT_DOUBLE_EQ(lp.graph.imu.gyro_noise_density, 5.0e-4);
+  // The device as the recording states it...
+  EXPECT_TRUE(lp.graph.p_b_tag.isApprox(*rec.meta.uwb_lever_arm_m));
+  EXPECT_DOUBLE_EQ(lp.graph.imu.gyro_noise_density, *rec.meta.gyro_noise_density);
+  EXPECT_DOUBLE_EQ(lp.graph.imu.accel_noise_density, *rec.meta.accel_noise_density);
+  // ... the configuration's where it says nothing, or when told to ...
+  Recording silent = rec;
+  silent.meta.uwb_lever_arm_m.reset();
+  silent.meta.gyro_noise_density.reset();
+  const LocalizerParams from_silent = localizerParamsFor(silent, s);
+  EXPECT_TRUE(from_silent.graph.p_b_tag.isApprox(Vec3(0.0, 0.0, 0.2)));
+  EXPECT_DOUBLE_EQ(from_silent.graph.imu.gyro_noise_density, 5.0e-4);
+  EXPECT_DOUBLE_EQ(from_silent.graph.imu.accel_noise_density, *rec.meta.accel_noise_density);
+  ReplaySettings config_device = s;
+  config_device.device_from_recording = false;
+  const LocalizerParams from_config = localizerParamsFor(rec, config_device);
+  EXPECT_TRUE(from_config.graph.p_b_tag.isApprox(Vec3(0.0, 0.0, 0.2)));
+  EXPECT_DOUBLE_EQ(from_config.graph.imu.gyro_noise_density, 5.0e-4);
+  // ... and the estimator always the configuration's.
   EXPECT_DOUBLE_EQ(lp.graph.range_noise.sigma_m, 0.07);
   EXPECT_DOUBLE_EQ(lp.height_band.min_height_m, 1.1);
   EXPECT_EQ(lp.smoother.method, SmootherParams::Method::kGaussNewton);

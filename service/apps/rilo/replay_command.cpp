@@ -139,7 +139,10 @@ int runReplay(const ReplayOptions& o) {
   summary << "\n}\n";
   if (!summary) throw std::runtime_error("cannot write " + (dir / "summary.json").string());
 
-  if (!o.config.empty()) std::printf("rilo replay: estimator of %s (lag %g s)\n", o.config.c_str(), o.settings.lag_s);
+  if (!o.config.empty()) {
+    std::printf("rilo replay: estimator of %s (lag %g s), device of the %s\n", o.config.c_str(), o.settings.lag_s,
+                o.settings.device_from_recording ? "recording where its meta.yaml gives it" : "configuration");
+  }
   std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations, "
               "tracking %.0f%% of the time\n",
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
@@ -194,10 +197,14 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("REC", options->recording, "Recording folder")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--out", options->out, "Output folder")->required();
   cmd->add_option("--config", options->config,
-                  "rilod configuration (YAML) whose estimator, imu and lever-arm settings the replay runs instead of its "
-                  "own defaults and the recording's sensor parameters: what the service would have published. Options "
-                  "given with it override it")
+                  "rilod configuration (YAML) whose estimator the replay runs instead of its own defaults: what the "
+                  "service would have published on the recording's device. Options given with it override it")
       ->check(CLI::ExistingFile);
+  cmd->add_option("--device-from", options->settings.device_from_recording,
+                  "With --config, the IMU noise densities and lever arms: recording (those its meta.yaml gives, the "
+                  "rest the configuration's) or config (the configuration's only)")
+      ->capture_default_str()
+      ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"recording", true}, {"config", false}}));
   CLI::Option* smoother = cmd->add_option("--smoother", options->settings.smoother,
                                           "Estimator: an incremental smoother, or the EKF baseline (with --config: its smoother)")
       ->capture_default_str()->check(CLI::IsMember(estimatorNames()));

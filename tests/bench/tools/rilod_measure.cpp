@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
   recording = std::filesystem::absolute(recording).lexically_normal().string();  // the config lives elsewhere
 
   const rilo::Recording rec = rilo::readRecording(recording);
-  const rilo::Vec3 lever = rec.meta.uwb_lever_arm_m;
+  const rilo::Vec3 lever = rec.meta.uwbLeverArm();
   char dir_template[] = "/tmp/rilod-measure-XXXXXX";
   const std::string dir = ::mkdtemp(dir_template);
   const std::string config = dir + "/rilod.yaml";

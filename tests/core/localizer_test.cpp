@@ -539,6 +539,7 @@ TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
   const sim::Scenario with_fp = sim::simulateOfficeScenario(op);
   op.report_first_path = false;
   const sim::Scenario s = sim::simulateOfficeScenario(op);
+  double gap_on_db = 0.0, configured_gap_db = 0.0;
   auto run = [&](const sim::Scenario& sc, bool indicator, bool* fitted) {
     LocalizerParams p = paramsFor(sc);
     p.rx_level_envelope.enabled = indicator;
@@ -546,15 +547,24 @@ TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
     const FeedResult fed = feed(sc, localizer);
     EXPECT_GT(fed.tracked_updates, 100);
     *fitted = localizer.rxLevelEnvelope().fitted();
+    gap_on_db = localizer.nlosGapDb();
+    configured_gap_db = p.graph.range_noise.nlos_power_gap_db;
     return fed;
   };
   bool fitted_on = false, fitted_off = true, fitted_fp = true;
   const FeedResult on = run(s, true, &fitted_on);
+  // The deficits sit on the gap scale from the calibration's LOS reference
+  // up: it learnt where below the envelope the excess begins, under the
+  // configured bound and above its reference.
+  const double learnt_gap_db = gap_on_db;
+  EXPECT_LT(learnt_gap_db, configured_gap_db);
+  EXPECT_GE(learnt_gap_db, LocalizerParams().los_gap.min_gap_db);
   const FeedResult off = run(s, false, &fitted_off);
   const FeedResult fp = run(with_fp, true, &fitted_fp);
-  std::printf("no first-path power: mean error %.3f m (height %+.3f) with the RX-level indicator, %.3f m (%+.3f) "
-              "without; with the first-path power %.3f m (%+.3f)\n", on.mean_error_m, on.mean_height_error_m,
-              off.mean_error_m, off.mean_height_error_m, fp.mean_error_m, fp.mean_height_error_m);
+  std::printf("no first-path power: mean error %.3f m (height %+.3f) with the RX-level indicator (flag at %.1f dB on "
+              "the gap scale), %.3f m (%+.3f) without; with the first-path power %.3f m (%+.3f)\n", on.mean_error_m,
+              on.mean_height_error_m, learnt_gap_db, off.mean_error_m, off.mean_height_error_m, fp.mean_error_m,
+              fp.mean_height_error_m);
   EXPECT_TRUE(fitted_on);
   EXPECT_FALSE(fitted_off) << "disabled: nothing learnt";
   EXPECT_FALSE(fitted_fp) << "the receiver's own indicator is used where it is reported";

@@ -129,8 +129,10 @@ struct LocalizerParams {
   LosGapParams los_gap;
   /// Where a two-way range carries the RX level but no first-path power, the
   /// NLOS indicator is its deficit below the learnt LOS path-loss envelope
-  /// (rx_level_envelope.h), judged like the receiver's gap. enabled = false:
-  /// such ranges go unflagged.
+  /// (rx_level_envelope.h), placed on the gap scale at the LOS reference of
+  /// the threshold calibration (los_gap.min_gap_db + deficit, see
+  /// withRxLevelIndicator) and judged like the receiver's gap. enabled =
+  /// false: such ranges go unflagged.
   RxLevelEnvelopeParams rx_level_envelope;
   /// Windowed rejection share (RejectionWindow, see its notes for the
   /// measurements behind the defaults): fail when more than
@@ -245,6 +247,18 @@ class Localizer {
   /// sample with the RX-level indicator as its first-path power where the
   /// receiver reported none (and the envelope is fitted); else sample.
   RangeSample withRxLevelIndicator(const RangeSample& sample);
+  /// The flagged ranges' shift is estimated from their residuals
+  /// (flagged_excess) only where the receiver's own first-path indicator
+  /// flags them. An RX-level flag says a path is attenuated, not by how much
+  /// it is delayed: on the independent office sims the ranges it leaves
+  /// unflagged carry as much excess as those it flags (+0.34 against +0.32 m),
+  /// and a quantile of the flagged residuals, measured at a pose that the
+  /// unflagged excess already biased, kept the height low. Such flags take
+  /// the NLOS component's own mode instead. Decided per tracking run: once
+  /// the site's ranges come without first-path power, estimation stops (the
+  /// shift in use stays until the next start). Measured: docs/noise-models.md,
+  /// session 31.
+  bool estimatesFlaggedExcess() const { return estimate_flagged_excess_ && !rx_level_indicator_used_; }
   void startTracking();
   void checkHealth(const UpdateStats& stats);
   void checkConsistency();
@@ -265,6 +279,9 @@ class Localizer {
   /// The site's LOS path-loss envelope: kept over re-initializations (the
   /// building and the hardware stay).
   RxLevelEnvelope rx_level_envelope_;
+  /// A range took its flag from the RX level (withRxLevelIndicator): this
+  /// site's receiver reports no first-path power.
+  bool rx_level_indicator_used_ = false;
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
   double gap_db_in_use_ = 0.0;  ///< last threshold handed to the estimator

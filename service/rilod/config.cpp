@@ -511,9 +511,19 @@ ServiceConfig readRoot(const ConfigField& root_field, const std::filesystem::pat
   return c;
 }
 
-}  // namespace
+EstimatorConfig readEstimatorOnly(const ConfigField& root_field) {
+  if (root_field.isNull()) root_field.fail("the configuration is empty (expected a mapping with an estimator section)");
+  const ConfigMap root = root_field.map(
+      {"sources", "anchors", "imu", "estimator", "dds", "recording", "realtime", "status", "watchdog"});
+  EstimatorConfig e;
+  if (auto f = root.get("imu")) e.graph.imu = readImu(*f);
+  if (auto f = root.get("estimator")) e = readEstimator(*f, e);
+  return e;
+}
 
-ServiceConfig parseServiceConfig(std::string_view yaml, const std::filesystem::path& file) {
+/// Parses `yaml` and hands its root to `read` (a ConfigError names `file`).
+template <typename Read>
+auto parseDocument(std::string_view yaml, const std::filesystem::path& file, Read read) {
   const std::filesystem::path absolute = std::filesystem::absolute(file).lexically_normal();
   const ReadContext context{file.string(), absolute.parent_path()};
   YAML::Node doc;
@@ -522,7 +532,20 @@ ServiceConfig parseServiceConfig(std::string_view yaml, const std::filesystem::p
   } catch (const YAML::Exception& e) {
     config_detail::failAt(context, "", e.mark, "not valid YAML: " + e.msg);
   }
-  return readRoot(ConfigField(doc, "", &context), absolute);
+  return read(ConfigField(doc, "", &context), absolute);
+}
+
+}  // namespace
+
+ServiceConfig parseServiceConfig(std::string_view yaml, const std::filesystem::path& file) {
+  return parseDocument(yaml, file, [](const ConfigField& root, const std::filesystem::path& absolute) {
+    return readRoot(root, absolute);
+  });
+}
+
+EstimatorConfig parseEstimatorConfig(std::string_view yaml, const std::filesystem::path& file) {
+  return parseDocument(yaml, file,
+                       [](const ConfigField& root, const std::filesystem::path&) { return readEstimatorOnly(root); });
 }
 
 ServiceConfig loadServiceConfig(const std::filesystem::path& file) {

@@ -233,6 +233,13 @@ ServiceConfig loadServiceConfig(const std::filesystem::path& file);
 /// directory is the base of relative paths). Throws ConfigError.
 ServiceConfig parseServiceConfig(std::string_view yaml, const std::filesystem::path& file);
 
+/// The estimator of a rilod configuration document alone: its `imu` and
+/// `estimator` sections, checked as loadServiceConfig checks them (the root's
+/// keys too, so a misspelt section is still an error). The other sections
+/// are not read: no anchors file is opened, no device named. For running the
+/// service's estimator on recorded data (`rilo replay`). Throws ConfigError.
+EstimatorConfig parseEstimatorConfig(std::string_view yaml, const std::filesystem::path& file);
+
 std::string_view toString(SourceMode mode);
 std::string_view toString(ReplayPace pace);
 

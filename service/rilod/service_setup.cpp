@@ -26,22 +26,28 @@ ServiceOptions serviceOptions(const ServiceConfig& cfg) {
 }
 
 LocalizerParams localizerParams(const ServiceConfig& cfg) {
-  LocalizerParams lp;
-  lp.graph = cfg.estimator.graph;
+  LocalizerParams lp = localizerParams(cfg.estimator);
   lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(cfg.anchors);  // for ultrasonic ranges
-  lp.smoother = cfg.estimator.smoother;
-  lp.stream = cfg.estimator.stream;
-  lp.init.window_s = cfg.estimator.init_window_s;
-  lp.init.max_outside_anchors_m = cfg.estimator.init_max_outside_anchors_m;
-  lp.init.heavy_nlos_after_s = cfg.estimator.init_heavy_nlos_after_s;
-  lp.height_band = cfg.estimator.height_band;
-  lp.vertical_speed_sigma_m_s = cfg.estimator.vertical_speed_sigma_m_s;
-  lp.zero_velocity_sigma_m_s = cfg.estimator.zero_velocity_sigma_m_s;
-  lp.max_outside_anchors_m = cfg.estimator.max_outside_anchors_m;
-  lp.flagged_excess.quantile = cfg.estimator.flagged_excess_quantile;
-  lp.los_gap.enabled = cfg.estimator.los_gap_calibration;
-  lp.rx_level_envelope.enabled = cfg.estimator.rx_level_indicator;
-  lp.with_tdoa = cfg.estimator.with_tdoa;
+  return lp;
+}
+
+LocalizerParams localizerParams(const EstimatorConfig& e) {
+  LocalizerParams lp;
+  lp.graph = e.graph;
+  lp.graph.p_w_ultrasonic.clear();
+  lp.smoother = e.smoother;
+  lp.stream = e.stream;
+  lp.init.window_s = e.init_window_s;
+  lp.init.max_outside_anchors_m = e.init_max_outside_anchors_m;
+  lp.init.heavy_nlos_after_s = e.init_heavy_nlos_after_s;
+  lp.height_band = e.height_band;
+  lp.vertical_speed_sigma_m_s = e.vertical_speed_sigma_m_s;
+  lp.zero_velocity_sigma_m_s = e.zero_velocity_sigma_m_s;
+  lp.max_outside_anchors_m = e.max_outside_anchors_m;
+  lp.flagged_excess.quantile = e.flagged_excess_quantile;
+  lp.los_gap.enabled = e.los_gap_calibration;
+  lp.rx_level_envelope.enabled = e.rx_level_indicator;
+  lp.with_tdoa = e.with_tdoa;
   return lp;
 }
 

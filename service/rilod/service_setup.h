@@ -20,6 +20,9 @@ ServiceOptions serviceOptions(const ServiceConfig& config);
 /// sections, and the ultrasonic beacons among the configured anchors.
 /// `rilo replay --config` replays a recording with exactly these.
 LocalizerParams localizerParams(const ServiceConfig& config);
+/// The same from the estimator alone (no ultrasonic beacons: a replay takes
+/// the recording's).
+LocalizerParams localizerParams(const EstimatorConfig& estimator);
 
 /// The replay source of sources.replay: pace, speed, time shift, and the
 /// faults (a FaultInjectingSource around it) when any are configured.

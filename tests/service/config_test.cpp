@@ -455,6 +455,42 @@ TEST(ShippedConfigTest, DefaultReplayDemoLoads) {
   EXPECT_FALSE(c.estimator.vertical_speed_sigma_m_s.has_value());  // auto
 }
 
+// The estimator alone (what `rilo replay` runs from the built-in copy): the
+// same as the whole file's, read without the anchors file or any device, and
+// still checked key by key.
+TEST(ShippedConfigTest, EstimatorAloneIsTheWholeFilesEstimator) {
+  const auto file = testing::sourceDir() / "config" / "rilod.yaml";
+  const std::string text = testing::readFile(file);
+  ASSERT_FALSE(text.empty()) << file;
+  TempDir elsewhere;  // no tests/data/office-demo beside it: the anchors file is not opened
+  const EstimatorConfig e = parseEstimatorConfig(text, elsewhere / "rilod.yaml");
+  const EstimatorConfig want = loadServiceConfig(file).estimator;
+  EXPECT_EQ(e.smoother.method, want.smoother.method);
+  EXPECT_DOUBLE_EQ(e.smoother.lag_s, want.smoother.lag_s);
+  EXPECT_EQ(e.graph.range_loss, want.graph.range_loss);
+  EXPECT_DOUBLE_EQ(e.graph.range_noise.sigma_m, want.graph.range_noise.sigma_m);
+  EXPECT_DOUBLE_EQ(e.graph.imu.accel_noise_density, want.graph.imu.accel_noise_density);
+  EXPECT_TRUE(e.graph.p_b_tag.isApprox(want.graph.p_b_tag));
+  EXPECT_DOUBLE_EQ(e.height_band.min_height_m, want.height_band.min_height_m);
+  EXPECT_EQ(e.rx_level_indicator, want.rx_level_indicator);
+  EXPECT_DOUBLE_EQ(e.flagged_excess_quantile, want.flagged_excess_quantile);
+  EXPECT_EQ(e.with_tdoa.state_window_ns, want.with_tdoa.state_window_ns);
+  EXPECT_TRUE(localizerParams(e).graph.p_w_ultrasonic.empty());
+
+  try {
+    parseEstimatorConfig("estimator:\n  range:\n    sigma_m: -1\n", "built-in.yaml");
+    FAIL() << "no error";
+  } catch (const ConfigError& e2) {
+    EXPECT_EQ(e2.file(), "built-in.yaml");
+    EXPECT_EQ(e2.keyPath(), "estimator.range.sigma_m");
+  }
+  EXPECT_THROW(parseEstimatorConfig("estimatr:\n  lag_s: 3\n", "x.yaml"), ConfigError);  // a misspelt section
+  EXPECT_THROW(parseEstimatorConfig("", "x.yaml"), ConfigError);
+  EXPECT_THROW(parseEstimatorConfig("estimator: [", "x.yaml"), ConfigError);
+  // A document without estimator sections is the library's estimator with the service's lag.
+  EXPECT_DOUBLE_EQ(parseEstimatorConfig("dds: {domain: 3}\n", "x.yaml").smoother.lag_s, 10.0);
+}
+
 TEST(ShippedConfigTest, HardwareExampleLoads) {
   const ServiceConfig c = loadServiceConfig(testing::sourceDir() / "config" / "rilod-hardware.yaml");
   EXPECT_EQ(c.sources.mode, SourceMode::kHardware);

@@ -172,10 +172,19 @@ TEST(RiloReplay, ConfigRunsTheServicesEstimatorAndOptionsOverrideIt) {
   EXPECT_NE(text2.find("\"smoother\": \"d-isam2\""), std::string::npos) << text2;
   EXPECT_NE(text2.find("\"noise\": \"cauchy\""), std::string::npos) << text2;
 
-  // Without --config the summary says so.
+  // Without --config: the shipped configuration, built in, and the summary
+  // says so. One estimator: the same trajectory as with the file itself.
   const std::string own = (dir / "own").string();
   ASSERT_EQ(runRilo({"replay", rec, "--out", own, "--measurements", "range", "--range-hz", "1"}), 0);
-  EXPECT_NE(summaryOf(own).find("\"config\": null"), std::string::npos);
+  EXPECT_NE(summaryOf(own).find("\"config\": \"config/rilod.yaml (built in)\""), std::string::npos) << summaryOf(own);
+  const std::string shipped = (dir / "shipped").string();
+  ASSERT_EQ(runRilo({"replay", rec, "--out", shipped, "--measurements", "range", "--range-hz", "1", "--config",
+                     (testing::sourceDir() / "config" / "rilod.yaml").string()}),
+            0);
+  const std::string own_online = testing::readFile(std::filesystem::path(own) / "online.tum");
+  EXPECT_FALSE(own_online.empty());
+  EXPECT_TRUE(own_online == testing::readFile(std::filesystem::path(shipped) / "online.tum"))
+      << "the built-in configuration is not config/rilod.yaml";
 
   // A malformed configuration is refused before any replay, naming the key.
   testing::writeFile(config, "sources:\n  mode: replay\n  replay:\n    path: " + rec + "\nestimator:\n  lag_s: soon\n");

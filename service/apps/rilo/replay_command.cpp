@@ -1,4 +1,5 @@
 #include "replay_command.h"
+#include "shipped_config.h"
 
 #include <CLI/CLI.hpp>
 
@@ -56,13 +57,26 @@ std::string countJson(const MeasurementCount& c, bool with_flags = false) {
 
 }  // namespace
 
-void applyServiceConfig(const std::string& config_file, bool smoother_given, bool noise_given, bool lag_given,
-                        ReplaySettings& settings) {
+namespace {
+
+void applyEstimator(const EstimatorConfig& estimator, LocalizerParams params, GivenOptions given,
+                    ReplaySettings& settings) {
+  settings.service_params = std::move(params);
+  if (!given.smoother) settings.smoother = smootherMethodName(estimator.smoother.method);
+  if (!given.noise) settings.noise = estimator.graph.range_loss;
+  if (!given.lag) settings.lag_s = estimator.smoother.lag_s;
+}
+
+}  // namespace
+
+void applyServiceConfig(const std::string& config_file, GivenOptions given, ReplaySettings& settings) {
   const ServiceConfig cfg = loadServiceConfig(config_file);
-  settings.service_params = localizerParams(cfg);
-  if (!smoother_given) settings.smoother = smootherMethodName(cfg.estimator.smoother.method);
-  if (!noise_given) settings.noise = cfg.estimator.graph.range_loss;
-  if (!lag_given) settings.lag_s = cfg.estimator.smoother.lag_s;
+  applyEstimator(cfg.estimator, localizerParams(cfg), given, settings);
+}
+
+void applyShippedConfig(GivenOptions given, ReplaySettings& settings) {
+  const EstimatorConfig estimator = parseEstimatorConfig(shippedConfigYaml(), std::string(kShippedConfigName));
+  applyEstimator(estimator, localizerParams(estimator), given, settings);
 }
 
 int runReplay(const ReplayOptions& o) {
@@ -95,7 +109,7 @@ int runReplay(const ReplayOptions& o) {
 
   std::ofstream summary(dir / "summary.json");
   summary << "{\n  \"recording\": " << jsonString(o.recording)
-          << ",\n  \"config\": " << (o.config.empty() ? std::string("null") : jsonString(o.config))
+          << ",\n  \"config\": " << jsonString(o.config.empty() ? std::string(kShippedConfigName) : o.config)
           << ",\n  \"smoother\": " << jsonString(o.settings.smoother)
           << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"lag_s\": " << o.settings.lag_s
           << ",\n  \"range_hz\": " << o.settings.range_hz
@@ -139,10 +153,9 @@ int runReplay(const ReplayOptions& o) {
   summary << "\n}\n";
   if (!summary) throw std::runtime_error("cannot write " + (dir / "summary.json").string());
 
-  if (!o.config.empty()) {
-    std::printf("rilo replay: estimator of %s (lag %g s), device of the %s\n", o.config.c_str(), o.settings.lag_s,
-                o.settings.device_from_recording ? "recording where its meta.yaml gives it" : "configuration");
-  }
+  std::printf("rilo replay: estimator of %s (lag %g s), device of the %s\n",
+              o.config.empty() ? std::string(kShippedConfigName).c_str() : o.config.c_str(), o.settings.lag_s,
+              o.settings.device_from_recording ? "recording where its meta.yaml gives it" : "configuration");
   std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations, "
               "tracking %.0f%% of the time\n",
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
@@ -197,19 +210,20 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("REC", options->recording, "Recording folder")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--out", options->out, "Output folder")->required();
   cmd->add_option("--config", options->config,
-                  "rilod configuration (YAML) whose estimator the replay runs instead of its own defaults: what the "
-                  "service would have published on the recording's device. Options given with it override it")
+                  "rilod configuration (YAML) whose estimator the replay runs: what the service would have published "
+                  "on the recording's device (default: the shipped config/rilod.yaml, built in). Options given with "
+                  "it override it")
       ->check(CLI::ExistingFile);
   cmd->add_option("--device-from", options->settings.device_from_recording,
-                  "With --config, the IMU noise densities and lever arms: recording (those its meta.yaml gives, the "
-                  "rest the configuration's) or config (the configuration's only)")
+                  "The IMU noise densities and lever arms: recording (those its meta.yaml gives, the rest the "
+                  "configuration's) or config (the configuration's only)")
       ->capture_default_str()
       ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"recording", true}, {"config", false}}));
   CLI::Option* smoother = cmd->add_option("--smoother", options->settings.smoother,
-                                          "Estimator: an incremental smoother, or the EKF baseline (with --config: its smoother)")
-      ->capture_default_str()->check(CLI::IsMember(estimatorNames()));
-  CLI::Option* noise = cmd->add_option("--noise", options->settings.noise, "Range noise model (with --config: its noise_model)")
-      ->capture_default_str()->check(CLI::IsMember({"gaussian", "huber", "cauchy", "asymmetric"}));
+                                          "Estimator: an incremental smoother, or the EKF baseline (default: the configuration's smoother)")
+      ->check(CLI::IsMember(estimatorNames()));
+  CLI::Option* noise = cmd->add_option("--noise", options->settings.noise, "Range noise model (default: the configuration's noise_model)")
+      ->check(CLI::IsMember({"gaussian", "huber", "cauchy", "asymmetric"}));
   cmd->add_option("--range-hz", options->settings.range_hz, "Thin ranges to this total rate (Hz; 0 keeps all)")
       ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
   cmd->add_option("--thinning", options->settings.thinning,
@@ -217,8 +231,8 @@ void addReplayCommand(CLI::App& app) {
       ->capture_default_str()
       ->transform(CLI::CheckedTransformer(std::map<std::string, RangeThinning>{{"rotate", RangeThinning::kRotate},
                                                                                {"first", RangeThinning::kFirst}}));
-  CLI::Option* lag = cmd->add_option("--lag", options->settings.lag_s, "Fixed lag of the smoother (s; with --config: its lag_s)")
-      ->capture_default_str()->check(CLI::Range(0.5, 600.0));
+  CLI::Option* lag = cmd->add_option("--lag", options->settings.lag_s, "Fixed lag of the smoother (s; default: the configuration's lag_s)")
+      ->check(CLI::Range(0.5, 600.0));
   cmd->add_option("--range-sigma", options->settings.range_sigma_m, "LOS range noise std-dev (m)")->check(CLI::Range(0.001, 10.0));
   cmd->add_option("--nlos-scale", options->settings.nlos_scale_m, "Half-Cauchy scale of the NLOS range excess (m; asymmetric model)")
       ->check(CLI::Range(0.001, 100.0));
@@ -268,10 +282,10 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");
   cmd->add_option("--max-height", options->settings.max_height_m, "Highest tag height above the floor (m)");
   cmd->add_option("--vertical-speed-sigma", options->settings.vertical_speed_sigma_m_s,
-                  "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none; default 0.05 when TDoA rows are used, else 0.3; with --config: its vertical_speed_sigma_m_s)")->check(CLI::Range(0.0, 100.0));
+                  "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none; default: the configuration's vertical_speed_sigma_m_s, whose auto is 0.05 when TDoA rows are used, else 0.3)")->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--zero-velocity-sigma", options->settings.zero_velocity_sigma_m_s,
                   "Std-dev of a zero-velocity prior on each state the IMU shows still (m/s per second still; 0 = none; "
-                  "default 0.05; with --config: its zero_velocity_sigma_m_s)")
+                  "default: the configuration's zero_velocity_sigma_m_s)")
       ->check(CLI::Range(0.0, 100.0));
   cmd->add_option_function<std::string>(
          "--measurements", [options](const std::string& list) { options->settings.measurements = measurementKindsFromString(list); },
@@ -289,7 +303,7 @@ void addReplayCommand(CLI::App& app) {
       ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--reception-seed", options->settings.reception_seed, "Seed of the --reception draws")->capture_default_str();
   cmd->add_option("--state-window-ms", options->settings.same_state_window_ms,
-                  "Measurements closer than this share one state, whatever the data (ms; default 5, or 25 once the data hold TDoA rows; with --config: its range.same_state_window_s and tdoa.state_window_s)")
+                  "Measurements closer than this share one state, whatever the data (ms; default: the configuration's range.same_state_window_s, and tdoa.state_window_s once the data hold TDoA rows)")
       ->check(CLI::Range(0.0, 1000.0));
   cmd->add_option("--tdoa-sigma", options->settings.tdoa_sigma_m, "LOS std-dev of a TDoA range difference (m)")
       ->check(CLI::Range(0.001, 10.0));
@@ -321,13 +335,15 @@ void addReplayCommand(CLI::App& app) {
                   "and take it off the rows (true/false; default true; graph estimators; needs --tdoa-nlos-indicator)");
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
                   "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on once the data hold TDoA "
-                  "rows; with --config: its tdoa.dynamic_covariance)");
+                  "rows; the configuration's tdoa.dynamic_covariance)");
   cmd->callback([options, smoother, noise, lag] {
     int code = 1;
     try {
-      if (!options->config.empty()) {
-        applyServiceConfig(options->config, smoother->count() > 0, noise->count() > 0, lag->count() > 0,
-                           options->settings);
+      const GivenOptions given{smoother->count() > 0, noise->count() > 0, lag->count() > 0};
+      if (options->config.empty()) {
+        applyShippedConfig(given, options->settings);
+      } else {
+        applyServiceConfig(options->config, given, options->settings);
       }
       code = runReplay(*options);
     } catch (const std::exception& e) {

@@ -18,16 +18,23 @@ namespace rilo::tool {
 struct ReplayOptions {
   std::string recording;
   std::string out;
-  /// rilod configuration to replay with (empty: the replay's own defaults).
+  /// rilod configuration to replay with (empty: the shipped one, built in).
   std::string config;
   ReplaySettings settings;
+};
+
+/// Which of the estimator's settings the command line gave itself.
+struct GivenOptions {
+  bool smoother = false, noise = false, lag = false;
 };
 
 /// Loads a rilod configuration into `settings` (ReplaySettings::
 /// service_params), and its smoother, range noise model and lag unless the
 /// caller gave them. Throws ConfigError naming the file, line and key.
-void applyServiceConfig(const std::string& config_file, bool smoother_given, bool noise_given, bool lag_given,
-                        ReplaySettings& settings);
+void applyServiceConfig(const std::string& config_file, GivenOptions given, ReplaySettings& settings);
+/// The same with the shipped configuration compiled into the tool
+/// (shipped_config.h): `rilo replay`'s defaults.
+void applyShippedConfig(GivenOptions given, ReplaySettings& settings);
 
 /// Returns the process exit code (0 ok, 1 failure with the message on stderr).
 int runReplay(const ReplayOptions& options);

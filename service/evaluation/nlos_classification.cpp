@@ -19,7 +19,8 @@ NlosClassification classifyRanges(const std::vector<RangeSample>& ranges,
     if (k > 0 && (k == trajectory.size() || r.t_ns - trajectory[k - 1].t_ns < trajectory[k].t_ns - r.t_ns)) best = k - 1;
     if (std::llabs(trajectory[best].t_ns - r.t_ns) > options.max_dt_ns) continue;
     const Pose3& T = trajectory[best].T_w_b;
-    const double predicted_m = (T.R * p_b_tag + T.p - p_w_anchors[r.anchor_id]).norm();
+    const Vec3& p_b_antenna = leverArmOf(options.tag_lever_arms, r.tag_id, p_b_tag);
+    const double predicted_m = (T.R * p_b_antenna + T.p - p_w_anchors[r.anchor_id]).norm();
     const RangeTerm term = model.term(Measurement::of(r), sigma_m);
     const bool down =
         term.flagged_nlos || term.loss->weight((term.range_m - predicted_m) / term.sigma_m) < options.weight_threshold;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "estimation/measurements/range_model.h"
+#include "estimation/measurements/tag_lever_arms.h"
 #include "estimation/tracking/range_imu_estimator.h"
 #include "sensors/samples.h"
 
@@ -33,6 +34,7 @@ struct NlosClassification {
 struct NlosClassificationOptions {
   double weight_threshold = 0.5;     ///< below: down-weighted
   std::int64_t max_dt_ns = 50'000'000;  ///< ranges farther than this from every pose are skipped
+  std::vector<TagLeverArm> tag_lever_arms;  ///< further antennas by tag id (p_b_tag for the others)
 };
 
 /// Classifies `ranges` (time order) against `trajectory` (time order; the

@@ -25,16 +25,31 @@ ImuParams imuParamsFrom(const RecordingMeta& meta) {
 }
 
 /// The recording's device where its meta says it; the rest stays `graph`'s
-/// (ReplaySettings::device_from_recording). Gravity stays: it belongs to the
-/// site, and meta.yaml's is never absent (9.81 when not written).
+/// (ReplaySettings::device_from_recording). Gravity too: the recording's
+/// site's (meta.yaml's is never absent: 9.81 when not written, as rilod.yaml's).
 void takeDeviceFrom(const RecordingMeta& meta, RangeImuGraphParams& graph) {
   ImuParams& imu = graph.imu;
+  imu.gravity_m_s2 = meta.gravity_m_s2;
   if (meta.gyro_noise_density) imu.gyro_noise_density = *meta.gyro_noise_density;
   if (meta.accel_noise_density) imu.accel_noise_density = *meta.accel_noise_density;
   if (meta.gyro_bias_random_walk) imu.gyro_bias_random_walk = *meta.gyro_bias_random_walk;
   if (meta.accel_bias_random_walk) imu.accel_bias_random_walk = *meta.accel_bias_random_walk;
   if (meta.uwb_lever_arm_m) graph.p_b_tag = *meta.uwb_lever_arm_m;
   if (meta.ultrasonic_lever_arm_m) graph.p_b_ultrasonic = *meta.ultrasonic_lever_arm_m;
+}
+
+/// The recording's antennas (tags.csv), each range predicted from its own;
+/// the lowest id also stands for the single antenna (height band, TDoA,
+/// position-only fix). Nothing to take without tags.csv.
+void takeTagsFrom(const Recording& rec, RangeImuGraphParams& graph) {
+  if (rec.tags.empty()) return;
+  graph.tag_lever_arms.clear();
+  const Tag* lowest = &rec.tags.front();
+  for (const Tag& t : rec.tags) {
+    graph.tag_lever_arms.push_back({t.id, t.p_b_tag});
+    if (t.id < lowest->id) lowest = &t;
+  }
+  graph.p_b_tag = lowest->p_b_tag;
 }
 
 /// Uniform [0, 1) from 53 bits: the same numbers on every platform (unlike
@@ -89,8 +104,10 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
     lp.graph.imu = imuParamsFrom(rec.meta);
     lp.graph.p_b_tag = rec.meta.uwbLeverArm();
     lp.graph.p_b_ultrasonic = rec.meta.ultrasonicLeverArm();
+    takeTagsFrom(rec, lp.graph);
   } else if (s.device_from_recording) {
     takeDeviceFrom(rec.meta, lp.graph);
+    takeTagsFrom(rec, lp.graph);
   }
   lp.graph.range_loss = s.noise;
   if (s.range_sigma_m) lp.graph.range_noise.sigma_m = *s.range_sigma_m;
@@ -316,8 +333,10 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.height_band_in_use = localizer.params().graph.height_band.enabled;
   // Judged with the noise the tracker used (its flagged scale follows the ranging rate).
   const RangeModel range_model(params.graph.range_loss, localizer.trackingRangeNoise());
+  NlosClassificationOptions classification;
+  classification.tag_lever_arms = params.graph.tag_lever_arms;
   out.nlos = classifyRanges(ranges, out.smoothed, uwbAnchorsById(rec.anchors), params.graph.p_b_tag, range_model,
-                            params.graph.range_noise.sigma_m);
+                            params.graph.range_noise.sigma_m, classification);
   if (!rec.groundtruth.empty()) {
     out.ape_online = positionErrorAgainst(published, rec.groundtruth);
     out.ape_smoothed = positionErrorAgainst(out.smoothed, rec.groundtruth);

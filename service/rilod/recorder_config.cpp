@@ -23,6 +23,7 @@ RecordingSetup recordingSetup(const ServiceConfig& config) {
   m.gyro_bias_random_walk = imu.gyro_bias_random_walk;
   m.accel_bias_random_walk = imu.accel_bias_random_walk;
   m.uwb_lever_arm_m = config.estimator.graph.p_b_tag;
+  m.ultrasonic_lever_arm_m = config.estimator.graph.p_b_ultrasonic;  // the device's whole geometry, as before 'optional'
   if (config.sources.mode == SourceMode::kHardware) {
     m.imu_rate_hz = bmi263::odrHz(config.sources.hardware.imu.bmi263.odr);
     m.ranging = RangingKind::kSsTwr;

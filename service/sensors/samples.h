@@ -23,6 +23,10 @@ struct RangeSample {
   double rssi_dbm = std::numeric_limits<double>::quiet_NaN();  ///< received power, if known (NaN otherwise)
   int los = -1;              ///< ground truth from a simulator: 1 LOS, 0 NLOS, -1 unknown. Estimators never read it.
   double fp_power_dbm = std::numeric_limits<double>::quiet_NaN();  ///< first-path power, if known (NaN otherwise)
+  /// fp_power_dbm was not reported but written by the estimator from the RX
+  /// level (Localizer::withRxLevelIndicator): the flag it gives says a path
+  /// is attenuated, not how much it is delayed.
+  bool fp_from_rx_level = false;
 };
 
 /// Time difference of arrival between two UWB anchors:

@@ -300,6 +300,45 @@ TEST(RangeModel, ASetExcessReplacesTheComponentsModeEvenWhenZero) {
   EXPECT_DOUBLE_EQ(model.term(rangeWithGap(3.0), 0.1).range_m, 7.0) << "unflagged ranges keep their value";
 }
 
+// A flag from the RX level (Localizer::withRxLevelIndicator) says a path is
+// attenuated, not how much it is delayed: the site's flagged excess, learnt
+// from the receiver's own flags, is not taken off it; its gap bin's excess,
+// where the calibration measured one, is.
+TEST(RangeModel, RxLevelFlagsTakeTheComponentsModeNotTheSitesExcess) {
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.1;
+  RangeModel model("asymmetric", noise);
+  const std::shared_ptr<const NlosComponentLoss> nlos = makeNlosComponentLoss(noise.flagged());
+  model.setFlaggedExcess(0.3);
+  Measurement rx = rangeWithGap(9.0);
+  rx.gap_from_rx_level = true;
+  const RangeTerm t = model.term(rx, 0.1);
+  EXPECT_TRUE(t.flagged_nlos);
+  EXPECT_DOUBLE_EQ(t.range_m, 7.0 - nlos->modeSigmas() * 0.1);
+  EXPECT_DOUBLE_EQ(model.term(rangeWithGap(9.0), 0.1).range_m, 7.0 - 0.3) << "the receiver's own flag";
+  GapExcessTable table;
+  table.excess_m[17] = 0.2;  // (8.5, 9.0] dB
+  model.setGapExcess(table);
+  EXPECT_DOUBLE_EQ(model.term(rx, 0.1).range_m, 7.0 - 0.2);
+  // The mixture variant: no site shift either.
+  noise.flagged_nlos_component = false;
+  RangeModel mixture("asymmetric", noise);
+  mixture.setFlaggedExcess(0.3);
+  EXPECT_DOUBLE_EQ(mixture.term(rx, 0.1).range_m, 7.0);
+  EXPECT_DOUBLE_EQ(mixture.term(rangeWithGap(9.0), 0.1).range_m, 7.0 - 0.3);
+  // Measurement::of carries the mark from the sample.
+  RangeSample s;
+  s.range_m = 7.0;
+  s.rssi_dbm = -80.0;
+  s.fp_power_dbm = -89.0;
+  s.fp_from_rx_level = true;
+  s.tag_id = 3;
+  const Measurement m = Measurement::of(s);
+  EXPECT_TRUE(m.gap_from_rx_level);
+  EXPECT_EQ(m.tag, 3u);
+  EXPECT_DOUBLE_EQ(m.power_gap_db, 9.0);
+}
+
 TEST(RangeModel, TheDefaultComponentScaleStaysWithinTheTableAtSmallSigmas) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.02;  // 1 m would be 50 sigmas, beyond NlosComponentLoss::kMaxGamma

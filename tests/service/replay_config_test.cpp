@@ -85,9 +85,14 @@ TEST(ReplayWithServiceParams, TakesTheServicesEstimatorOnTheRecordingsDevice) {
   EXPECT_DOUBLE_EQ(lp.graph.imu.gyro_noise_density, *rec.meta.gyro_noise_density);
   EXPECT_DOUBLE_EQ(lp.graph.imu.accel_noise_density, *rec.meta.accel_noise_density);
   // ... the configuration's where it says nothing, or when told to ...
+  ASSERT_EQ(rec.tags.size(), 1u);  // the simulator states its antenna in tags.csv too
+  ASSERT_EQ(lp.graph.tag_lever_arms.size(), 1u);
+  EXPECT_EQ(lp.graph.tag_lever_arms[0].tag_id, rec.tags[0].id);
+  EXPECT_TRUE(lp.graph.tag_lever_arms[0].p_b_m.isApprox(rec.tags[0].p_b_tag));
   Recording silent = rec;
   silent.meta.uwb_lever_arm_m.reset();
   silent.meta.gyro_noise_density.reset();
+  silent.tags.clear();
   const LocalizerParams from_silent = localizerParamsFor(silent, s);
   EXPECT_TRUE(from_silent.graph.p_b_tag.isApprox(Vec3(0.0, 0.0, 0.2)));
   EXPECT_DOUBLE_EQ(from_silent.graph.imu.gyro_noise_density, 5.0e-4);

@@ -185,6 +185,26 @@ TEST(RiloReplay, ConfigRunsTheServicesEstimatorAndOptionsOverrideIt) {
   EXPECT_FALSE(own_online.empty());
   EXPECT_TRUE(own_online == testing::readFile(std::filesystem::path(shipped) / "online.tum"))
       << "the built-in configuration is not config/rilod.yaml";
+  EXPECT_NE(summaryOf(own).find("\"device_from\": \"recording\""), std::string::npos) << summaryOf(own);
+
+  // The device of the configuration instead of the recording's: this test's
+  // configuration has the library's lever arm (0), the demo states 0.1 m.
+  const std::string config_device = (dir / "config-device").string();
+  ASSERT_EQ(runRilo({"replay", rec, "--out", config_device, "--config", config, "--device-from", "config"}), 0);
+  EXPECT_NE(summaryOf(config_device).find("\"device_from\": \"config\""), std::string::npos);
+  EXPECT_FALSE(testing::readFile(std::filesystem::path(config_device) / "online.tum") ==
+               testing::readFile(std::filesystem::path(from_config) / "online.tum"));
+  EXPECT_NE(runRilo({"replay", rec, "--out", (dir / "bad-device").string(), "--device-from", "board"}), 0);
+
+  // The library's own estimator, as the replay ran without --config before:
+  // no configuration in the summary, its 5 s lag.
+  const std::string library = (dir / "library").string();
+  ASSERT_EQ(runRilo({"replay", rec, "--out", library, "--measurements", "range", "--range-hz", "1",
+                     "--library-defaults"}),
+            0);
+  EXPECT_NE(summaryOf(library).find("\"config\": null"), std::string::npos) << summaryOf(library);
+  EXPECT_NE(summaryOf(library).find("\"lag_s\": 5"), std::string::npos) << summaryOf(library);
+  EXPECT_NE(runRilo({"replay", rec, "--out", (dir / "both").string(), "--library-defaults", "--config", config}), 0);
 
   // A malformed configuration is refused before any replay, naming the key.
   testing::writeFile(config, "sources:\n  mode: replay\n  replay:\n    path: " + rec + "\nestimator:\n  lag_s: soon\n");

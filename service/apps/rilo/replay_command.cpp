@@ -42,6 +42,12 @@ std::string optionalJson(const std::optional<double>& v) {
   return buf;
 }
 
+/// The configuration the replay ran: a file, the built-in one, or none.
+std::string configJson(const ReplayOptions& o) {
+  if (o.library_defaults) return "null";
+  return jsonString(o.config.empty() ? std::string(kShippedConfigName) : o.config);
+}
+
 std::string countJson(const MeasurementCount& c, bool with_flags = false) {
   char buf[224];
   std::snprintf(buf, sizeof buf, "{\"recorded\": %zu, \"used\": %zu, \"dropped\": %zu, \"selected\": %s", c.recorded,
@@ -109,7 +115,8 @@ int runReplay(const ReplayOptions& o) {
 
   std::ofstream summary(dir / "summary.json");
   summary << "{\n  \"recording\": " << jsonString(o.recording)
-          << ",\n  \"config\": " << jsonString(o.config.empty() ? std::string(kShippedConfigName) : o.config)
+          << ",\n  \"config\": " << configJson(o)
+          << ",\n  \"device_from\": \"" << (o.settings.device_from_recording ? "recording" : "config") << '"'
           << ",\n  \"smoother\": " << jsonString(o.settings.smoother)
           << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"lag_s\": " << o.settings.lag_s
           << ",\n  \"range_hz\": " << o.settings.range_hz
@@ -153,9 +160,13 @@ int runReplay(const ReplayOptions& o) {
   summary << "\n}\n";
   if (!summary) throw std::runtime_error("cannot write " + (dir / "summary.json").string());
 
-  std::printf("rilo replay: estimator of %s (lag %g s), device of the %s\n",
-              o.config.empty() ? std::string(kShippedConfigName).c_str() : o.config.c_str(), o.settings.lag_s,
-              o.settings.device_from_recording ? "recording where its meta.yaml gives it" : "configuration");
+  if (o.library_defaults) {
+    std::printf("rilo replay: the library's own estimator (lag %g s), device of the recording\n", o.settings.lag_s);
+  } else {
+    std::printf("rilo replay: estimator of %s (lag %g s), device of the %s\n",
+                o.config.empty() ? std::string(kShippedConfigName).c_str() : o.config.c_str(), o.settings.lag_s,
+                o.settings.device_from_recording ? "recording where its meta.yaml gives it" : "configuration");
+  }
   std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations, "
               "tracking %.0f%% of the time\n",
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
@@ -214,10 +225,14 @@ void addReplayCommand(CLI::App& app) {
                   "on the recording's device (default: the shipped config/rilod.yaml, built in). Options given with "
                   "it override it")
       ->check(CLI::ExistingFile);
+  cmd->add_flag("--library-defaults", options->library_defaults,
+                "Run the library's own estimator (0.15 m range sigma, 5 s lag) on the recording's device instead of "
+                "a configuration: what the replay ran without --config before session 31")
+      ->excludes("--config");
   cmd->add_option("--device-from", options->settings.device_from_recording,
-                  "The IMU noise densities and lever arms: recording (those its meta.yaml gives, the rest the "
-                  "configuration's) or config (the configuration's only)")
-      ->capture_default_str()
+                  "The IMU noise densities, gravity, lever arms and antennas: recording (those its meta.yaml and "
+                  "tags.csv give, the rest the configuration's) or config (the configuration's only)")
+      ->default_str("recording")
       ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"recording", true}, {"config", false}}));
   CLI::Option* smoother = cmd->add_option("--smoother", options->settings.smoother,
                                           "Estimator: an incremental smoother, or the EKF baseline (default: the configuration's smoother)")
@@ -340,7 +355,11 @@ void addReplayCommand(CLI::App& app) {
     int code = 1;
     try {
       const GivenOptions given{smoother->count() > 0, noise->count() > 0, lag->count() > 0};
-      if (options->config.empty()) {
+      if (options->library_defaults) {
+        if (!options->settings.device_from_recording) {
+          throw std::invalid_argument("--library-defaults has no configuration to take the device from (--device-from config)");
+        }
+      } else if (options->config.empty()) {
         applyShippedConfig(given, options->settings);
       } else {
         applyServiceConfig(options->config, given, options->settings);

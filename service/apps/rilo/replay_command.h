@@ -20,6 +20,10 @@ struct ReplayOptions {
   std::string out;
   /// rilod configuration to replay with (empty: the shipped one, built in).
   std::string config;
+  /// Neither: the library's own estimator (LocalizerParams defaults, 0.15 m
+  /// range sigma, 5 s lag) and the recording's device, as `rilo replay`
+  /// without --config ran before session 31 (its figures in docs/ reproduce).
+  bool library_defaults = false;
   ReplaySettings settings;
 };
 

@@ -31,6 +31,7 @@ MeasurementNoise::MeasurementNoise(std::vector<Vec3> p_w_anchors, const RangeImu
       p_w_ultrasonic_(graph.p_w_ultrasonic),
       p_b_tag_(graph.p_b_tag),
       p_b_ultrasonic_(graph.p_b_ultrasonic),
+      tag_arms_(graph.tag_lever_arms),
       sigma_range_m_(graph.range_noise.sigma_m),
       sigma_tdoa_m_(graph.tdoa_sigma_m),
       sigma_ultrasonic_m_(graph.ultrasonic_sigma_m) {
@@ -78,7 +79,7 @@ double MeasurementNoise::predict(const Measurement& m, const Pose3& T_w_b) const
       return (T_w_b.R * p_b_ultrasonic_ + T_w_b.p - p_w_ultrasonic_.at(m.anchor)).norm();
     case Measurement::Kind::kRange: break;
   }
-  return (T_w_b.R * p_b_tag_ + T_w_b.p - p_w_anchors_.at(m.anchor)).norm();
+  return (T_w_b.R * leverArmOf(tag_arms_, m.tag, p_b_tag_) + T_w_b.p - p_w_anchors_.at(m.anchor)).norm();
 }
 
 void MeasurementNoise::count(CovarianceUpdate u) {

@@ -131,6 +131,7 @@ class MeasurementNoise {
   std::vector<Vec3> p_w_anchors_;
   std::vector<Vec3> p_w_ultrasonic_;
   Vec3 p_b_tag_, p_b_ultrasonic_;
+  std::vector<TagLeverArm> tag_arms_;  ///< RangeImuGraphParams::tag_lever_arms
   double sigma_range_m_, sigma_tdoa_m_, sigma_ultrasonic_m_;
   std::optional<DynamicCovariance> cov_;
   std::optional<TdoaGapExcess> gap_excess_;  ///< graph.tdoa_gap_excess, fed post-fit residuals

@@ -18,6 +18,7 @@
 #include "estimation/measurements/tdoa_model.h"
 #include "estimation/noise/noise_model_factory.h"
 #include "estimation/noise/tdoa_gap_excess.h"
+#include "estimation/measurements/tag_lever_arms.h"
 #include "sensors/samples.h"
 
 namespace rilo {
@@ -33,6 +34,12 @@ struct RangeImuGraphParams {
   bool anchors_as_variables = true;               ///< Ranging-IMU Fusion paper: anchors as variables with survey priors
   double anchor_sigma_m = 0.02;                   ///< survey std-dev of anchor positions (m)
   Vec3 p_b_tag = Vec3::Zero();                    ///< UWB antenna lever arm, body frame (m)
+  /// Further antennas by tag id (tag_lever_arms.h): a range from a listed
+  /// tag is predicted from its antenna, any other from p_b_tag. The height
+  /// band, TDoA and the position-only fix keep p_b_tag.
+  std::vector<TagLeverArm> tag_lever_arms;
+  /// The antenna of a range's tag (m, body frame).
+  const Vec3& leverArm(std::uint32_t tag_id) const { return leverArmOf(tag_lever_arms, tag_id, p_b_tag); }
   // Priors on the first state (around the initial guess).
   Vec6 first_pose_sigmas = (Vec6() << 0.1, 0.1, 0.5, 1.0, 1.0, 1.0).finished();  ///< [rad x3, m x3]
   double first_velocity_sigma_m_s = 1.0;

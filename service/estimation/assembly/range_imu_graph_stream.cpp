@@ -68,6 +68,7 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
     throw std::invalid_argument(where + "range_noise.sigma_m must be positive and finite");
   }
   if (!params_.p_b_tag.allFinite()) throw std::invalid_argument(where + "p_b_tag must be finite");
+  validateTagLeverArms(params_.tag_lever_arms, where.c_str());
   if (!(std::isfinite(params_.tdoa_sigma_m) && params_.tdoa_sigma_m > 0.0)) {
     throw std::invalid_argument(where + "tdoa_sigma_m must be positive and finite");
   }

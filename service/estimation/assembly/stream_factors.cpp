@@ -52,10 +52,11 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
       case Measurement::Kind::kRange: {
         const RangeTerm t = range_model_.term(m, sigma_m);
         if (vars) {
-          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m, params_.p_b_tag,
-                                           t.loss);
+          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m,
+                                           params_.leverArm(m.tag), t.loss);
         } else {
-          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, params_.p_b_tag, t.loss);
+          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, params_.leverArm(m.tag),
+                                           t.loss);
         }
         break;
       }

@@ -24,6 +24,7 @@ void AlignmentParams::validate() const {
   }
   if (!(short_side_huber_k > 0.0)) fail("short_side_huber_k", "must be > 0");
   if (!p_b_tag.allFinite()) fail("p_b_tag", "must be finite");
+  validateTagLeverArms(tag_lever_arms, "AlignmentParams.");
   if (!(gravity_m_s2 > 0.0) || !std::isfinite(gravity_m_s2)) fail("gravity_m_s2", "must be finite and > 0");
   if (!(accel_bias_sigma > 0.0)) fail("accel_bias_sigma", "must be > 0");
   if (!(gyro_bias_sigma > 0.0)) fail("gyro_bias_sigma", "must be > 0");
@@ -426,7 +427,9 @@ AlignmentResult alignRangeInertial(std::span<const ImuSample> imu, std::span<con
   pr.obs.reserve(used.size());
   for (std::size_t j = 0; j < used.size(); ++j) {
     const Measurement& m = *used[j];
-    Obs o{m.kind, Vec3::Zero(), Vec3::Zero(), m.value_m, 1.0 / params.range_sigma_m, &params.p_b_tag, &deltas[j]};
+    const Vec3* p_b_antenna =
+        m.kind == Measurement::Kind::kRange ? &leverArmOf(params.tag_lever_arms, m.tag, params.p_b_tag) : &params.p_b_tag;
+    Obs o{m.kind, Vec3::Zero(), Vec3::Zero(), m.value_m, 1.0 / params.range_sigma_m, p_b_antenna, &deltas[j]};
     if (m.kind == Measurement::Kind::kUltrasonic) {
       o.a = params.p_w_ultrasonic[m.anchor];
       o.inv_sigma = 1.0 / params.ultrasonic_sigma_m;

@@ -43,6 +43,7 @@
 #include "estimation/init/strapdown.h"
 #include "estimation/measurements/height_band.h"
 #include "estimation/measurements/measurement.h"
+#include "estimation/measurements/tag_lever_arms.h"
 #include "estimation/noise/robust_loss.h"
 #include "math/imu_bias.h"
 #include "math/pose3.h"
@@ -60,6 +61,7 @@ struct AlignmentParams {
   RobustLossPtr long_side_loss;          ///< loss of too-long ranges; null: the asymmetric range loss at range_sigma_m
   double short_side_huber_k = 3.0;       ///< Huber threshold of too-short ranges (sigmas)
   Vec3 p_b_tag = Vec3::Zero();           ///< antenna lever arm, body frame (m)
+  std::vector<TagLeverArm> tag_lever_arms;  ///< further antennas by tag id (RangeImuGraphParams::tag_lever_arms)
   double gravity_m_s2 = 9.81;
   double accel_bias_sigma = 0.1;         ///< prior std-dev of the accelerometer bias (m/s^2)
   double gyro_bias_sigma = 0.01;         ///< prior std-dev of the gyroscope bias (rad/s)

@@ -136,6 +136,7 @@ Initializer::Initializer(std::vector<Vec3> p_w_anchors, InitializerParams params
   params_.alignment.range_sigma_m = g.range_noise.sigma_m;
   params_.alignment.long_side_loss = asym;
   params_.alignment.p_b_tag = g.p_b_tag;
+  params_.alignment.tag_lever_arms = g.tag_lever_arms;
   params_.alignment.gravity_m_s2 = g.imu.gravity_m_s2;
   params_.alignment.accel_bias_sigma = g.first_accel_bias_sigma;
   params_.alignment.gyro_bias_sigma = g.first_gyro_bias_sigma;

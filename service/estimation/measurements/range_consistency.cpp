@@ -50,7 +50,7 @@ void RangeConsistencyMonitor::onRange(const RangeSample& range) noexcept {
 }
 
 double RangeConsistencyMonitor::residual(const RangeSample& range, const Pose3& T_w_b) const noexcept {
-  const Vec3 p_w_tag = T_w_b.p + T_w_b.R * p_b_tag_;
+  const Vec3 p_w_tag = T_w_b.p + T_w_b.R * leverArmOf(tag_arms_, range.tag_id, p_b_tag_);
   return range.range_m - (p_w_tag - p_w_anchors_[range.anchor_id]).norm();
 }
 
@@ -65,7 +65,9 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b) noexc
     if (r.t_ns < t_ns - params_.max_age_ns) continue;  // too old to judge at this pose
     const double res = residual(r, T_w_b);
     const double gap_db = r.rssi_dbm - r.fp_power_dbm;
-    if (gap_db > los_gap_.threshold()) {  // as RangeModel::flagsNlos
+    // As RangeModel::flagsNlos; the flagged excess is the receiver's flags'
+    // alone (RX-level flags take the component's mode, range_model.h).
+    if (gap_db > los_gap_.threshold() && !r.fp_from_rx_level) {
       flagged_[static_cast<std::size_t>(flagged_next_)] = res;
       flagged_next_ = (flagged_next_ + 1) % kFlaggedWindow;
       if (flagged_filled_ < kFlaggedWindow) ++flagged_filled_;

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "estimation/measurements/los_gap_calibration.h"
+#include "estimation/measurements/tag_lever_arms.h"
 #include "math/pose3.h"
 #include "math/types.h"
 #include "sensors/samples.h"
@@ -74,6 +75,9 @@ class RangeConsistencyMonitor {
                           double flag_gap_db = std::numeric_limits<double>::infinity(), LosGapParams los_gap = {});
   static constexpr int kFlaggedWindow = 200;
 
+  /// Further antennas by tag id (RangeImuGraphParams::tag_lever_arms): a
+  /// range is judged from the antenna that measured it.
+  void setTagLeverArms(std::vector<TagLeverArm> arms) { tag_arms_ = std::move(arms); }
   /// A range given to the tracking estimator (unknown anchors are ignored).
   void onRange(const RangeSample& range) noexcept;
   /// After an update whose newest state is at `t_ns` with pose `T_w_b`:
@@ -103,6 +107,7 @@ class RangeConsistencyMonitor {
 
   std::vector<Vec3> p_w_anchors_;
   Vec3 p_b_tag_;
+  std::vector<TagLeverArm> tag_arms_;
   double short_m_;
   std::int64_t group_window_ns_;
   RangeConsistencyParams params_;

@@ -37,10 +37,14 @@ RangeTerm RangeModel::term(const Measurement& m, double sigma_m) const {
   // The gap's own bin, where the calibration measured one, else the site's.
   const double bin_excess_m = gap_excess_.at(m.power_gap_db);
   if (!component_) {
-    return {m.value_m - (std::isfinite(bin_excess_m) ? bin_excess_m : flagged_excess_m_), sigma_m, flagged_loss_, true};
+    const double site_m = m.gap_from_rx_level ? 0.0 : flagged_excess_m_;
+    return {m.value_m - (std::isfinite(bin_excess_m) ? bin_excess_m : site_m), sigma_m, flagged_loss_, true};
   }
+  // The site's flagged excess is learnt from the receiver's own flags; a
+  // flag from the RX level takes the component's mode (Localizer::withRxLevelIndicator).
+  const bool site_excess = excess_set_ && !m.gap_from_rx_level;
   const double shift_m = std::isfinite(bin_excess_m) ? bin_excess_m
-                         : excess_set_              ? flagged_excess_m_
+                         : site_excess              ? flagged_excess_m_
                                                     : component_->modeSigmas() * sigma_m;
   return {m.value_m - shift_m, sigma_m * component_->sigmaScale(), flagged_loss_, true};
 }

@@ -132,7 +132,7 @@ void EkfEstimator::apply(const Measurement& m) {
       if (m.anchor >= p_w_anchors_.size()) return;
       // The graph's range model: a range the receiver flags as NLOS gets the NLOS component.
       const RangeTerm t = range_model_.term(m, sigma_m);
-      r = ekf_.updateRange(p_w_anchors_[m.anchor], graph_.p_b_tag, t.range_m, t.sigma_m, t.loss.get());
+      r = ekf_.updateRange(p_w_anchors_[m.anchor], graph_.leverArm(m.tag), t.range_m, t.sigma_m, t.loss.get());
       break;
     }
     case Measurement::Kind::kTdoa:

@@ -136,6 +136,7 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
                    params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_)),
       rx_level_envelope_(rxLevelEnvelopeFor(params_)) {
   params_.validate();
+  consistency_.setTagLeverArms(params_.graph.tag_lever_arms);
   tracking_range_noise_ = params_.graph.range_noise;
   // Flagged ranges take the estimated shift, whether modelled by the NLOS
   // component or the mixture (range_model.h).
@@ -190,10 +191,14 @@ RangeSample Localizer::withRxLevelIndicator(const RangeSample& sample) {
   // calibration's 3-3.5 dB floor, well inside the NLOS cluster: on the
   // independent office sims LOS ranges sit about 5 dB above an all-range
   // path-loss fit and NLOS ones 2 dB below it, so half the NLOS ranges went
-  // unflagged (docs/noise-models.md, session 31).
+  // unflagged (docs/noise-models.md, session 31). A range at or above the
+  // envelope sits mid-bin below the reference edge: at the edge itself,
+  // rounding in rssi - fp put some into the first candidate bin.
+  const LosGapParams& cal = params_.los_gap;
+  const double gap_db = deficit_db > 0.0 ? cal.min_gap_db + deficit_db : cal.min_gap_db - 0.5 * cal.bin_db;
   RangeSample s = sample;
-  s.fp_power_dbm = s.rssi_dbm - (params_.los_gap.min_gap_db + deficit_db);
-  rx_level_indicator_used_ = true;
+  s.fp_power_dbm = s.rssi_dbm - gap_db;
+  s.fp_from_rx_level = true;  // its flag takes no learnt shift (range_model.h)
   return s;
 }
 
@@ -297,7 +302,7 @@ void Localizer::startTracking() {
   // The new estimator starts without a shift (not the component's mode)
   // until the estimate has enough flagged ranges.
   flagged_excess_m_ = 0.0;
-  if (estimatesFlaggedExcess()) estimator_->setFlaggedExcess(flagged_excess_m_);
+  if (estimate_flagged_excess_) estimator_->setFlaggedExcess(flagged_excess_m_);
   gap_db_in_use_ = params_.graph.range_noise.nlos_power_gap_db;  // the calibration restarts below
   // Starts at the initializer's state and replays what it buffered after
   // it, so no sample is lost.
@@ -348,7 +353,7 @@ void Localizer::checkHealth(const UpdateStats& stats) {
 void Localizer::checkConsistency() {
   const StateEstimate& s = estimator_->latest();
   const bool consistent = consistency_.judge(s.t_ns, s.T_w_b);
-  if (estimatesFlaggedExcess()) {
+  if (estimate_flagged_excess_) {
     const FlaggedExcessParams& fx = params_.flagged_excess;
     const double e = consistency_.flaggedQuantile(fx.quantile, fx.min_ranges);
     if (std::isfinite(e)) {

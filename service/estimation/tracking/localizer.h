@@ -245,20 +245,18 @@ class Localizer {
 
  private:
   /// sample with the RX-level indicator as its first-path power where the
-  /// receiver reported none (and the envelope is fitted); else sample.
+  /// receiver reported none (and the envelope is fitted), marked
+  /// fp_from_rx_level; else sample. Such a flag says a path is attenuated,
+  /// not by how much it is delayed: on the independent office sims the
+  /// ranges it leaves unflagged carry as much excess as those it flags
+  /// (+0.34 against +0.32 m), and a quantile of the flagged residuals,
+  /// measured at a pose that the unflagged excess already biased, kept the
+  /// height low. So its ranges take the NLOS component's mode (or their gap
+  /// bin's excess), never the site's flagged excess, which is learnt from the
+  /// receiver's own flags alone (range_model.h, range_consistency.h).
+  /// Measured: docs/noise-models.md, session 31.
   RangeSample withRxLevelIndicator(const RangeSample& sample);
-  /// The flagged ranges' shift is estimated from their residuals
-  /// (flagged_excess) only where the receiver's own first-path indicator
-  /// flags them. An RX-level flag says a path is attenuated, not by how much
-  /// it is delayed: on the independent office sims the ranges it leaves
-  /// unflagged carry as much excess as those it flags (+0.34 against +0.32 m),
-  /// and a quantile of the flagged residuals, measured at a pose that the
-  /// unflagged excess already biased, kept the height low. Such flags take
-  /// the NLOS component's own mode instead. Decided per tracking run: once
-  /// the site's ranges come without first-path power, estimation stops (the
-  /// shift in use stays until the next start). Measured: docs/noise-models.md,
-  /// session 31.
-  bool estimatesFlaggedExcess() const { return estimate_flagged_excess_ && !rx_level_indicator_used_; }
+
   void startTracking();
   void checkHealth(const UpdateStats& stats);
   void checkConsistency();
@@ -279,9 +277,6 @@ class Localizer {
   /// The site's LOS path-loss envelope: kept over re-initializations (the
   /// building and the hardware stay).
   RxLevelEnvelope rx_level_envelope_;
-  /// A range took its flag from the RX level (withRxLevelIndicator): this
-  /// site's receiver reports no first-path power.
-  bool rx_level_indicator_used_ = false;
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
   double gap_db_in_use_ = 0.0;  ///< last threshold handed to the estimator

@@ -417,6 +417,36 @@ TEST(InitMultilateration, ThreeAnchorsNeedTheBandTwoAreNotEnough) {
   EXPECT_FALSE(multilaterate({}, 0, anchors, fixParams()).valid);
 }
 
+// Anchors far away and near the tag's height (a large hall, a flight arena):
+// height is weakly determined by them (PDOP over 10), but the band holds it,
+// so the fix is sound. Anchors in a line leave the side of the line open:
+// refused with the band too.
+TEST(InitMultilateration, TheBandHoldsTheHeightFarAnchorsLeaveOpen) {
+  const std::vector<Vec3> anchors = {{-20, -15, 2.0}, {20, -15, 2.2}, {20, 15, 1.9}, {-20, 15, 2.1}, {0, 18, 2.0}};
+  const Vec3 p0(2.0, 1.0, 1.5);
+  const std::vector<RangeSample> r = rangesTo(anchors, p0, Vec3::Zero(), 3.0, 10.0, 11, 0.05);
+  MultilaterationParams still = fixParams();
+  still.fit_velocity = false;
+  const TagFix fix = multilaterate(r, r.front().t_ns, anchors, still);
+  ASSERT_TRUE(fix.valid) << fix.message;
+  EXPECT_LT((fix.p_w_tag - p0).head<2>().norm(), 0.2);
+  EXPECT_TRUE(still.band.contains(fix.p_w_tag.z(), 0.0));
+  MultilaterationParams no_band = still;
+  no_band.band.enabled = false;
+  const TagFix open = multilaterate(r, r.front().t_ns, anchors, no_band);
+  EXPECT_GT(open.pdop, no_band.max_pdop) << open.message;
+  EXPECT_FALSE(open.valid);
+  EXPECT_NE(open.message.find("PDOP"), std::string::npos) << open.message;
+
+  const std::vector<Vec3> line = {{-20, 0, 2.0}, {-7, 0.1, 2.6}, {7, -0.1, 2.2}, {20, 0.05, 2.5}};
+  const std::vector<RangeSample> rl = rangesTo(line, Vec3(1.0, 0.3, 1.4), Vec3::Zero(), 3.0, 10.0, 12, 0.05);
+  const TagFix in_line = multilaterate(rl, rl.front().t_ns, line, still);
+  EXPECT_FALSE(in_line.valid) << in_line.message;  // the side of the line is open: a mirror, or the PDOP
+  EXPECT_TRUE(in_line.message.find("ambiguous") != std::string::npos ||
+              in_line.message.find("PDOP") != std::string::npos)
+      << in_line.message;
+}
+
 TEST(InitMultilateration, AbsurdRangesGiveAPoorFixNotAThrow) {
   const std::vector<Vec3> anchors = sim::defaultOfficeAnchors();
   std::mt19937_64 rng(9);

@@ -238,7 +238,21 @@ TagFix multilaterate(std::span<const RangeSample> ranges, std::int64_t t_ns, con
     const Vec3 u = dir_sum[id].normalized();
     GtG += u * u.transpose();
   }
-  if (params.band.enabled && fix.anchors_used == 3) GtG(2, 2) += 1.0;  // the band stands in for the 4th anchor
+  if (params.band.enabled) {
+    if (fix.anchors_used == 3) {
+      GtG(2, 2) += 1.0;  // the band stands in for the 4th anchor
+    } else {
+      // With the band the height is known to its spread whatever the anchors
+      // say: its information, whitened by the range sigma, joins theirs. Far
+      // anchors a metre above a worn tag leave a PDOP over 10 from height
+      // alone, and a start refused forever for a direction the band holds
+      // (issue 36: real flights, "pdop 12.4, sigma 0.23 m"); a weak
+      // horizontal direction (anchors in a line) still fails.
+      const double width_m = params.band.maxZ() - params.band.minZ();
+      const double band_var = width_m * width_m / 12.0 + params.band.sigma_m * params.band.sigma_m;
+      GtG(2, 2) += params.sigma_m * params.sigma_m / band_var;
+    }
+  }
   const Eigen::SelfAdjointEigenSolver<Mat3> eig(GtG);
   if (eig.eigenvalues().minCoeff() > 1e-9) fix.pdop = std::sqrt(eig.eigenvalues().cwiseInverse().sum());
   const Eigen::SelfAdjointEigenSolver<Mat6d> eigH(s.H);

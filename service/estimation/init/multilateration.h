@@ -13,7 +13,8 @@
 // band breaks the mirror tie, and without it a second solution within
 // `ambiguity_cost_gap` makes the fix invalid.
 // Quality: inliers (|r| <= inlier_sigmas), distinct inlier anchors, inlier RMS,
-// PDOP of the inlier anchors' directions and the position sigma of the fit.
+// PDOP of the inlier anchors' directions (with the band's height information,
+// whitened by the range sigma, when it is on) and the position sigma of the fit.
 // The lever arm is ignored: this is the antenna's position.
 #include <cstdint>
 #include <limits>
@@ -40,7 +41,7 @@ struct MultilaterationParams {
   int min_ranges = 6;                   ///< ranges needed in the window
   double inlier_sigmas = 3.0;           ///< |r| <= this many sigmas is an inlier
   double max_rms_m = 0.5;               ///< inlier residual RMS above this: poor fix (m)
-  double max_pdop = 10.0;               ///< PDOP of the inlier anchors above this: poor geometry
+  double max_pdop = 10.0;               ///< PDOP of the inlier anchors (and the band) above this: poor geometry
   double min_inlier_fraction = 0.5;
   double ambiguity_cost_gap = 2.0;      ///< a distinct second solution closer in cost than this is ambiguous
 

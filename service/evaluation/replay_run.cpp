@@ -25,11 +25,11 @@ ImuParams imuParamsFrom(const RecordingMeta& meta) {
 }
 
 /// The recording's device where its meta says it; the rest stays `graph`'s
-/// (ReplaySettings::device_from_recording). Gravity too: the recording's
-/// site's (meta.yaml's is never absent: 9.81 when not written, as rilod.yaml's).
+/// (ReplaySettings::device_from_recording). Gravity stays the
+/// configuration's: RecordingMeta cannot tell a stated 9.81 from none (a
+/// meta.yaml without it reads 9.81), and would override a configured site's.
 void takeDeviceFrom(const RecordingMeta& meta, RangeImuGraphParams& graph) {
   ImuParams& imu = graph.imu;
-  imu.gravity_m_s2 = meta.gravity_m_s2;
   if (meta.gyro_noise_density) imu.gyro_noise_density = *meta.gyro_noise_density;
   if (meta.accel_noise_density) imu.accel_noise_density = *meta.accel_noise_density;
   if (meta.gyro_bias_random_walk) imu.gyro_bias_random_walk = *meta.gyro_bias_random_walk;

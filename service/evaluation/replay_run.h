@@ -44,10 +44,10 @@ struct ReplaySettings {
   /// sets them from the same configuration unless told otherwise), and so does
   /// every optional setting that is set.
   std::optional<LocalizerParams> service_params;
-  /// With service_params: the IMU noise densities, gravity, the UWB and
-  /// ultrasonic lever arms that the recording's meta.yaml gives, and its
-  /// antennas (tags.csv), replace the configuration's (each one given; the
-  /// rest stay the configuration's). The
+  /// With service_params: the IMU noise densities, the UWB and ultrasonic
+  /// lever arms that the recording's meta.yaml gives, and its antennas
+  /// (tags.csv), replace the configuration's (each one given; the rest, and
+  /// gravity, stay the configuration's). The
   /// configuration describes the board rilod runs on, the recording the one
   /// that recorded it: the independent office sims (antenna at the body
   /// origin, a noisier accelerometer) replayed with rilod.yaml's 0.10 m arm

@@ -27,6 +27,11 @@ RecordingSetup recordingSetup(const ServiceConfig& config) {
   if (config.sources.mode == SourceMode::kHardware) {
     m.imu_rate_hz = bmi263::odrHz(config.sources.hardware.imu.bmi263.odr);
     m.ranging = RangingKind::kSsTwr;
+    // The DW3000 stamps its ranges with the configured tag id; a recording
+    // knows only tag 0 without tags.csv, and its writer refused every range
+    // of any other.
+    const std::uint32_t tag_id = config.sources.hardware.uwb.dw3000.tag_id;
+    if (tag_id != 0) s.tags.push_back(Tag{tag_id, config.estimator.graph.p_b_tag});
   }
   s.anchors = config.anchors;
   return s;

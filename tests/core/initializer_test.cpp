@@ -438,13 +438,27 @@ TEST(InitMultilateration, TheBandHoldsTheHeightFarAnchorsLeaveOpen) {
   EXPECT_FALSE(open.valid);
   EXPECT_NE(open.message.find("PDOP"), std::string::npos) << open.message;
 
-  const std::vector<Vec3> line = {{-20, 0, 2.0}, {-7, 0.1, 2.6}, {7, -0.1, 2.2}, {20, 0.05, 2.5}};
-  const std::vector<RangeSample> rl = rangesTo(line, Vec3(1.0, 0.3, 1.4), Vec3::Zero(), 3.0, 10.0, 12, 0.05);
-  const TagFix in_line = multilaterate(rl, rl.front().t_ns, line, still);
-  EXPECT_FALSE(in_line.valid) << in_line.message;  // the side of the line is open: a mirror, or the PDOP
-  EXPECT_TRUE(in_line.message.find("ambiguous") != std::string::npos ||
-              in_line.message.find("PDOP") != std::string::npos)
-      << in_line.message;
+  // A corridor: four anchors along a line at one height (0.15 m across it),
+  // the tag 1-3 m to the side. Whatever the band says, the side is open:
+  // no fix on either side is accepted (a review's case: with the band's
+  // credit and no spread check, 8 of 54 were accepted 2.4-5.8 m off).
+  const std::vector<Vec3> corridor = {{-15, 0.1, 2.5}, {-5, -0.15, 2.5}, {5, 0.15, 2.5}, {15, -0.1, 2.5}};
+  MultilaterationParams credit_anyway = still;
+  credit_anyway.min_band_credit_spread_ratio = 0.0;
+  int accepted = 0, accepted_without_check = 0, wrong_side_without_check = 0;
+  for (int k = 0; k < 18; ++k) {
+    const double side = (k % 2 == 0) ? 1.0 : -1.0;
+    const Vec3 p(-8.0 + 1.0 * k, side * (1.0 + 0.25 * (k % 9)), 1.4);
+    const std::vector<RangeSample> rc = rangesTo(corridor, p, Vec3::Zero(), 3.0, 10.0, 20 + k, 0.1);
+    accepted += multilaterate(rc, rc.front().t_ns, corridor, still).valid ? 1 : 0;
+    const TagFix f = multilaterate(rc, rc.front().t_ns, corridor, credit_anyway);
+    accepted_without_check += f.valid ? 1 : 0;
+    wrong_side_without_check += f.valid && f.p_w_tag.y() * p.y() < 0.0 ? 1 : 0;
+  }
+  std::printf("corridor: %d of 18 fixes accepted (%d with the band's credit regardless of spread, %d of them on the "
+              "wrong side)\n", accepted, accepted_without_check, wrong_side_without_check);
+  EXPECT_EQ(accepted, 0);
+  EXPECT_GT(wrong_side_without_check, 0) << "the case the spread check is for";
 }
 
 TEST(InitMultilateration, AbsurdRangesGiveAPoorFixNotAThrow) {

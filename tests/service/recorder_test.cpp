@@ -347,5 +347,32 @@ TEST(RecorderConfigTest, SetupAndOptionsFollowTheServiceConfig) {
   EXPECT_FALSE(recorder.failed());
 }
 
+// A board whose DW3000 is configured with a tag id other than 0 stamps its
+// ranges with it: the recording lists that antenna (tags.csv) so the writer
+// takes them, and a replay predicts them from its lever arm.
+TEST(RecorderConfigTest, AHardwareTagIdIsListedWithItsLeverArm) {
+  ServiceConfig config = loadServiceConfig(testing::sourceDir() / "config" / "rilod-hardware.yaml");
+  ASSERT_EQ(config.sources.mode, SourceMode::kHardware);
+  EXPECT_TRUE(recordingSetup(config).tags.empty()) << "tag 0: the single antenna of meta.yaml";
+  config.sources.hardware.uwb.dw3000.tag_id = 5;
+  const RecordingSetup s = recordingSetup(config);
+  ASSERT_EQ(s.tags.size(), 1u);
+  EXPECT_EQ(s.tags[0].id, 5u);
+  EXPECT_EQ(s.tags[0].p_b_tag, config.estimator.graph.p_b_tag);
+
+  testing::TempDir dir("rilo-recorder-tag");
+  Recorder recorder(newRecordingDirectory(dir / "recs"), s, 1, RecorderOptions{});
+  RangeSample r;
+  r.t_ns = 1'000'000;
+  r.anchor_id = config.anchors.front().id;
+  r.tag_id = 5;
+  r.range_m = 3.0;
+  recorder.channel(0).push(Sample{r});
+  recorder.close();
+  EXPECT_FALSE(recorder.failed()) << recorder.error();
+  EXPECT_EQ(recorder.counters().written, 1u);
+  EXPECT_EQ(recorder.counters().rejected, 0u) << recorder.error();
+}
+
 }  // namespace
 }  // namespace rilo

@@ -230,7 +230,7 @@ void addReplayCommand(CLI::App& app) {
                 "a configuration: what the replay ran without --config before session 31")
       ->excludes("--config");
   cmd->add_option("--device-from", options->settings.device_from_recording,
-                  "The IMU noise densities, gravity, lever arms and antennas: recording (those its meta.yaml and "
+                  "The IMU noise densities, lever arms and antennas: recording (those its meta.yaml and "
                   "tags.csv give, the rest the configuration's) or config (the configuration's only)")
       ->default_str("recording")
       ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"recording", true}, {"config", false}}));

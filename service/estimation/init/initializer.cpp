@@ -405,10 +405,27 @@ TagFix Initializer::fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns,
   }
   *from_tdoa = false;
   TagFix fix;
-  if (!ranges.empty()) fix = multilaterate(ranges, t_fix_ns, p_w_anchors_, params_.fix);
+  if (!ranges.empty()) {
+    fix = multilaterate(ranges, t_fix_ns, p_w_anchors_, params_.fix);
+    // The multilateration knows no lever arms: with several antennas its
+    // point lies somewhere among them (a review's office case, antennas 0.6 m
+    // apart: 0.50 m off, claiming 0.16-0.23 m). Their spread joins its covariance.
+    const double spread_m = antennaSpreadM();
+    if (spread_m > 0.0) fix.cov_p_w += Mat3::Identity() * (0.25 * spread_m * spread_m);
+  }
   if (fix.valid || (tdoa.empty() && ultrasonic.empty())) return fix;
   *from_tdoa = true;
   return tagFixOf(locateTdoa(tdoa, ultrasonic, t_fix_ns, p_w_fix_sources_, params_.tdoa_fix));
+}
+
+double Initializer::antennaSpreadM() const {
+  const std::vector<TagLeverArm>& arms = params_.graph.tag_lever_arms;
+  double spread_m = 0.0;
+  for (const TagLeverArm& a : arms) {
+    spread_m = std::max(spread_m, (a.p_b_m - params_.graph.p_b_tag).norm());
+    for (const TagLeverArm& b : arms) spread_m = std::max(spread_m, (a.p_b_m - b.p_b_m).norm());
+  }
+  return spread_m;
 }
 
 Initializer::AlignedWindow Initializer::alignWindow(std::int64_t window_ns, std::int64_t t_now, std::size_t end,

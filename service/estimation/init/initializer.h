@@ -407,6 +407,8 @@ class Initializer {
   /// Distinct UWB anchors and ultrasonic beacons in meas_[begin, end).
   int sourcesHeard(std::size_t begin, std::size_t end) const;
   bool solveBatch(const AlignedWindow& w, std::int64_t t_now_ns);
+  /// Largest distance between two UWB antennas on the body (m; 0 with one).
+  double antennaSpreadM() const;
   /// A new provisional fix of the newest measurements when one is due.
   void updateProvisionalFix();
   /// Whether meas_[f0, f1) holds enough anchors and measurements for a fix.

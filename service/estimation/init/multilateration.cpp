@@ -29,6 +29,9 @@ void MultilaterationParams::validate() const {
   if (!(inlier_sigmas > 0.0)) fail("inlier_sigmas", "must be > 0");
   if (!(max_rms_m > 0.0)) fail("max_rms_m", "must be > 0");
   if (!(max_pdop > 0.0)) fail("max_pdop", "must be > 0");
+  if (!(min_band_credit_spread_ratio >= 0.0 && min_band_credit_spread_ratio <= 1.0)) {
+    fail("min_band_credit_spread_ratio", "must be in [0, 1]");
+  }
   if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) fail("min_inlier_fraction", "must be in [0, 1]");
   if (!(ambiguity_cost_gap >= 0.0)) fail("ambiguity_cost_gap", "must be >= 0");
   band.validate("MultilaterationParams.band");
@@ -238,10 +241,29 @@ TagFix multilaterate(std::span<const RangeSample> ranges, std::int64_t t_ns, con
     const Vec3 u = dir_sum[id].normalized();
     GtG += u * u.transpose();
   }
+  // The inlier anchors' horizontal spread: the band holds height only, so
+  // anchors along a line (a corridor) keep the side of the line open, and
+  // the mirror tried above (across their best-fit plane, horizontal for
+  // anchors at one height) flips the height, not the side. They get no
+  // credit: a review found 8 of 54 corridor fixes 2.4-5.8 m off on the wrong
+  // side, claiming PDOP 4-5, once they had it.
+  double spread_ratio = 0.0;
+  if (used.size() >= 2) {
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (std::uint32_t id : used) mean += p_w_anchors[id].head<2>();
+    mean /= static_cast<double>(used.size());
+    Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+    for (std::uint32_t id : used) {
+      const Eigen::Vector2d d = p_w_anchors[id].head<2>() - mean;
+      scatter += d * d.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> hs(scatter);
+    if (hs.eigenvalues()(1) > 0.0) spread_ratio = std::sqrt(std::max(0.0, hs.eigenvalues()(0) / hs.eigenvalues()(1)));
+  }
   if (params.band.enabled) {
     if (fix.anchors_used == 3) {
       GtG(2, 2) += 1.0;  // the band stands in for the 4th anchor
-    } else {
+    } else if (spread_ratio >= params.min_band_credit_spread_ratio) {
       // With the band the height is known to its spread whatever the anchors
       // say: its information, whitened by the range sigma, joins theirs. Far
       // anchors a metre above a worn tag leave a PDOP over 10 from height

@@ -42,6 +42,11 @@ struct MultilaterationParams {
   double inlier_sigmas = 3.0;           ///< |r| <= this many sigmas is an inlier
   double max_rms_m = 0.5;               ///< inlier residual RMS above this: poor fix (m)
   double max_pdop = 10.0;               ///< PDOP of the inlier anchors (and the band) above this: poor geometry
+  /// The band's height information counts in the PDOP (4+ anchors) only when
+  /// the inlier anchors spread in two horizontal directions: the ratio of
+  /// their horizontal spreads (minor / major axis std-dev) at least this. A
+  /// corridor's line of anchors (0.15 m across 20 m: 0.01) gets none.
+  double min_band_credit_spread_ratio = 0.2;
   double min_inlier_fraction = 0.5;
   double ambiguity_cost_gap = 2.0;      ///< a distinct second solution closer in cost than this is ambiguous
 

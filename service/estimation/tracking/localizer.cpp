@@ -195,7 +195,8 @@ RangeSample Localizer::withRxLevelIndicator(const RangeSample& sample) {
   // envelope sits mid-bin below the reference edge: at the edge itself,
   // rounding in rssi - fp put some into the first candidate bin.
   const LosGapParams& cal = params_.los_gap;
-  const double gap_db = deficit_db > 0.0 ? cal.min_gap_db + deficit_db : cal.min_gap_db - 0.5 * cal.bin_db;
+  const double reference_top_db = std::floor(cal.min_gap_db / cal.bin_db) * cal.bin_db;  // the last reference bin's edge
+  const double gap_db = deficit_db > 0.0 ? cal.min_gap_db + deficit_db : reference_top_db - 0.5 * cal.bin_db;
   RangeSample s = sample;
   s.fp_power_dbm = s.rssi_dbm - gap_db;
   s.fp_from_rx_level = true;  // its flag takes no learnt shift (range_model.h)

@@ -31,9 +31,11 @@ void FlaggedExcessParams::validate() const {
 
 RangeConsistencyMonitor::RangeConsistencyMonitor(std::vector<Vec3> p_w_anchors, const Vec3& p_b_tag, double sigma_m,
                                                  std::int64_t same_state_window_ns, RangeConsistencyParams params,
-                                                 double flag_gap_db, LosGapParams los_gap)
+                                                 double flag_gap_db, LosGapParams los_gap,
+                                                 std::vector<TagLeverArm> tag_arms)
     : p_w_anchors_(std::move(p_w_anchors)),
       p_b_tag_(p_b_tag),
+      tag_arms_(std::move(tag_arms)),
       short_m_(std::max(params.short_sigmas * sigma_m, params.short_floor_m)),
       group_window_ns_(same_state_window_ns),
       params_(params),

@@ -70,14 +70,13 @@ class RangeConsistencyMonitor {
   /// `p_w_anchors[id]` (m, world), the UWB antenna's lever arm (body, m), the
   /// LOS sigma of a range (m), the window in which ranges share a state (ns).
   /// flag_gap_db: the receiver's NLOS flag (RangeNoiseParams::nlos_power_gap_db; +inf: none).
+  /// tag_arms: further antennas by tag id; a range is judged from the antenna that measured it.
   RangeConsistencyMonitor(std::vector<Vec3> p_w_anchors, const Vec3& p_b_tag, double sigma_m,
                           std::int64_t same_state_window_ns, RangeConsistencyParams params,
-                          double flag_gap_db = std::numeric_limits<double>::infinity(), LosGapParams los_gap = {});
+                          double flag_gap_db = std::numeric_limits<double>::infinity(), LosGapParams los_gap = {},
+                          std::vector<TagLeverArm> tag_arms = {});
   static constexpr int kFlaggedWindow = 200;
 
-  /// Further antennas by tag id (RangeImuGraphParams::tag_lever_arms): a
-  /// range is judged from the antenna that measured it.
-  void setTagLeverArms(std::vector<TagLeverArm> arms) { tag_arms_ = std::move(arms); }
   /// A range given to the tracking estimator (unknown anchors are ignored).
   void onRange(const RangeSample& range) noexcept;
   /// After an update whose newest state is at `t_ns` with pose `T_w_b`:
@@ -107,7 +106,7 @@ class RangeConsistencyMonitor {
 
   std::vector<Vec3> p_w_anchors_;
   Vec3 p_b_tag_;
-  std::vector<TagLeverArm> tag_arms_;
+  std::vector<TagLeverArm> tag_arms_;  ///< further antennas by tag id (RangeImuGraphParams::tag_lever_arms)
   double short_m_;
   std::int64_t group_window_ns_;
   RangeConsistencyParams params_;

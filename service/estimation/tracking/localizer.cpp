@@ -133,10 +133,9 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       initializer_(p_w_anchors_, params_.init),
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
                    params_.graph.same_state_window_ns, params_.range_consistency,
-                   params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_)),
+                   params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_), params_.graph.tag_lever_arms),
       rx_level_envelope_(rxLevelEnvelopeFor(params_)) {
   params_.validate();
-  consistency_.setTagLeverArms(params_.graph.tag_lever_arms);
   tracking_range_noise_ = params_.graph.range_noise;
   // Flagged ranges take the estimated shift, whether modelled by the NLOS
   // component or the mixture (range_model.h).

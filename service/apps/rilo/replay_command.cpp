@@ -93,11 +93,13 @@ int runReplay(const ReplayOptions& o) {
   std::filesystem::create_directories(dir);
   {
     std::ofstream timing(dir / "timing.csv");
-    timing << "t_s,update_ms,cliques_reeliminated,variables_relinearized,tries,accepted,lambda\n";
+    timing << "t_s,update_ms,cliques_reeliminated,variables_relinearized,tries,accepted,lambda,"
+              "cliques_back_substituted,factors_linearized,variables_marginalized,cliques_total\n";
     for (const ReplayUpdate& u : run.updates) {
       timing << static_cast<double>(u.t_ns) * 1e-9 << ',' << u.stats.time_s * 1e3 << ',' << u.stats.cliques_reeliminated
              << ',' << u.stats.variables_relinearized << ',' << u.stats.step_tries << ','
-             << (u.stats.step_accepted ? 1 : 0) << ',' << u.stats.lambda << '\n';
+             << (u.stats.step_accepted ? 1 : 0) << ',' << u.stats.lambda << ',' << u.stats.cliques_back_substituted << ','
+             << u.stats.factors_linearized << ',' << u.stats.variables_marginalized << ',' << u.stats.cliques_total << '\n';
     }
     if (!timing) throw std::runtime_error("cannot write " + (dir / "timing.csv").string());
   }

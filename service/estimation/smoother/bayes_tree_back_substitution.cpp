@@ -10,8 +10,8 @@ namespace rilo {
 
 // --- Back-substitution ----------------------------------------------------------
 
-void BayesTreeSmoother::backSubstitute(double threshold, UpdateStats& stats) {
-  const std::uint64_t moved = newStamp();
+void BayesTreeSmoother::backSubstitute(double threshold, UpdateStats& stats, std::uint64_t moved) {
+  if (moved == 0) moved = newStamp();
   std::vector<CliqueId> stack(roots_.begin(), roots_.end());
   while (!stack.empty()) {
     const CliqueId c = stack.back();
@@ -26,6 +26,16 @@ void BayesTreeSmoother::backSubstitute(double threshold, UpdateStats& stats) {
     ++stats.cliques_back_substituted;
     stack.insert(stack.end(), q.children.begin(), q.children.end());
   }
+}
+
+std::uint64_t BayesTreeSmoother::backSubstitutePart(const std::vector<CliqueId>& cliques, double threshold,
+                                                    UpdateStats& stats) {
+  const std::uint64_t moved = newStamp();
+  for (auto it = cliques.rbegin(); it != cliques.rend(); ++it) {  // parents first
+    solveClique(*it, threshold, moved);
+    ++stats.cliques_back_substituted;
+  }
+  return moved;
 }
 
 void BayesTreeSmoother::solveClique(CliqueId c, double threshold, std::uint64_t moved_stamp) {

@@ -185,7 +185,12 @@ class BayesTreeSmoother final : public Smoother {
   /// Back-substitution from the roots; re-solves replaced cliques and those
   /// whose separator moved by more than `threshold`. Appends every variable
   /// whose delta changed to `changed`, logging the old delta for undo.
-  void backSubstitute(double threshold, UpdateStats& stats);
+  /// `moved` continues the marks of an earlier backSubstitutePart (0: a
+  /// fresh pass).
+  void backSubstitute(double threshold, UpdateStats& stats, std::uint64_t moved = 0);
+  /// Solves only `cliques` (children first, closed under ancestors, so exact
+  /// for their variables); returns the stamp its moved variables carry.
+  std::uint64_t backSubstitutePart(const std::vector<CliqueId>& cliques, double threshold, UpdateStats& stats);
   void solveClique(CliqueId c, double threshold, std::uint64_t moved_stamp);
 
   // Error bookkeeping

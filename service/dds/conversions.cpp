@@ -168,6 +168,9 @@ void fillStatus(const ServiceStatus& status, rilo_msg_dds__Status_& msg) noexcep
   msg.last_update_ms = status.last_update_ms;
   msg.mean_update_ms = status.mean_update_ms;
   msg.max_update_ms = status.max_update_ms;
+  msg.p99_update_ms = status.p99_update_ms;
+  msg.estimator_queue_high_water = status.estimator_queue_high_water;
+  msg.publisher_queue_high_water = status.publisher_queue_high_water;
   msg.last_cliques_reeliminated = status.last_cliques_reeliminated;
   msg.last_relinearized = status.last_relinearized;
   msg.last_lambda = status.last_lambda;
@@ -222,6 +225,9 @@ StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg) {
   s.last_update_ms = msg.last_update_ms;
   s.mean_update_ms = msg.mean_update_ms;
   s.max_update_ms = msg.max_update_ms;
+  s.p99_update_ms = msg.p99_update_ms;
+  s.estimator_queue_high_water = msg.estimator_queue_high_water;
+  s.publisher_queue_high_water = msg.publisher_queue_high_water;
   s.last_cliques_reeliminated = msg.last_cliques_reeliminated;
   s.last_relinearized = msg.last_relinearized;
   s.last_lambda = msg.last_lambda;

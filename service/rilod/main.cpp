@@ -164,9 +164,11 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
     spdlog::info("recording closed: {} samples written, {} dropped", c.written, c.dropped_full + c.dropped_failed);
   }
   const rilo::ServiceStatus last = service.status();
-  spdlog::info("stopped ({}): {} IMU samples, {} ranges, {} odometry messages; smoother update mean {:.2f} ms, max {:.2f} ms",
-               stateName(last.state), last.imu_samples, last.range_samples, last.published_odometry, last.mean_update_ms,
-               last.max_update_ms);
+  spdlog::info(
+      "stopped ({}): {} IMU samples, {} ranges, {} odometry messages; smoother update mean {:.2f} ms, p99 {:.2f} ms, "
+      "max {:.2f} ms; queues high water {} (estimator) / {} (publisher) samples",
+      stateName(last.state), last.imu_samples, last.range_samples, last.published_odometry, last.mean_update_ms,
+      last.p99_update_ms, last.max_update_ms, last.estimator_queue_high_water, last.publisher_queue_high_water);
   return code;
 }
 

@@ -143,6 +143,13 @@ unsigned long long increase(std::uint64_t now, std::uint64_t before) {
   return static_cast<unsigned long long>(now >= before ? now - before : 0);
 }
 
+/// The one writer of `high_water` raises it to the queue's current fill.
+template <typename Queue>
+void noteFill(const Queue& queue, std::atomic<std::uint32_t>& high_water) noexcept {
+  const auto fill = static_cast<std::uint32_t>(queue.sizeApprox());
+  if (fill > high_water.load(std::memory_order_relaxed)) high_water.store(fill, std::memory_order_relaxed);
+}
+
 void atomicMax(std::atomic<std::int64_t>& target, std::int64_t value) noexcept {
   std::int64_t current = target.load(std::memory_order_relaxed);
   while (value > current && !target.compare_exchange_weak(current, value, std::memory_order_relaxed)) {
@@ -241,7 +248,10 @@ void Service::estimatorLoop() {
     int oldest = -1;
     for (std::size_t i = 0; i < lanes_.size(); ++i) {
       SourceLane& lane = *lanes_[i];
-      if (!lane.has_pending) lane.has_pending = lane.samples.tryPop(lane.pending);
+      if (!lane.has_pending) {
+        noteFill(lane.samples, estimator_queue_high_water_);
+        lane.has_pending = lane.samples.tryPop(lane.pending);
+      }
       if (lane.has_pending) {
         if (oldest < 0 || sampleTime(lane.pending) < sampleTime(lanes_[static_cast<std::size_t>(oldest)]->pending)) {
           oldest = static_cast<int>(i);
@@ -364,6 +374,7 @@ void Service::estimatorLoop() {
       last_update_ms_ = ms;
       sum_update_ms_ += ms;
       max_update_ms_ = std::max(max_update_ms_, ms);
+      update_ms_histogram_.add(ms);
       period_max_update_ms_ = std::max(period_max_update_ms_, ms);
       ++updates_;
       if (ms > options_.late_update_ms) counters_.late_updates.add();
@@ -479,6 +490,7 @@ void Service::publisherLoop() {
   auto drain = [&]() noexcept {
     bool any = false;
     for (auto& lane : lanes_) {
+      noteFill(lane->imu, publisher_queue_high_water_);
       while (lane->imu.tryPop(item)) {
         any = true;
         // A newer smoothed state first: the odometry of this sample starts from it.
@@ -577,11 +589,14 @@ void Service::publishStatus(std::int64_t now_ns) {
   counters_.fill(s);
   s.state = tracking_.load();
   s.odometry_latency_ms = static_cast<double>(odometry_latency_max_ns_.exchange(0, std::memory_order_relaxed)) * 1e-6;
+  s.estimator_queue_high_water = estimator_queue_high_water_.load(std::memory_order_relaxed);
+  s.publisher_queue_high_water = publisher_queue_high_water_.load(std::memory_order_relaxed);
   {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     s.last_update_ms = last_update_ms_;
     s.mean_update_ms = updates_ > 0 ? sum_update_ms_ / static_cast<double>(updates_) : 0.0;
     s.max_update_ms = max_update_ms_;
+    s.p99_update_ms = update_ms_histogram_.quantileMs(0.99);
     s.last_cliques_reeliminated = static_cast<std::uint32_t>(last_stats_.cliques_reeliminated);
     s.last_relinearized = static_cast<std::uint32_t>(last_stats_.variables_relinearized);
     s.last_lambda = last_stats_.lambda;

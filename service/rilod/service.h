@@ -29,6 +29,7 @@
 #include "rilod/range_trust_monitor.h"
 #include "rilod/sensor_gap_monitor.h"
 #include "runtime/heartbeat.h"
+#include "runtime/latency_histogram.h"
 #include "runtime/latest_value.h"
 #include "runtime/navigation_state.h"
 #include "runtime/output_predictor.h"
@@ -159,6 +160,10 @@ class Service {
   std::string last_failure_;                           ///< why tracking last ended
   std::int64_t last_imu_gap_ns_ = 0;
   double period_max_update_ms_ = 0.0;                  ///< slowest update since the last status
+  LatencyHistogram update_ms_histogram_;               ///< every update since start (p99)
+  /// Fullest queue seen by its consumer (estimator / publisher thread writes, status reads).
+  std::atomic<std::uint32_t> estimator_queue_high_water_{0};
+  std::atomic<std::uint32_t> publisher_queue_high_water_{0};
 
   // Estimator thread only: rate limit of the initialization log.
   int init_attempts_seen_ = 0;

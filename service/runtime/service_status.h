@@ -58,6 +58,14 @@ struct ServiceStatus {
   double last_update_ms = 0.0;
   double mean_update_ms = 0.0;
   double max_update_ms = 0.0;
+  /// 99th percentile of every smoother update since start (LatencyHistogram:
+  /// at most one bucket, ~10 %, above the exact one; 0 before the first).
+  double p99_update_ms = 0.0;
+  /// Fullest any source's queue to the estimator / to the odometry publisher
+  /// has been since start (samples; ServiceOptions::queue_capacity per queue):
+  /// how far the consumer fell behind, e.g. during a slow update.
+  std::uint32_t estimator_queue_high_water = 0;
+  std::uint32_t publisher_queue_high_water = 0;
   std::uint32_t last_cliques_reeliminated = 0;
   std::uint32_t last_relinearized = 0;
   double last_lambda = 0.0;

@@ -248,6 +248,9 @@ TEST(DdsFill, StatusRoundTrip) {
   EXPECT_EQ(back.status.last_update_ms, s.last_update_ms);
   EXPECT_EQ(back.status.mean_update_ms, s.mean_update_ms);
   EXPECT_EQ(back.status.max_update_ms, s.max_update_ms);
+  EXPECT_EQ(back.status.p99_update_ms, s.p99_update_ms);
+  EXPECT_EQ(back.status.estimator_queue_high_water, s.estimator_queue_high_water);
+  EXPECT_EQ(back.status.publisher_queue_high_water, s.publisher_queue_high_water);
   EXPECT_EQ(back.status.last_cliques_reeliminated, s.last_cliques_reeliminated);
   EXPECT_EQ(back.status.last_relinearized, s.last_relinearized);
   EXPECT_EQ(back.status.last_lambda, s.last_lambda);

@@ -99,6 +99,9 @@ inline ServiceStatus sampleStatus(std::int64_t t_ns) {
   s.last_update_ms = 1.25;
   s.mean_update_ms = 0.875;
   s.max_update_ms = 14.5;
+  s.p99_update_ms = 2.25;
+  s.estimator_queue_high_water = 41;
+  s.publisher_queue_high_water = 43;
   s.last_cliques_reeliminated = 17;
   s.last_relinearized = 5;
   s.last_lambda = 1e-3;

@@ -182,6 +182,9 @@ TEST_F(DdsPubSub, StatusArrivesWithExactFields) {
   EXPECT_EQ(r.last_update_ms, s.last_update_ms);
   EXPECT_EQ(r.mean_update_ms, s.mean_update_ms);
   EXPECT_EQ(r.max_update_ms, s.max_update_ms);
+  EXPECT_EQ(r.p99_update_ms, s.p99_update_ms);
+  EXPECT_EQ(r.estimator_queue_high_water, s.estimator_queue_high_water);
+  EXPECT_EQ(r.publisher_queue_high_water, s.publisher_queue_high_water);
   EXPECT_EQ(r.last_cliques_reeliminated, s.last_cliques_reeliminated);
   EXPECT_EQ(r.last_relinearized, s.last_relinearized);
   EXPECT_EQ(r.last_lambda, s.last_lambda);

@@ -93,13 +93,24 @@ TEST(ImuRatePath, AssembledServiceNeitherAllocatesNorLocksPerImuSampleOutsideCyc
       "  source thread:    %llu allocations, %llu locks\n"
       "  publisher thread: %llu allocations, %llu locks in rilo's code; inside dds_write_ts (Cyclone) %llu allocations "
       "(%.2f per write), %llu locks (%.2f per write)\n"
-      "  control, estimator thread: %llu allocations, %llu locks%s\n",
+      "  control, estimator thread: %llu allocations, %llu locks%s\n"
+      "  updates p99 %.2f ms, max %.2f ms; queues' high water %u (estimator) / %u (publisher) of 1024\n",
       static_cast<unsigned long long>(end_status.imu_samples - imu_at), static_cast<unsigned long long>(writes),
       u(source_counts.allocations), u(source_counts.locks), u(publisher_counts.allocations), u(publisher_counts.locks),
       u(publisher_counts.cyclone_allocations), static_cast<double>(publisher_counts.cyclone_allocations.load()) * per_write,
       u(publisher_counts.cyclone_locks), static_cast<double>(publisher_counts.cyclone_locks.load()) * per_write,
       u(estimator_counts.allocations), u(estimator_counts.locks),
-      testing::countsMallocAndLocks() ? "" : " [sanitizer build: operator new only, locks not counted]");
+      testing::countsMallocAndLocks() ? "" : " [sanitizer build: operator new only, locks not counted]",
+      end_status.p99_update_ms, end_status.max_update_ms, end_status.estimator_queue_high_water,
+      end_status.publisher_queue_high_water);
+  // The budget figures a bring-up reads from the status topic: a replay as
+  // fast as possible fills the 1024-slot queues, so the consumers saw them fill.
+  EXPECT_GT(end_status.p99_update_ms, 0.0);
+  EXPECT_LE(end_status.p99_update_ms, end_status.max_update_ms * 1.11) << "one histogram bucket above the slowest";
+  EXPECT_GE(end_status.estimator_queue_high_water, 1u);
+  EXPECT_LE(end_status.estimator_queue_high_water, 1024u);
+  EXPECT_GE(end_status.publisher_queue_high_water, 1u);
+  EXPECT_LE(end_status.publisher_queue_high_water, 1024u);
   EXPECT_GT(estimator_counts.allocations.load(), 1000u) << "the counter sees the service's threads";
   EXPECT_GE(writes, 7500u);  // the status counter and the write count are read at slightly different times
   EXPECT_GE(end_status.imu_samples - imu_at, 7500u);

@@ -248,6 +248,9 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
         .number("last_update_ms", s.last_update_ms)
         .number("mean_update_ms", s.mean_update_ms)
         .number("max_update_ms", s.max_update_ms)
+        .number("p99_update_ms", s.p99_update_ms)
+        .unsignedInteger("estimator_queue_high_water", s.estimator_queue_high_water)
+        .unsignedInteger("publisher_queue_high_water", s.publisher_queue_high_water)
         .unsignedInteger("last_cliques_reeliminated", s.last_cliques_reeliminated)
         .unsignedInteger("last_relinearized", s.last_relinearized)
         .number("last_lambda", s.last_lambda)
@@ -269,7 +272,7 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
   std::printf(
       "status   %14.6f  %-12s imu %llu  ranges %llu (rejected %llu)%s  overflows %llu  late %llu  faults %llu  "
       "silences %llu  reinit %llu  dropped %llu/%llu/%llu (non-finite/duplicate/out-of-order)  gaps %llu/%llu "
-      "(imu/ranging)  update %.2f ms (mean %.2f, max %.2f)  odometry latency %.2f ms  pose latency "
+      "(imu/ranging)  update %.2f ms (mean %.2f, p99 %.2f, max %.2f)  queues %u/%u (high water)  odometry latency %.2f ms  pose latency "
       "%.2f ms  %5.1f Hz  latency %7.2f ms%s%s%s%s%s%s\n",
       stampSeconds(s.t_ns), m.state_name.c_str(), static_cast<unsigned long long>(s.imu_samples),
       static_cast<unsigned long long>(s.range_samples), static_cast<unsigned long long>(s.rejected_ranges), tdoa,
@@ -278,7 +281,8 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
       static_cast<unsigned long long>(s.reinitializations), static_cast<unsigned long long>(s.non_finite_samples),
       static_cast<unsigned long long>(s.duplicate_samples), static_cast<unsigned long long>(s.out_of_order_samples),
       static_cast<unsigned long long>(s.imu_gaps), static_cast<unsigned long long>(s.ranging_gaps), s.last_update_ms,
-      s.mean_update_ms, s.max_update_ms, s.odometry_latency_ms, s.pose_latency_ms, rate_hz, latency_ms,
+      s.mean_update_ms, s.p99_update_ms, s.max_update_ms, s.estimator_queue_high_water, s.publisher_queue_high_water,
+      s.odometry_latency_ms, s.pose_latency_ms, rate_hz, latency_ms,
       reason.empty() ? "" : "  reason \"", reason.c_str(), reason.empty() ? "" : "\"",
       fault.empty() ? "" : "  fault \"", fault.c_str(), fault.empty() ? "" : "\"");
   std::fflush(stdout);

@@ -10,7 +10,9 @@
 //    status period);
 //  - CPU use of rilod: whole process (wait4 rusage) and per thread
 //    (/proc/<pid>/task/<tid>/stat, utime + stime) over the tracking phase, with
-//    the per-IMU-sample cost of the source and publisher threads.
+//    the per-IMU-sample cost of the source and publisher threads;
+//  - the estimator budget from rilod's last status: smoother update mean, p99
+//    and max, and the queues' high-water marks (how far each consumer fell behind).
 // A measuring tool, not a test: figures depend on the machine and its load.
 //
 // Measured on the shared 2-core x86-64 development machine (load average
@@ -249,6 +251,13 @@ int main(int argc, char** argv) {
               percentile(latency_ms, 1.0));
   std::printf("  in-service (sample in -> DDS write returned), worst per 1 s status period: median %.3f ms, max %.3f ms\n",
               percentile(service_latency_ms, 0.5), service_latency_max_ms);
+  std::printf(
+      "\nEstimator budget (rilod's status, whole run): smoother update mean %.3f ms, p99 %.3f ms (within ~10 %% "
+      "above), max %.3f ms; late updates %llu; queues' high water %u samples to the estimator, %u to the publisher "
+      "(of realtime.queue_capacity, 16384 by default), overflows %llu\n",
+      last.mean_update_ms, last.p99_update_ms, last.max_update_ms, static_cast<unsigned long long>(last.late_updates),
+      last.estimator_queue_high_water, last.publisher_queue_high_water,
+      static_cast<unsigned long long>(last.queue_overflows));
   const double total_cpu_s = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
                              static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
   std::printf("\nCPU of rilod, whole run (wait4): %.2f s user+sys over %.1f s = %.1f %% of one core "

@@ -207,7 +207,7 @@ void readRelinearization(const ConfigField& field, SmootherParams& s) {
 
 void readDamping(const ConfigField& field, SmootherParams& s) {
   const ConfigMap m = field.map({"lambda_initial", "lambda_min", "lambda_max", "lambda_increase",
-                                 "lambda_decrease", "widen", "acceptance"});
+                                 "lambda_decrease", "widen", "acceptance", "tie_tolerance"});
   auto lambda = [](const ConfigField& f) { return f.positive(1e20); };
   m.read("lambda_initial", s.d_isam2.lambda_initial, lambda);
   m.read("lambda_min", s.d_isam2.lambda_min, lambda);
@@ -215,6 +215,7 @@ void readDamping(const ConfigField& field, SmootherParams& s) {
   m.read("lambda_increase", s.d_isam2.lambda_increase, [](const ConfigField& f) { return f.number(1.0, 1e6); });
   m.read("lambda_decrease", s.d_isam2.lambda_decrease, [](const ConfigField& f) { return f.number(0.0, 1.0); });
   m.read("widen", s.d_isam2.widen_damping, [](const ConfigField& f) { return f.boolean(); });
+  m.read("tie_tolerance", s.d_isam2.tie_tolerance, [](const ConfigField& f) { return f.number(0.0, 1e3); });
   m.read("acceptance", s.d_isam2.acceptance, [](const ConfigField& f) {
     return f.choice<DIsam2Params::Acceptance>({{"damped_factors", DIsam2Params::Acceptance::kDampedFactors},
                                                {"global", DIsam2Params::Acceptance::kGlobal}});

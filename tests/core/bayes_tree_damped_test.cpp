@@ -2,7 +2,7 @@
 // increases the nonlinear error, the incrementally kept error equals the
 // error recomputed from scratch, the linear step is the dense solution of
 // the damped system, a problem on which undamped Gauss-Newton oscillates,
-// and exhaustion of lambda_max.
+// exhaustion of lambda_max, and the same estimates without the running error.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -145,6 +145,51 @@ TEST(BayesTreeDamped, RunningErrorEqualsErrorFromScratchAfterEveryUpdate) {
       }
     }
   }
+}
+
+TEST(BayesTreeDamped, WithoutTheRunningErrorTheEstimatesAreTheSame) {
+  // track_error off re-evaluates only the damped factors' errors, which is
+  // all the acceptance test reads: every try, every decision, every
+  // estimate must come out bit for bit as with the running error.
+  int total_retries = 0;
+  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+    for (const auto& [widen, order] : {std::pair{false, FeedOrder::kTime}, std::pair{false, FeedOrder::kRandomGrowth},
+                                       std::pair{true, FeedOrder::kTime}, std::pair{true, FeedOrder::kRandomGrowth}}) {
+      RandomGraphOptions go;
+      go.states = 10;
+      go.prior_state = order == FeedOrder::kTime ? 0 : 3;
+      // Initial values far off: Gauss-Newton overshoots, so D-iSAM2 retries.
+      go.rotation_perturbation_rad *= 8.0;
+      go.position_perturbation_m *= 8.0;
+      go.velocity_perturbation_m_s *= 8.0;
+      const RandomGraph g = makeRandomGraph(seed, go);
+      std::mt19937 rng(static_cast<unsigned>(seed));
+      FeedOptions fo;
+      fo.order = order;
+      SmootherParams eager;
+      eager.d_isam2.widen_damping = widen;
+      SmootherParams lazy = eager;
+      lazy.track_error = false;
+      BayesTreeSmoother tracked(eager), untracked(lazy);
+      const auto schedule = makeSchedule(g, rng, fo);
+      int damped_tries = 0;
+      for (std::size_t k = 0; k < schedule.size(); ++k) {
+        const UpdateStats a = tracked.update(schedule[k].factors, schedule[k].values, schedule[k].timestamps);
+        const UpdateStats b = untracked.update(schedule[k].factors, schedule[k].values, schedule[k].timestamps);
+        const std::string where = "seed " + std::to_string(seed) + (widen ? " widen" : "") + " update " + std::to_string(k);
+        ASSERT_EQ(a.step_tries, b.step_tries) << where;
+        ASSERT_EQ(a.step_accepted, b.step_accepted) << where;
+        damped_tries += a.step_tries - 1;
+        EXPECT_TRUE(std::isnan(b.error_before) && std::isnan(b.error_after)) << where << ": no running error to report";
+        for (const auto& [key, value] : tracked.estimate()) {
+          ASSERT_TRUE(localVariable(value, untracked.estimate(key)).isZero(0.0)) << where << " " << keyString(key);
+        }
+        EXPECT_NEAR(untracked.error(), tracked.error(), 1e-9 * tracked.error()) << where << ": error() sums every factor";
+      }
+      total_retries += damped_tries;
+    }
+  }
+  EXPECT_GT(total_retries, 0) << "the schedules must exercise rejected tries";
 }
 
 TEST(BayesTreeDamped, RunningErrorSurvivesAnErrorCollapsingInOneUpdate) {
@@ -422,6 +467,42 @@ TEST(BayesTreeDamped, LambdaMaxExhaustedKeepsThePreviousEstimate) {
 }
 
 // ------------------------------------------------------- agreeing new factors
+
+TEST(BayesTreeDamped, AnIncreaseWithinTheTieToleranceIsNotARejection) {
+  // The same conflict as above (one try allowed, the error grows): rejected
+  // with the paper's rule and with a tolerance below the increase, taken at
+  // the first try when the tolerance covers it.
+  auto run = [](double tie) {
+    SmootherParams p = exactParams(Method::kDamped);
+    p.d_isam2.lambda_initial = 1e-5;
+    p.d_isam2.lambda_max = 1e-5;
+    p.d_isam2.lambda_min = 1e-10;
+    p.d_isam2.tie_tolerance = tie;
+    p.d_isam2.acceptance = DIsam2Params::Acceptance::kDampedFactors;  // the one the tolerance applies to
+    p.d_isam2.widen_damping = false;
+    BayesTreeSmoother smoother(p);
+    FactorGraph f0;
+    Values v0;
+    f0.emplace<PriorPose3Factor>(X(0), Pose3(Mat3::Identity(), Vec3(3, 3, 0)), sigmas6(0.01, 0.1));
+    f0.emplace<PriorVec3Factor>(L(0), Vec3(5, 3, 2), Vec3(Vec3::Constant(0.05)));
+    f0.emplace<RangeFactor>(X(0), L(0), 2.9, 0.1, Vec3::Zero());
+    v0.insert(X(0), Pose3(Mat3::Identity(), Vec3(3.2, 2.9, 0.1)));
+    v0.insert(L(0), Variable(Vec3(5, 3, 2)));
+    smoother.update(f0, v0);
+    FactorGraph f1 = oscillationGraph(X(1));
+    f1.emplace<RangeFactor>(X(1), L(0), 5.6, 0.1, Vec3::Zero());
+    Values v1;
+    v1.insert(X(1), Pose3(Mat3::Identity(), Vec3(0.1, 0.05, -0.08)));
+    return smoother.update(f1, v1);
+  };
+  const UpdateStats strict = run(0.0);
+  EXPECT_FALSE(strict.step_accepted);
+  EXPECT_FALSE(run(1e-9).step_accepted) << "a tolerance below the increase changes nothing";
+  const UpdateStats tie = run(1e9);
+  EXPECT_TRUE(tie.step_accepted);
+  EXPECT_EQ(tie.step_tries, 1);
+  EXPECT_GT(tie.error_after, tie.error_before) << "the step taken as a tie does increase the error";
+}
 
 TEST(BayesTreeDamped, UpdateWhoseNewFactorsAgreeTakesTheGaussNewtonStep) {
   // An IMU-only state is predicted exactly by its new factors: nothing to

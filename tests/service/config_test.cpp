@@ -159,7 +159,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "                    accel_bias_m_s2: 0.006, gyro_bias_rad_s: 0.0007, together: false, max_variables: 9,\n"
       "                    recent_updates: 2, wildfire_threshold: 0.002}\n"
       "  damping: {lambda_initial: 1e-4, lambda_min: 1e-8, lambda_max: 1e4, lambda_increase: 5,\n"
-      "            lambda_decrease: 0.5, widen: false, acceptance: global}\n"
+      "            lambda_decrease: 0.5, widen: false, acceptance: global, tie_tolerance: 2e-4}\n"
       "  trust_region: {initial: 0.5, min: 1e-6}\n"
       "  range: {noise_model: huber, sigma_m: 0.2, huber_k: 2.0, cauchy_c: 3.0, nlos_scale_m: 0.3,\n"
       "          nlos_weight: 0.1, flagged_nlos_scale_m: 0.6, flagged_scale_reference_hz: 20, lever_arm_m: [0.1, -0.2, 0.3], same_state_window_s: 0.004,\n"
@@ -218,6 +218,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_DOUBLE_EQ(s.d_isam2.lambda_increase, 5.0);
   EXPECT_DOUBLE_EQ(s.d_isam2.lambda_decrease, 0.5);
   EXPECT_FALSE(s.d_isam2.widen_damping);
+  EXPECT_DOUBLE_EQ(s.d_isam2.tie_tolerance, 2e-4);
   EXPECT_EQ(s.d_isam2.acceptance, DIsam2Params::Acceptance::kGlobal);
   EXPECT_DOUBLE_EQ(s.dogleg.trust_radius_initial, 0.5);
   EXPECT_DOUBLE_EQ(s.dogleg.trust_radius_min, 1e-6);

@@ -92,6 +92,12 @@ void BayesTreeSmoother::refreshEstimate(VarId v) {
   estimate_.insertOrAssign(slot.key, retractVariable(theta_.at(slot.key), slot.step.data()));
 }
 
+bool BayesTreeSmoother::tracksError() const {
+  return params_.track_error || params_.method == SmootherParams::Method::kDogleg ||
+         (params_.method == SmootherParams::Method::kDamped &&
+          params_.d_isam2.acceptance == DIsam2Params::Acceptance::kGlobal);
+}
+
 void BayesTreeSmoother::refreshErrorsOfChanged(bool log_undo) {
   for (VarId v : changed_vars_) refreshEstimate(v);
   refreshFactorErrors(changed_vars_, log_undo);
@@ -99,11 +105,18 @@ void BayesTreeSmoother::refreshErrorsOfChanged(bool log_undo) {
 
 void BayesTreeSmoother::refreshFactorErrors(const std::vector<VarId>& vars, bool log_undo) {
   const std::uint64_t stamp = newStamp();
+  // Without the running error only the damped factors' errors are read
+  // (dampedFactorsErrorChange); damp_stamp_ is fresh every update, so an
+  // undamped update refreshes none.
+  const bool all = tracksError();
   for (VarId v : vars) {
     for (FactorId f : vars_[v].factors) {
       FactorSlot& fs = factors_[f];
       if (fs.mark == stamp) continue;
       fs.mark = stamp;
+      if (!all && std::none_of(fs.vars.begin(), fs.vars.end(), [&](VarId u) { return vars_[u].damped == damp_stamp_; })) {
+        continue;
+      }
       const double e = factorError(fs, estimate_);
       if (log_undo) undo_error_.emplace_back(f, fs.error);
       error_at_estimate_ += e - fs.error;

@@ -180,6 +180,10 @@ UpdateStats BayesTreeSmoother::update(const FactorGraph& new_factors, const Valu
     error_peak_ = std::abs(error_at_estimate_) + std::abs(error_at_theta_);
   }
   stats.error_after = error_at_estimate_;
+  if (!tracksError()) {  // the running sum holds stale per-factor errors
+    stats.error_before = std::numeric_limits<double>::quiet_NaN();
+    stats.error_after = std::numeric_limits<double>::quiet_NaN();
+  }
   stats.cliques_total = cliqueCount();
   stats.variables_total = variableCount();
   stats.factors_total = live_factors_;

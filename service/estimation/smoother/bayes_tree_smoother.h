@@ -48,7 +48,8 @@ class BayesTreeSmoother final : public Smoother {
   Variable estimate(Key key) const override;
   bool exists(Key key) const override;
   std::optional<CovarianceBlock> marginalCovariance(Key key, std::string* failure = nullptr) override;
-  double error() const override { return error_at_estimate_; }
+  /// O(1) with SmootherParams::track_error; otherwise a sum over every factor.
+  double error() const override { return tracksError() ? error_at_estimate_ : errorFromScratch(); }
   void drainMarginalized(std::vector<std::pair<Key, Variable>>& out) override {
     out.insert(out.end(), std::make_move_iterator(marginalized_.begin()), std::make_move_iterator(marginalized_.end()));
     marginalized_.clear();
@@ -197,6 +198,9 @@ class BayesTreeSmoother final : public Smoother {
   double factorError(const FactorSlot& f, const Values& x) const;
   void refreshEstimate(VarId v);
   void refreshErrorsOfChanged(bool log_undo);
+  /// Whether error_at_estimate_ is kept current (SmootherParams::track_error,
+  /// or a step policy that reads the whole error).
+  bool tracksError() const;
   /// Re-evaluates (once each) the factors touching `vars` at the estimate and
   /// updates the running sum, logging old errors for undo when asked.
   void refreshFactorErrors(const std::vector<VarId>& vars, bool log_undo);
@@ -204,7 +208,8 @@ class BayesTreeSmoother final : public Smoother {
   void undoStep();
   /// D-iSAM2 (Acceptance::kDampedFactors): error change of this try on the
   /// factors of the damped variables.
-  double dampedFactorsErrorChange() const;
+  /// `scale` (optional): the sum of their errors' magnitudes before and after.
+  double dampedFactorsErrorChange(double* scale = nullptr) const;
   /// Diagonal of J^T J for variable v over its factors (scales the damping).
   Vec6 informationDiagonal(VarId v) const;
   /// D-iSAM2's damping rows on the damped frontals of clique q (none at

@@ -42,6 +42,14 @@ struct DIsam2Params {
     kDampedFactors,
   };
   Acceptance acceptance = Acceptance::kDampedFactors;
+  /// With kDampedFactors: a try that raises the damped factors' error by at
+  /// most this (the smoother's cost units, half the sum of squared whitened
+  /// residuals) is a tie, not an increase. 0: the paper's rule (rounding
+  /// aside). A rejection keeps the newest state at its IMU prediction and
+  /// relinearizes the whole window at the next update (4-10 ms), a far larger
+  /// change than an increase of 1e-5, which no residual can show (0.005 sigma
+  /// on one). rilod uses 1e-5; measured in docs/smoother.md.
+  double tie_tolerance = 0.0;
   double lambda_increase = 10.0;
   double lambda_decrease = 0.1;
   /// Bound on D-iSAM2 tries in one update (each re-solves the tree): past it
@@ -61,6 +69,7 @@ struct DIsam2Params {
     if (!(lambda_decrease > 0.0 && lambda_decrease < 1.0)) fail("lambda_decrease", "must be in (0, 1)");
     if (max_tries < 1) fail("max_tries", "must be >= 1");
     if (!(damping_min_new_error >= 0.0)) fail("damping_min_new_error", "must be >= 0");
+    if (!(tie_tolerance >= 0.0)) fail("tie_tolerance", "must be >= 0");
   }
 };
 

@@ -93,10 +93,17 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
     tested = path_of(neighbours);
   }
   bool wide = false;
+  // Without the running error (SmootherParams::track_error) an old factor's
+  // cached error may be stale: the damped factors' errors before the step
+  // (those a factor-only update damps are old) are taken here.
+  if (!tracksError()) refreshFactorErrors(damped_vars, false);
 
-  // Rounding in the running error sum is ~1e-16 relative; a step that changes
-  // nothing must not count as an increase.
-  const double tolerance = 1e-12 * std::abs(error_before);
+  // Rounding in an error sum is ~1e-16 of what it sums; a step that changes
+  // nothing must not count as an increase. The whole graph's running sum
+  // for kGlobal; for kDampedFactors the damped factors' own errors (the
+  // running sum may be stale without SmootherParams::track_error), plus
+  // DIsam2Params::tie_tolerance.
+  const double global_tolerance = 1e-12 * std::abs(error_before);
   double lambda = lambda_;
   if (eliminate_first) {
     for (CliqueId c : path) eliminateClique(c, lambda, stats);
@@ -116,7 +123,9 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
     }
     refreshErrorsOfChanged(true);
     stats.step_tries = attempt;
-    const double change = global ? error_at_estimate_ - error_before : dampedFactorsErrorChange();
+    double scale = 0.0;
+    const double change = global ? error_at_estimate_ - error_before : dampedFactorsErrorChange(&scale);
+    const double tolerance = global ? global_tolerance : 1e-12 * scale + params_.d_isam2.tie_tolerance;
     if (path.empty() || change <= tolerance) {
       if (partial) {
         backSubstitute(params_.wildfire_threshold, stats, moved);
@@ -143,6 +152,11 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
       }
       path = top_cliques_;
       partial = false;  // the damped factors now reach below the top
+      if (!tracksError()) {
+        std::vector<VarId> widened;
+        for (CliqueId c : top_cliques_) widened.insert(widened.end(), cliques_[c].frontals.begin(), cliques_[c].frontals.end());
+        refreshFactorErrors(widened, false);
+      }
     }
     if (lambda > params_.d_isam2.lambda_max || attempt >= params_.d_isam2.max_tries) {
       // Alg. 1 raises an error here; a real-time service keeps the previous
@@ -162,15 +176,18 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
   for (CliqueId c : path) eliminateClique(c, 0.0, stats);
 }
 
-double BayesTreeSmoother::dampedFactorsErrorChange() const {
+double BayesTreeSmoother::dampedFactorsErrorChange(double* scale) const {
   // undo_error_ holds each refreshed factor once, with its error before the try.
   double change = 0.0;
+  double magnitude = 0.0;
   for (const auto& [f, before] : undo_error_) {
     const FactorSlot& fs = factors_[f];
     if (std::any_of(fs.vars.begin(), fs.vars.end(), [&](VarId v) { return vars_[v].damped == damp_stamp_; })) {
       change += fs.error - before;
+      magnitude += std::abs(before) + std::abs(fs.error);
     }
   }
+  if (scale != nullptr) *scale = magnitude;
   return change;
 }
 

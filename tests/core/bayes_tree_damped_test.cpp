@@ -380,6 +380,33 @@ TEST(BayesTreeDamped, NewStateOnWhichGaussNewtonOvershootsIsDamped) {
 
 // ------------------------------------------------------------------ lambda_max
 
+/// One update's factors and initial values.
+struct Step {
+  FactorGraph factors;
+  Values values;
+};
+
+/// A well-posed start: a pose and an anchor with priors, a range between them.
+Step wellPosedStart() {
+  Step s;
+  s.factors.emplace<PriorPose3Factor>(X(0), Pose3(Mat3::Identity(), Vec3(3, 3, 0)), sigmas6(0.01, 0.1));
+  s.factors.emplace<PriorVec3Factor>(L(0), Vec3(5, 3, 2), Vec3(Vec3::Constant(0.05)));
+  s.factors.emplace<RangeFactor>(X(0), L(0), 2.9, 0.1, Vec3::Zero());
+  s.values.insert(X(0), Pose3(Mat3::Identity(), Vec3(3.2, 2.9, 0.1)));
+  s.values.insert(L(0), Variable(Vec3(5, 3, 2)));
+  return s;
+}
+
+/// A new pose whose undamped step increases the error (the oscillation
+/// geometry), tied to the start through a range to L0.
+Step overshootingPose() {
+  Step s;
+  s.factors = oscillationGraph(X(1));
+  s.factors.emplace<RangeFactor>(X(1), L(0), 5.6, 0.1, Vec3::Zero());
+  s.values.insert(X(1), Pose3(Mat3::Identity(), Vec3(0.1, 0.05, -0.08)));
+  return s;
+}
+
 TEST(BayesTreeDamped, LambdaMaxExhaustedKeepsThePreviousEstimate) {
   SmootherParams p = exactParams(Method::kDamped);
   p.d_isam2.lambda_initial = 1e-5;
@@ -388,26 +415,15 @@ TEST(BayesTreeDamped, LambdaMaxExhaustedKeepsThePreviousEstimate) {
   BayesTreeSmoother smoother(p);
   FactorGraph so_far;
 
-  // A well-posed start: a pose and two anchors with priors, ranges between them.
-  FactorGraph f0;
-  Values v0;
-  f0.emplace<PriorPose3Factor>(X(0), Pose3(Mat3::Identity(), Vec3(3, 3, 0)), sigmas6(0.01, 0.1));
-  f0.emplace<PriorVec3Factor>(L(0), Vec3(5, 3, 2), Vec3(Vec3::Constant(0.05)));
-  f0.emplace<RangeFactor>(X(0), L(0), 2.9, 0.1, Vec3::Zero());
-  v0.insert(X(0), Pose3(Mat3::Identity(), Vec3(3.2, 2.9, 0.1)));
-  v0.insert(L(0), Variable(Vec3(5, 3, 2)));
-  for (const auto& fp : f0) so_far.add(fp);
-  ASSERT_TRUE(smoother.update(f0, v0).step_accepted);
+  const Step start = wellPosedStart();
+  for (const auto& fp : start.factors) so_far.add(fp);
+  ASSERT_TRUE(smoother.update(start.factors, start.values).step_accepted);
 
-  // A new pose whose undamped step increases the error (the oscillation
-  // geometry), tied to the old part through a range to L0.
   const Values before = smoother.estimate();
-  FactorGraph f1 = oscillationGraph(X(1));
-  f1.emplace<RangeFactor>(X(1), L(0), 5.6, 0.1, Vec3::Zero());
-  Values v1;
-  v1.insert(X(1), Pose3(Mat3::Identity(), Vec3(0.1, 0.05, -0.08)));
-  const UpdateStats st = smoother.update(f1, v1);
-  for (const auto& fp : f1) so_far.add(fp);
+  const Step next = overshootingPose();
+  const Values& v1 = next.values;
+  const UpdateStats st = smoother.update(next.factors, v1);
+  for (const auto& fp : next.factors) so_far.add(fp);
   EXPECT_FALSE(st.step_accepted);
   EXPECT_NEAR(st.error_after, st.error_before, 1e-12 * st.error_before) << "nothing moved";
   ASSERT_EQ(smoother.checkInvariants(), "");
@@ -481,19 +497,10 @@ TEST(BayesTreeDamped, AnIncreaseWithinTheTieToleranceIsNotARejection) {
     p.d_isam2.acceptance = DIsam2Params::Acceptance::kDampedFactors;  // the one the tolerance applies to
     p.d_isam2.widen_damping = false;
     BayesTreeSmoother smoother(p);
-    FactorGraph f0;
-    Values v0;
-    f0.emplace<PriorPose3Factor>(X(0), Pose3(Mat3::Identity(), Vec3(3, 3, 0)), sigmas6(0.01, 0.1));
-    f0.emplace<PriorVec3Factor>(L(0), Vec3(5, 3, 2), Vec3(Vec3::Constant(0.05)));
-    f0.emplace<RangeFactor>(X(0), L(0), 2.9, 0.1, Vec3::Zero());
-    v0.insert(X(0), Pose3(Mat3::Identity(), Vec3(3.2, 2.9, 0.1)));
-    v0.insert(L(0), Variable(Vec3(5, 3, 2)));
-    smoother.update(f0, v0);
-    FactorGraph f1 = oscillationGraph(X(1));
-    f1.emplace<RangeFactor>(X(1), L(0), 5.6, 0.1, Vec3::Zero());
-    Values v1;
-    v1.insert(X(1), Pose3(Mat3::Identity(), Vec3(0.1, 0.05, -0.08)));
-    return smoother.update(f1, v1);
+    const Step start = wellPosedStart();
+    smoother.update(start.factors, start.values);
+    const Step next = overshootingPose();
+    return smoother.update(next.factors, next.values);
   };
   const UpdateStats strict = run(0.0);
   EXPECT_FALSE(strict.step_accepted);

@@ -83,11 +83,14 @@ TEST(ReplayLoop, ServiceTracksAgainAfterEachSeamAndKeepsRunning) {
   std::thread runner([&] { code = service.run(stop); });
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(300s * testing::timeScale());
-  // Past two seams, and tracking in the third pass.
+  // Past two seams, and tracking late in the third pass: the entrance counts
+  // samples a queue ahead of the estimator, so stopping half-way through the
+  // pass left only ~2 s of its poses after the 20 s mark (46-79 of them from
+  // run to run, under the 50 asked below).
   bool tracking_in_third_pass = false;
   while (std::chrono::steady_clock::now() < deadline) {
     const ServiceStatus s = service.status();
-    if (s.imu_samples > 2 * imu_per_pass + imu_per_pass / 2 && s.state == TrackingState::kTracking) {
+    if (s.imu_samples > 2 * imu_per_pass + imu_per_pass * 4 / 5 && s.state == TrackingState::kTracking) {
       tracking_in_third_pass = true;
       break;
     }

@@ -121,14 +121,11 @@ struct SourcesConfig {
 ///   the whole tree (5-6 ms), and a range's curvature in the anchor is
 ///   1/range: 0.1 m off the linearization point costs < 5 mm at 1 m;
 /// - no running nonlinear error (SmootherParams::track_error): nothing in
-///   the service reads it, and its refresh was 14 % of a replay;
-/// - a D-iSAM2 try that raises the damped factors' error by under 1e-5 is a
-///   tie (DIsam2Params::tie_tolerance), not a rejection.
+///   the service reads it, and its refresh was 14 % of a replay.
 inline SmootherParams serviceSmootherDefaults() {
   SmootherParams p;
   p.lag_s = 10.0;
   p.track_error = false;
-  p.d_isam2.tie_tolerance = 1e-5;
   p.wildfire_threshold = 0.01;
   p.relinearize_thresholds3['l'] = Vec3::Constant(0.1);
   return p;

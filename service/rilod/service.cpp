@@ -143,10 +143,13 @@ unsigned long long increase(std::uint64_t now, std::uint64_t before) {
   return static_cast<unsigned long long>(now >= before ? now - before : 0);
 }
 
-/// The one writer of `high_water` raises it to the queue's current fill.
+/// The one writer of `high_water` (the queue's consumer, right after a pop)
+/// raises it to the fill the pop found: what is left plus the item taken.
+/// Only after a successful pop: reading the producer's index on an idle
+/// queue would bounce its cache line for nothing.
 template <typename Queue>
 void noteFill(const Queue& queue, std::atomic<std::uint32_t>& high_water) noexcept {
-  const auto fill = static_cast<std::uint32_t>(queue.sizeApprox());
+  const auto fill = static_cast<std::uint32_t>(queue.sizeApprox() + 1);
   if (fill > high_water.load(std::memory_order_relaxed)) high_water.store(fill, std::memory_order_relaxed);
 }
 
@@ -249,8 +252,8 @@ void Service::estimatorLoop() {
     for (std::size_t i = 0; i < lanes_.size(); ++i) {
       SourceLane& lane = *lanes_[i];
       if (!lane.has_pending) {
-        noteFill(lane.samples, estimator_queue_high_water_);
         lane.has_pending = lane.samples.tryPop(lane.pending);
+        if (lane.has_pending) noteFill(lane.samples, estimator_queue_high_water_);
       }
       if (lane.has_pending) {
         if (oldest < 0 || sampleTime(lane.pending) < sampleTime(lanes_[static_cast<std::size_t>(oldest)]->pending)) {
@@ -490,8 +493,8 @@ void Service::publisherLoop() {
   auto drain = [&]() noexcept {
     bool any = false;
     for (auto& lane : lanes_) {
-      noteFill(lane->imu, publisher_queue_high_water_);
-      while (lane->imu.tryPop(item)) {
+      for (bool first = true; lane->imu.tryPop(item); first = false) {
+        if (first) noteFill(lane->imu, publisher_queue_high_water_);
         any = true;
         // A newer smoothed state first: the odometry of this sample starts from it.
         if (smoothed_.readIfNewer(smoothed, smoothed_version)) predictor_.onSmoothed(smoothed);

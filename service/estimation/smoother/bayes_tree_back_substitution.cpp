@@ -17,22 +17,30 @@ void BayesTreeSmoother::backSubstitute(double threshold, UpdateStats& stats, std
     const CliqueId c = stack.back();
     stack.pop_back();
     const Clique& q = cliques_[c];
-    bool recompute = q.replaced;
-    for (std::size_t i = 0; !recompute && i < q.separator.size(); ++i) recompute = vars_[q.separator[i]].moved == moved;
     // Running intersection: a descendant's separator can only hold a moved
     // variable if this clique's does, so the subtree needs nothing either.
-    if (!recompute) continue;
-    solveClique(c, threshold, moved);
-    ++stats.cliques_back_substituted;
+    if (!needsSolve(q, moved)) continue;
+    if (q.solved != moved) {  // else done by backSubstitutePart
+      solveClique(c, threshold, moved);
+      ++stats.cliques_back_substituted;
+    }
     stack.insert(stack.end(), q.children.begin(), q.children.end());
   }
+}
+
+bool BayesTreeSmoother::needsSolve(const Clique& q, std::uint64_t moved) const {
+  if (q.replaced) return true;
+  return std::any_of(q.separator.begin(), q.separator.end(), [&](VarId v) { return vars_[v].moved == moved; });
 }
 
 std::uint64_t BayesTreeSmoother::backSubstitutePart(const std::vector<CliqueId>& cliques, double threshold,
                                                     UpdateStats& stats) {
   const std::uint64_t moved = newStamp();
-  for (auto it = cliques.rbegin(); it != cliques.rend(); ++it) {  // parents first
+  for (auto it = cliques.rbegin(); it != cliques.rend(); ++it) {  // parents first, as the wildfire meets them
+    Clique& q = cliques_[*it];
+    if (!needsSolve(q, moved)) continue;
     solveClique(*it, threshold, moved);
+    q.solved = moved;
     ++stats.cliques_back_substituted;
   }
   return moved;
@@ -98,12 +106,13 @@ bool BayesTreeSmoother::tracksError() const {
           params_.d_isam2.acceptance == DIsam2Params::Acceptance::kGlobal);
 }
 
-void BayesTreeSmoother::refreshErrorsOfChanged(bool log_undo) {
-  for (VarId v : changed_vars_) refreshEstimate(v);
-  refreshFactorErrors(changed_vars_, log_undo);
+void BayesTreeSmoother::refreshErrorsOfChanged(bool log_undo, std::size_t from) {
+  const std::span<const VarId> changed = std::span<const VarId>(changed_vars_).subspan(std::min(from, changed_vars_.size()));
+  for (VarId v : changed) refreshEstimate(v);
+  refreshFactorErrors(changed, log_undo);
 }
 
-void BayesTreeSmoother::refreshFactorErrors(const std::vector<VarId>& vars, bool log_undo) {
+void BayesTreeSmoother::refreshFactorErrors(std::span<const VarId> vars, bool log_undo) {
   const std::uint64_t stamp = newStamp();
   // Without the running error only the damped factors' errors are read
   // (dampedFactorsErrorChange); damp_stamp_ is fresh every update, so an

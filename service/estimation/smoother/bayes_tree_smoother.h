@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <deque>
 #include <vector>
 
@@ -142,6 +143,7 @@ class BayesTreeSmoother final : public Smoother {
     bool replaced = false;             // re-eliminated during the current update
     Eigen::VectorXd gradient;          // dog-leg: this clique's -[R S]^T d (frontals, then separator)
     std::uint64_t mark = 0;
+    std::uint64_t solved = 0;          // == the back-substitution's moved stamp: solved by backSubstitutePart
   };
 
   // update() stages
@@ -186,24 +188,29 @@ class BayesTreeSmoother final : public Smoother {
   /// Back-substitution from the roots; re-solves replaced cliques and those
   /// whose separator moved by more than `threshold`. Appends every variable
   /// whose delta changed to `changed`, logging the old delta for undo.
-  /// `moved` continues the marks of an earlier backSubstitutePart (0: a
-  /// fresh pass).
+  /// `moved` continues an earlier backSubstitutePart (0: a fresh pass): its
+  /// marks, and the cliques it solved are not solved again.
   void backSubstitute(double threshold, UpdateStats& stats, std::uint64_t moved = 0);
-  /// Solves only `cliques` (children first, closed under ancestors, so exact
-  /// for their variables); returns the stamp its moved variables carry.
+  /// The same wildfire restricted to `cliques` (children first, closed
+  /// under ancestors): each is solved under the same rule as in
+  /// backSubstitute, so their variables come out as the whole pass would
+  /// give them. Returns the stamp its moved variables carry.
   std::uint64_t backSubstitutePart(const std::vector<CliqueId>& cliques, double threshold, UpdateStats& stats);
   void solveClique(CliqueId c, double threshold, std::uint64_t moved_stamp);
+  /// The wildfire's rule: re-eliminated, or a separator variable moved.
+  bool needsSolve(const Clique& q, std::uint64_t moved) const;
 
   // Error bookkeeping
   double factorError(const FactorSlot& f, const Values& x) const;
   void refreshEstimate(VarId v);
-  void refreshErrorsOfChanged(bool log_undo);
+  /// Estimates and factor errors of changed_vars_ from index `from` on.
+  void refreshErrorsOfChanged(bool log_undo, std::size_t from = 0);
   /// Whether error_at_estimate_ is kept current (SmootherParams::track_error,
   /// or a step policy that reads the whole error).
   bool tracksError() const;
   /// Re-evaluates (once each) the factors touching `vars` at the estimate and
   /// updates the running sum, logging old errors for undo when asked.
-  void refreshFactorErrors(const std::vector<VarId>& vars, bool log_undo);
+  void refreshFactorErrors(std::span<const VarId> vars, bool log_undo);
   void logDelta(VarId v);
   void undoStep();
   /// D-iSAM2 (Acceptance::kDampedFactors): error change of this try on the

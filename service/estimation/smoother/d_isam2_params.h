@@ -51,6 +51,12 @@ struct DIsam2Params {
   /// on one). rilod keeps 0: 1e-5 moved single 1 Hz runs by +-0.15 m both
   /// ways for no gain on the sets (docs/smoother.md).
   double tie_tolerance = 0.0;
+  /// With kDampedFactors, a try back-substitutes only the cliques its test
+  /// reads (the damped factors' variables and their ancestors), under the
+  /// wildfire's own rule; the accepted try goes on into the rest of the
+  /// tree. false: every try runs the whole wildfire, the reference the
+  /// tests compare with (same decisions, same estimates).
+  bool partial_tries = true;
   double lambda_increase = 10.0;
   double lambda_decrease = 0.1;
   /// Bound on D-iSAM2 tries in one update (each re-solves the tree): past it

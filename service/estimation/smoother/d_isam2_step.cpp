@@ -84,7 +84,7 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
   // What the acceptance test reads: the variables of the damped factors, in
   // their cliques and those cliques' ancestors.
   std::vector<CliqueId> tested;
-  bool partial = params_.d_isam2.acceptance == DIsam2Params::Acceptance::kDampedFactors;
+  bool partial = params_.d_isam2.partial_tries && params_.d_isam2.acceptance == DIsam2Params::Acceptance::kDampedFactors;
   if (partial) {
     std::vector<VarId> neighbours;
     for (VarId v : damped_vars) {
@@ -127,9 +127,10 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
     const double change = global ? error_at_estimate_ - error_before : dampedFactorsErrorChange(&scale);
     const double tolerance = global ? global_tolerance : 1e-12 * scale + params_.d_isam2.tie_tolerance;
     if (path.empty() || change <= tolerance) {
-      if (partial) {
+      if (partial) {  // the rest of the tree; what the try solved is not solved or refreshed again
+        const std::size_t solved = changed_vars_.size();
         backSubstitute(params_.wildfire_threshold, stats, moved);
-        refreshErrorsOfChanged(true);
+        refreshErrorsOfChanged(true, solved);
       }
       stats.lambda = lambda;
       lambda_ = wide ? params_.d_isam2.lambda_initial : std::max(params_.d_isam2.lambda_min, lambda * params_.d_isam2.lambda_decrease);

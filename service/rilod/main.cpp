@@ -98,10 +98,10 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
     char line[600];
     std::snprintf(line, sizeof line,
                   "%s: imu %llu, ranges %llu (rejected %llu)%s, odometry %llu (latency max %.2f ms); update mean %.2f ms, "
-                  "max %.2f ms; faults %llu, overflows %llu, re-inits %llu; dropped non-finite %llu, duplicate %llu, "
+                  "p99 %.2f ms, max %.2f ms; faults %llu, overflows %llu, re-inits %llu; dropped non-finite %llu, duplicate %llu, "
                   "out-of-order %llu; gaps imu %llu, ranging %llu%s%s",
                   stateName(s.state), u(s.imu_samples), u(s.range_samples), u(s.rejected_ranges), tdoa,
-                  u(s.published_odometry), s.odometry_latency_ms, s.mean_update_ms, s.max_update_ms,
+                  u(s.published_odometry), s.odometry_latency_ms, s.mean_update_ms, s.p99_update_ms, s.max_update_ms,
                   u(s.sensor_faults), u(s.queue_overflows), u(s.reinitializations), u(s.non_finite_samples),
                   u(s.duplicate_samples), u(s.out_of_order_samples), u(s.imu_gaps), u(s.ranging_gaps),
                   s.reason[0] != '\0' ? " -- " : "", s.reason.data());

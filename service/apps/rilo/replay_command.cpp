@@ -169,10 +169,10 @@ int runReplay(const ReplayOptions& o) {
                 o.config.empty() ? std::string(kShippedConfigName).c_str() : o.config.c_str(), o.settings.lag_s,
                 o.settings.device_from_recording ? "recording where its meta.yaml gives it" : "configuration");
   }
-  std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, max %.2f ms, %.0fx real time, %llu re-initializations, "
-              "tracking %.0f%% of the time\n",
+  std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, p99 %.2f ms, max %.2f ms, %.0fx real time, %llu "
+              "re-initializations, tracking %.0f%% of the time\n",
               o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
-              max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations),
+              p99_ms, max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations),
               100.0 * run.online_tracked_share);
   if (run.first_position_s) {
     char full[32] = "never";

@@ -83,8 +83,9 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
   std::vector<CliqueId> path = path_of(damped_vars);
   // What the acceptance test reads: the variables of the damped factors, in
   // their cliques and those cliques' ancestors.
+  const bool global = params_.d_isam2.acceptance == DIsam2Params::Acceptance::kGlobal;
   std::vector<CliqueId> tested;
-  bool partial = params_.d_isam2.partial_tries && params_.d_isam2.acceptance == DIsam2Params::Acceptance::kDampedFactors;
+  bool partial = params_.d_isam2.partial_tries && !global;
   if (partial) {
     std::vector<VarId> neighbours;
     for (VarId v : damped_vars) {
@@ -108,7 +109,6 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
   if (eliminate_first) {
     for (CliqueId c : path) eliminateClique(c, lambda, stats);
   }
-  const bool global = params_.d_isam2.acceptance == DIsam2Params::Acceptance::kGlobal;
   for (int attempt = 1;; ++attempt) {
     clearUndo();
     // A try that may be rejected solves only what its test reads (measured:
@@ -145,19 +145,17 @@ void BayesTreeSmoother::stepDamped(bool damp, std::vector<VarId>& damped_vars, U
       ++stats.damping_widened;
       lambda = params_.d_isam2.lambda_initial;
       damp_stamp_ = newStamp();
+      std::vector<VarId> widened;
       for (CliqueId c : top_cliques_) {
         for (VarId v : cliques_[c].frontals) {
           vars_[v].damped = damp_stamp_;
           vars_[v].damping_center = vars_[v].step;
+          widened.push_back(v);
         }
       }
       path = top_cliques_;
       partial = false;  // the damped factors now reach below the top
-      if (!tracksError()) {
-        std::vector<VarId> widened;
-        for (CliqueId c : top_cliques_) widened.insert(widened.end(), cliques_[c].frontals.begin(), cliques_[c].frontals.end());
-        refreshFactorErrors(widened, false);
-      }
+      if (!tracksError()) refreshFactorErrors(widened, false);
     }
     if (lambda > params_.d_isam2.lambda_max || attempt >= params_.d_isam2.max_tries) {
       // Alg. 1 raises an error here; a real-time service keeps the previous

@@ -597,6 +597,39 @@ TEST(RangeImuGraphStream, RejectsBadInput) {
   EXPECT_THROW(buildRangeImuGraph(unsorted, s.ranges, s.p_w_anchors, st0.T_w_b, st0.v_w, gp), std::invalid_argument);
 }
 
+TEST(RangeImuGraphStream, RefusesAGapBeyondMaxGapInsteadOfPlanningAcrossIt) {
+  // One range stamped 28 years ahead planned a state every 0.5 s up to it
+  // (issue 37: 23 GB, then the kernel's OOM killer). Refused, nothing planned.
+  const sim::Scenario s = makeScenario(2.0);
+  const RangeImuGraphParams gp = graphParams(s);
+  RangeImuStreamOptions options;
+  options.max_gap_ns = 60'000'000'000;
+  RangeImuGraphStream stream(s.p_w_anchors, gp, options);
+  const std::int64_t t0 = s.ranges.front().t_ns;
+  stream.start(t0, s.truthAt(t0).T_w_b, s.truthAt(t0).v_w);
+  RangeSample far = s.ranges[1];
+  far.t_ns = 900'000'000'000'000'000;
+  try {
+    stream.addRange(far);
+    ADD_FAILURE() << "a range 28 years ahead was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("past the newest state (max_gap_ns"), std::string::npos) << e.what();
+  }
+  RangeSample edge = s.ranges[1];
+  edge.t_ns = t0 + options.max_gap_ns;  // at the bound: planned
+  stream.addRange(edge);
+  // The IMU likewise, where IMU-only states would be committed across the gap.
+  RangeImuGraphStream imu_stream(s.p_w_anchors, gp, options);
+  imu_stream.start(t0, s.truthAt(t0).T_w_b, s.truthAt(t0).v_w);
+  ImuSample jump = s.imu.back();
+  jump.t_ns = t0 + 3'600'000'000'000;
+  EXPECT_THROW(imu_stream.addImu(jump), std::invalid_argument);
+  EXPECT_EQ(imu_stream.imuBufferSize(), 0u);
+  RangeImuStreamOptions bad;
+  bad.max_gap_ns = gp.max_state_interval_ns - 1;
+  EXPECT_THROW(RangeImuGraphStream(s.p_w_anchors, gp, bad), std::invalid_argument);
+}
+
 TEST(RangeImuGraphStream, StartKeepsWarmupFromT0AndFinishClosesTheLastGroup) {
   const sim::Scenario s = makeScenario(2.0);
   const RangeImuGraphParams gp = graphParams(s);

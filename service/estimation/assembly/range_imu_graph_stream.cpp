@@ -64,6 +64,9 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
   if (options_.max_range_wait_ns < params_.max_state_interval_ns) {
     throw std::invalid_argument(where + "max_range_wait_ns must be >= max_state_interval_ns");
   }
+  if (options_.max_gap_ns < params_.max_state_interval_ns) {
+    throw std::invalid_argument(where + "max_gap_ns must be >= max_state_interval_ns");
+  }
   if (!(std::isfinite(params_.range_noise.sigma_m) && params_.range_noise.sigma_m > 0.0)) {
     throw std::invalid_argument(where + "range_noise.sigma_m must be positive and finite");
   }
@@ -157,6 +160,13 @@ void RangeImuGraphStream::addImu(const ImuSample& s) {
   if (!s.accel_m_s2.allFinite() || !s.gyro_rad_s.allFinite()) {
     throw std::invalid_argument("RangeImuGraphStream::addImu: IMU sample at t_ns=" + ns(s.t_ns) + " is not finite");
   }
+  // Bounds commitImuOnlyStates' loop (none when waiting forever for ranges).
+  if (started_ && options_.max_range_wait_ns != RangeImuStreamOptions::kWaitForever &&
+      s.t_ns - newest_state_t_ns_ > options_.max_gap_ns) {
+    throw std::invalid_argument("RangeImuGraphStream::addImu: IMU sample at t_ns=" + ns(s.t_ns) + " is " +
+                                ns(s.t_ns - newest_state_t_ns_) + " ns past the newest state (max_gap_ns " +
+                                ns(options_.max_gap_ns) + ")");
+  }
   imu_.push_back(s);
   if (params_.zero_velocity_sigma_m_s > 0.0) standstill_.add(s);
   have_imu_ = true;
@@ -191,6 +201,10 @@ void RangeImuGraphStream::addMeasurement(const Measurement& r) {
   if (started_ && r.t_ns < newest_state_t_ns_) {
     throw std::invalid_argument(where + " is before the newest state at t_ns=" + ns(newest_state_t_ns_) +
                                 " (the start, or an IMU-only state committed after max_range_wait_ns)");
+  }
+  if (started_ && r.t_ns - newest_state_t_ns_ > options_.max_gap_ns) {
+    throw std::invalid_argument(where + " is " + ns(r.t_ns - newest_state_t_ns_) +
+                                " ns past the newest state (max_gap_ns " + ns(options_.max_gap_ns) + ")");
   }
   have_range_ = true;
   newest_range_t_ns_ = r.t_ns;

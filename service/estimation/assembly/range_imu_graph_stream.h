@@ -88,6 +88,13 @@ struct RangeImuStreamOptions {
   /// IMU-only state is committed (see the file comment); >= max_state_interval_ns.
   std::int64_t max_range_wait_ns = 2'000'000'000;
   std::size_t initial_imu_capacity = 1024;  ///< IMU ring preallocation (samples)
+  /// A measurement or IMU sample this far (ns) past the newest state is
+  /// refused (std::invalid_argument naming the gap) instead of planning a
+  /// state every max_state_interval_ns across it: one stamp years ahead
+  /// planned billions (issue 37). The Localizer screens such rows first
+  /// (input_screen.h) and re-initializes on an IMU gap; this bounds the
+  /// stream on its own.
+  std::int64_t max_gap_ns = 60'000'000'000;
   /// Per-link sigmas of new measurement factors (measurement_noise.h): off,
   /// every factor has its kind's sigma from RangeImuGraphParams. On, a link's
   /// factors get its DynamicCovariance estimate, fed from the innovation at

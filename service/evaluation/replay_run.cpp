@@ -322,6 +322,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   out.initializations = localizer.initializations();
   out.reinitializations = localizer.reinitializations();
   out.standstill_priors = localizer.standstillPriors();
+  out.input_dropped = localizer.inputDropped();
   out.dynamic_covariance = localizer.trackingDynamicCovariance();
   out.last_failure = localizer.lastFailure();
   out.init_status = localizer.initStatus().message;

@@ -166,6 +166,7 @@ struct ReplayResult {
   std::uint64_t initializations = 0;
   std::uint64_t reinitializations = 0;
   std::uint64_t standstill_priors = 0;  ///< tracked states given the zero-velocity prior (Localizer::standstillPriors)
+  InputDropCounts input_dropped;      ///< rows the physical screen dropped, by reason (Localizer::inputDropped)
   std::string last_failure;           ///< why tracking last ended, empty if never
   std::string init_status;            ///< the initializer's last message (why it has not started, if it never did)
   int init_attempts = 0;              ///< initialization attempts (all initializations)

@@ -175,11 +175,23 @@ TEST(Localizer, AbsurdImuWhileTrackingIsAFailureNotACrash) {
   for (ImuSample& m : s.imu) {
     if (m.t_ns >= t0 + 25'000'000'000 && m.t_ns < t0 + 25'200'000'000) m.gyro_rad_s = Vec3(500.0, 0.0, 0.0);
   }
-  Localizer localizer(s.p_w_anchors, paramsFor(s));
+  // Past the default screen (2000 dps): widen it so the reading reaches the
+  // estimator, as from a part with a larger full scale.
+  LocalizerParams p = paramsFor(s);
+  p.screen.max_gyro_rad_s = 1000.0;
+  Localizer localizer(s.p_w_anchors, p);
   EXPECT_NO_THROW(feed(s, localizer));
   EXPECT_GE(localizer.reinitializations(), 1u);
   EXPECT_FALSE(localizer.lastFailure().empty());
   std::printf("last failure: %s\n", localizer.lastFailure().c_str());
+
+  // With the default screen the readings never reach it: dropped and
+  // counted, and tracking goes on (issue 37).
+  Localizer screened(s.p_w_anchors, paramsFor(s));
+  feed(s, screened);
+  EXPECT_EQ(screened.reinitializations(), 0u) << screened.lastFailure();
+  EXPECT_EQ(screened.inputDropped()[InputDrop::kBeyondFullScale], 160u);  // 0.2 s at 800 Hz
+  EXPECT_TRUE(screened.tracking());
 }
 
 TEST(Localizer, EkfBaselineTracksAfterTheSameInitialization) {

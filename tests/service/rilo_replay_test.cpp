@@ -2,6 +2,7 @@
 // pipeline and writes the files the issue 4 evaluation reads.
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -54,6 +55,108 @@ double numberAfter(const std::string& text, const std::string& key) {
   const std::size_t at = text.find(key);
   if (at == std::string::npos) return std::nan("");
   return std::strtod(text.c_str() + at + key.size(), nullptr);
+}
+
+/// Replaces data row `row` (1 = the first after the header) of a CSV file.
+void replaceRow(const std::filesystem::path& file, std::size_t row, const std::string& text) {
+  std::ifstream in(file);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  ASSERT_LT(row, lines.size());
+  lines[row] = text;
+  std::ofstream out(file, std::ios::trunc);
+  for (const std::string& line : lines) out << line << '\n';
+}
+
+/// The stamp (first field) of data row `row`.
+std::string stampOfRow(const std::filesystem::path& file, std::size_t row) {
+  std::ifstream in(file);
+  std::string line;
+  for (std::size_t i = 0; i <= row && std::getline(in, line); ++i) {
+  }
+  return line.substr(0, line.find(','));
+}
+
+TEST(RiloReplay, ImpossibleRowsAreDroppedAndCountedUnderAMemoryCap) {
+  // Issue 37: one range row 28 years ahead grew the replay to 23 GB; ranges
+  // of -5, 0 and 1e9 m and an acceleration of 1e30 m/s^2 were fused. Under a
+  // 4 GB address-space cap the replay now ends normally and says what it dropped.
+  testing::TempDir dir("rilo-replay-screen");
+  const std::filesystem::path rec = dir / "rec";
+  std::filesystem::copy(testing::sourceDir() / "tests" / "data" / "office-demo", rec);
+  const std::filesystem::path ranges = rec / "range.csv";
+  const std::filesystem::path imu = rec / "imu.csv";
+  replaceRow(ranges, 300, stampOfRow(ranges, 300) + ",1,-5.0,0,,,");
+  replaceRow(ranges, 301, stampOfRow(ranges, 301) + ",2,0.0,0,,,");
+  replaceRow(ranges, 302, stampOfRow(ranges, 302) + ",3,1000000000.0,0,,,");
+  replaceRow(imu, 9000, stampOfRow(imu, 9000) + ",0,0,0,1e30,0,9.81");
+  {
+    std::ofstream out(ranges, std::ios::app);
+    out << "900000000000000000,1,3.0,0,,,\n";
+  }
+  const std::string exe = (testing::binaryDir() / "rilo").string();
+  const std::string out_dir = (dir / "out").string();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const rlimit cap{4ull << 30, 4ull << 30};
+    ::setrlimit(RLIMIT_AS, &cap);
+    ::execl(exe.c_str(), exe.c_str(), "replay", rec.c_str(), "--out", out_dir.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  ASSERT_EQ(WEXITSTATUS(status), 0);
+  std::ifstream in(dir / "out" / "summary.json");
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string summary = text.str();
+  EXPECT_EQ(numberAfter(summary, "\"far_future\": "), 1.0) << summary;
+  EXPECT_EQ(numberAfter(summary, "\"out_of_bounds\": "), 3.0) << summary;
+  EXPECT_EQ(numberAfter(summary, "\"beyond_full_scale\": "), 1.0) << summary;
+  EXPECT_EQ(numberAfter(summary, "\"reinitializations\": "), 0.0) << summary;
+  EXPECT_LT(numberAfter(summary, "\"mean_m\": "), 1.0) << summary;  // the estimate never saw them
+}
+
+TEST(RiloReplay, NothingEstimatedIsNullInTheSummaryAndNotAvailableOnTheConsole) {
+  // Issue 37: with no pose, "APE online mean 0.000 m" and "mean_m": 0 read as
+  // a perfect result. Half a second of data gives no pose at all (the first
+  // position-only fix needs 3 s).
+  testing::TempDir dir("rilo-replay-empty");
+  const std::filesystem::path rec = dir / "rec";
+  std::filesystem::copy(testing::sourceDir() / "tests" / "data" / "office-demo", rec);
+  for (const char* name : {"imu.csv", "range.csv", "groundtruth.csv"}) {
+    std::ifstream in(rec / name);
+    std::vector<std::string> kept;
+    for (std::string line; std::getline(in, line);) {
+      if (kept.empty() || std::strtoll(line.c_str(), nullptr, 10) < 1'500'000'000) kept.push_back(line);
+    }
+    in.close();
+    std::ofstream out(rec / name, std::ios::trunc);
+    for (const std::string& line : kept) out << line << '\n';
+  }
+  const std::string exe = (testing::binaryDir() / "rilo").string();
+  const std::string out_dir = (dir / "out").string();
+  const std::string console = (dir / "console.txt").string();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (std::freopen(console.c_str(), "w", stdout) == nullptr) ::_exit(126);
+    ::execl(exe.c_str(), exe.c_str(), "replay", rec.c_str(), "--out", out_dir.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0);
+  std::stringstream summary, text;
+  summary << std::ifstream(dir / "out" / "summary.json").rdbuf();
+  text << std::ifstream(console).rdbuf();
+  EXPECT_NE(summary.str().find("\"ape_online\": {\"poses\": 0, \"mean_m\": null"), std::string::npos) << summary.str();
+  EXPECT_NE(summary.str().find("\"update_ms\": {\"mean\": null, \"p99\": null, \"max\": null}"), std::string::npos)
+      << summary.str();
+  EXPECT_EQ(summary.str().find("\"mean_m\": 0,"), std::string::npos) << summary.str();
+  EXPECT_NE(text.str().find("APE online   n/a (no poses)"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("0 updates, update times n/a"), std::string::npos) << text.str();
 }
 
 TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {

@@ -10,6 +10,7 @@
 #include <limits>
 #include <map>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <vector>
 
@@ -25,6 +26,11 @@ namespace rilo::tool {
 namespace {
 
 std::string statsJson(const PositionErrorStats& s) {
+  // No poses, no error: nulls, never zeros a script would read as perfect (issue 37).
+  if (s.ape_3d.count == 0) {
+    return "{\"poses\": 0, \"mean_m\": null, \"median_m\": null, \"rmse_m\": null, \"max_m\": null, "
+           "\"horizontal_mean_m\": null, \"vertical_mean_m\": null, \"vertical_bias_m\": null}";
+  }
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "{\"poses\": %zu, \"mean_m\": %.4f, \"median_m\": %.4f, \"rmse_m\": %.4f, \"max_m\": %.4f, "
@@ -32,6 +38,14 @@ std::string statsJson(const PositionErrorStats& s) {
                 s.ape_3d.count, s.ape_3d.mean, s.ape_3d.median, s.ape_3d.rmse, s.ape_3d.max, s.ape_horizontal.mean,
                 s.ape_vertical.mean, s.vertical_bias_m);
   return buf;
+}
+
+/// {"mean": ., "p99": ., "max": .} of the smoother updates; nulls without any.
+std::string updateMsJson(bool none, double mean_ms, double p99_ms, double max_ms) {
+  if (none) return "{\"mean\": null, \"p99\": null, \"max\": null}";
+  std::ostringstream out;
+  out << "{\"mean\": " << mean_ms << ", \"p99\": " << p99_ms << ", \"max\": " << max_ms << "}";
+  return out.str();
 }
 
 /// A figure, or null when there is none.
@@ -46,6 +60,26 @@ std::string optionalJson(const std::optional<double>& v) {
 std::string configJson(const ReplayOptions& o) {
   if (o.library_defaults) return "null";
   return jsonString(o.config.empty() ? std::string(kShippedConfigName) : o.config);
+}
+
+/// {"not_finite": n, ..., "time_jumps": n}: the physical screen's counts.
+std::string inputDroppedJson(const InputDropCounts& d) {
+  std::string out = "{";
+  for (int r = 0; r < static_cast<int>(InputDrop::kCount); ++r) {
+    out += '"' + std::string(inputDropName(static_cast<InputDrop>(r))) + "\": " + std::to_string(d.by_reason[r]) + ", ";
+  }
+  return out + "\"time_jumps\": " + std::to_string(d.time_jumps) + "}";
+}
+
+/// "far_future 1, out_of_bounds 3" (reasons with a count only).
+std::string inputDroppedText(const InputDropCounts& d) {
+  std::string out;
+  for (int r = 0; r < static_cast<int>(InputDrop::kCount); ++r) {
+    if (d.by_reason[r] == 0) continue;
+    if (!out.empty()) out += ", ";
+    out += std::string(inputDropName(static_cast<InputDrop>(r))) + ' ' + std::to_string(d.by_reason[r]);
+  }
+  return out;
 }
 
 std::string countJson(const MeasurementCount& c, bool with_flags = false) {
@@ -130,12 +164,13 @@ int runReplay(const ReplayOptions& o) {
           << ",\n    \"tdoa\": " << countJson(run.measurements.tdoa, true)
           << ",\n    \"ultrasonic\": " << countJson(run.measurements.ultrasonic) << "}"
           << ",\n  \"dynamic_covariance\": " << (run.dynamic_covariance ? "true" : "false")
-          << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": {\"mean\": " << mean_ms
-          << ", \"p99\": " << p99_ms << ", \"max\": " << max_ms << "},\n  \"realtime_factor\": " << run.realtimeFactor()
+          << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": " << updateMsJson(sorted.empty(), mean_ms, p99_ms, max_ms)
+          << ",\n  \"realtime_factor\": " << run.realtimeFactor()
           << ",\n  \"online_tracked_share\": " << run.online_tracked_share
           << ",\n  \"initializations\": " << run.initializations
           << ",\n  \"reinitializations\": " << run.reinitializations
           << ",\n  \"standstill_priors\": " << run.standstill_priors
+          << ",\n  \"input_dropped\": " << inputDroppedJson(run.input_dropped)
           << ",\n  \"init_attempts\": " << run.init_attempts << ",\n  \"init_status\": " << jsonString(run.init_status)
           << ",\n  \"last_failure\": " << jsonString(run.last_failure)
           << ",\n  \"position_only_poses\": " << run.position_only.size()
@@ -169,11 +204,17 @@ int runReplay(const ReplayOptions& o) {
                 o.config.empty() ? std::string(kShippedConfigName).c_str() : o.config.c_str(), o.settings.lag_s,
                 o.settings.device_from_recording ? "recording where its meta.yaml gives it" : "configuration");
   }
-  std::printf("rilo replay: %s with %s/%s: %zu updates, mean %.2f ms, p99 %.2f ms, max %.2f ms, %.0fx real time, %llu "
-              "re-initializations, tracking %.0f%% of the time\n",
-              o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), mean_ms,
-              p99_ms, max_ms, run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations),
-              100.0 * run.online_tracked_share);
+  char times[96] = "update times n/a";
+  if (!sorted.empty()) std::snprintf(times, sizeof times, "mean %.2f ms, p99 %.2f ms, max %.2f ms", mean_ms, p99_ms, max_ms);
+  std::printf("rilo replay: %s with %s/%s: %zu updates, %s, %.0fx real time, %llu re-initializations, tracking %.0f%% of "
+              "the time\n",
+              o.recording.c_str(), o.settings.smoother.c_str(), o.settings.noise.c_str(), run.updates.size(), times,
+              run.realtimeFactor(), static_cast<unsigned long long>(run.reinitializations), 100.0 * run.online_tracked_share);
+  if (run.input_dropped.total() > 0 || run.input_dropped.time_jumps > 0) {
+    std::printf("  input screen: dropped %llu rows (%s), %llu IMU time jumps taken\n",
+                static_cast<unsigned long long>(run.input_dropped.total()), inputDroppedText(run.input_dropped).c_str(),
+                static_cast<unsigned long long>(run.input_dropped.time_jumps));
+  }
   if (run.first_position_s) {
     char full[32] = "never";
     if (run.first_full_state_s) std::snprintf(full, sizeof full, "after %.1f s", *run.first_full_state_s);
@@ -207,6 +248,10 @@ int runReplay(const ReplayOptions& o) {
   }
   if (run.ape_online) {
     for (const auto& [label, e] : {std::pair{"online  ", *run.ape_online}, std::pair{"smoothed", *run.ape_smoothed}}) {
+      if (e.ape_3d.count == 0) {
+        std::printf("  APE %s n/a (no poses)\n", label);
+        continue;
+      }
       std::printf("  APE %s mean %.3f m, median %.3f, rmse %.3f, max %.3f (horizontal %.3f, vertical %.3f, height offset %+.3f)\n",
                   label, e.ape_3d.mean, e.ape_3d.median, e.ape_3d.rmse, e.ape_3d.max, e.ape_horizontal.mean,
                   e.ape_vertical.mean, e.vertical_bias_m);

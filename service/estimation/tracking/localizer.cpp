@@ -134,7 +134,8 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
                    params_.graph.same_state_window_ns, params_.range_consistency,
                    params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_), params_.graph.tag_lever_arms),
-      rx_level_envelope_(rxLevelEnvelopeFor(params_)) {
+      rx_level_envelope_(rxLevelEnvelopeFor(params_)),
+      screen_(params_.screen) {
   params_.validate();
   tracking_range_noise_ = params_.graph.range_noise;
   // Flagged ranges take the estimated shift, whether modelled by the NLOS
@@ -146,6 +147,7 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
 }
 
 void Localizer::addImu(const ImuSample& sample) {
+  if (!screen_.admit(sample)) return;
   if (have_imu_ && phase_ == Phase::kTracking &&
       static_cast<double>(sample.t_ns - last_imu_ns_) * 1e-9 > params_.max_imu_gap_s) {
     char why[96];
@@ -163,6 +165,7 @@ void Localizer::addImu(const ImuSample& sample) {
 
 void Localizer::addRange(const RangeSample& received) {
   if (received.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
+  if (!screen_.admit(received)) return;
   const RangeSample sample = withRxLevelIndicator(received);
   if (phase_ == Phase::kTracking) {
     ranging_support_.note(sample.t_ns);
@@ -204,6 +207,7 @@ RangeSample Localizer::withRxLevelIndicator(const RangeSample& sample) {
 
 bool Localizer::addTdoa(const TdoaSample& sample) {
   if (sample.anchor_a >= p_w_anchors_.size() || sample.anchor_b >= p_w_anchors_.size()) return false;  // as addRange
+  if (!screen_.admit(sample)) return false;
   if (tdoa_model_.gated(Measurement::of(sample))) {
     ++tdoa_rows_gated_;
     return false;
@@ -219,6 +223,7 @@ bool Localizer::addTdoa(const TdoaSample& sample) {
 
 void Localizer::addUltrasonic(const UltrasonicSample& sample) {
   if (sample.anchor_id >= params_.graph.p_w_ultrasonic.size()) return;  // unknown beacon
+  if (!screen_.admit(sample)) return;
   if (phase_ == Phase::kTracking) {
     ranging_support_.note(sample.t_ns);
     guarded([&] { estimator_->addUltrasonic(sample); });

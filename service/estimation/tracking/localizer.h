@@ -15,6 +15,7 @@
 #include "estimation/graph/factor.h"
 #include "estimation/init/initializer.h"
 #include "estimation/measurements/anchor_box.h"
+#include "estimation/measurements/input_screen.h"
 #include "estimation/measurements/range_consistency.h"
 #include "estimation/measurements/rx_level_envelope.h"
 #include "estimation/measurements/tdoa_model.h"
@@ -110,6 +111,8 @@ struct LocalizerParams {
   double max_accel_bias_m_s2 = 1.5;  ///< far beyond a BMI263's bias range
   double max_gyro_bias_rad_s = 0.3;
   double max_imu_gap_s = 1.0;        ///< IMU silence longer than this: the motion model is broken
+  /// Rows no sensor can produce, dropped and counted before anything else (input_screen.h).
+  InputScreenParams screen;
   /// Horizontal distance (m) the tag may be estimated beyond the bounding box
   /// of the UWB anchors while ranging holds the estimate (ranging_support.h:
   /// judged only after 5 s of ranging without a gap over 3 s); +inf: off. Far outside, the ranging geometry
@@ -217,6 +220,8 @@ class Localizer {
   std::uint64_t standstillPriors() const {
     return standstill_priors_ended_ + (estimator_ ? estimator_->standstillPriors() : 0);
   }
+  /// Rows the physical screen dropped, by reason, and the IMU time jumps it confirmed.
+  const InputDropCounts& inputDropped() const { return screen_.dropped(); }
   /// Why the configured height band was dropped (empty when in use or never configured).
   const std::string& heightBandNote() const { return height_band_note_; }
   /// The parameters in effect (after the height band was resolved).
@@ -277,6 +282,7 @@ class Localizer {
   /// The site's LOS path-loss envelope: kept over re-initializations (the
   /// building and the hardware stay).
   RxLevelEnvelope rx_level_envelope_;
+  InputScreen screen_;
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
   double gap_db_in_use_ = 0.0;  ///< last threshold handed to the estimator

@@ -165,6 +165,10 @@ void fillStatus(const ServiceStatus& status, rilo_msg_dds__Status_& msg) noexcep
   msg.out_of_order_samples = status.out_of_order_samples;
   msg.imu_gaps = status.imu_gaps;
   msg.ranging_gaps = status.ranging_gaps;
+  msg.out_of_bounds_samples = status.out_of_bounds_samples;
+  msg.beyond_full_scale_samples = status.beyond_full_scale_samples;
+  msg.far_future_samples = status.far_future_samples;
+  msg.time_jumps = status.time_jumps;
   msg.last_update_ms = status.last_update_ms;
   msg.mean_update_ms = status.mean_update_ms;
   msg.max_update_ms = status.max_update_ms;
@@ -222,6 +226,10 @@ StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg) {
   s.out_of_order_samples = msg.out_of_order_samples;
   s.imu_gaps = msg.imu_gaps;
   s.ranging_gaps = msg.ranging_gaps;
+  s.out_of_bounds_samples = msg.out_of_bounds_samples;
+  s.beyond_full_scale_samples = msg.beyond_full_scale_samples;
+  s.far_future_samples = msg.far_future_samples;
+  s.time_jumps = msg.time_jumps;
   s.last_update_ms = msg.last_update_ms;
   s.mean_update_ms = msg.mean_update_ms;
   s.max_update_ms = msg.max_update_ms;

@@ -38,7 +38,8 @@ FaultSpec readFault(const ConfigField& field) {
                                                 {"imu_gap", FaultKind::kImuGap},
                                                 {"duplicate", FaultKind::kDuplicate},
                                                 {"out_of_order", FaultKind::kOutOfOrder},
-                                                {"non_finite", FaultKind::kNonFinite}});
+                                                {"non_finite", FaultKind::kNonFinite},
+                                                {"impossible", FaultKind::kImpossible}});
   f.at_s = m.require("at_s").number(0.0, 1e7);
   const std::string kind(toString(f.kind));
   if (f.isWindow()) {
@@ -283,7 +284,7 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
   const ConfigMap m = field.map({"smoother", "lag_s", "relinearization", "damping", "trust_region", "range",
                                  "anchors_as_variables", "anchor_sigma_m", "init", "height_band",
                                  "vertical_speed_sigma_m_s", "zero_velocity_sigma_m_s", "max_outside_anchors_m",
-                                 "tdoa"});
+                                 "tdoa", "input_screen"});
   m.read("smoother", e.smoother.method, [](const ConfigField& f) {
     return f.choice<SmootherParams::Method>(kSmootherMethodNames);
   });
@@ -340,6 +341,17 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     (m.has("range") ? m.require("range") : field)
         .fail("max_state_interval_s must exceed tdoa.state_window_s (" +
               std::to_string(static_cast<double>(e.with_tdoa.state_window_ns) * 1e-9) + " s; set it in a tdoa section)");
+  }
+  if (auto f = m.get("input_screen")) {
+    const ConfigMap s = f->map({"max_range_m", "max_accel_m_s2", "max_gyro_rad_s", "max_time_jump_s", "jump_confirmations"});
+    s.read("max_range_m", e.input_screen.max_range_m, [](const ConfigField& v) { return v.positive(1e5); });
+    s.read("max_accel_m_s2", e.input_screen.max_accel_m_s2, [](const ConfigField& v) { return v.positive(1e5); });
+    s.read("max_gyro_rad_s", e.input_screen.max_gyro_rad_s, [](const ConfigField& v) { return v.positive(1e4); });
+    s.read("max_time_jump_s", e.input_screen.max_time_jump_s, [](const ConfigField& v) { return v.number(0.01, 3600.0); });
+    s.read("jump_confirmations", e.input_screen.jump_confirmations, [](const ConfigField& v) {
+      return static_cast<int>(v.integer(1, 1000));
+    });
+    e.input_screen_imu_bounds_given = s.has("max_accel_m_s2") || s.has("max_gyro_rad_s");
   }
   m.read("max_outside_anchors_m", e.max_outside_anchors_m, [](const ConfigField& f) {
     const double v = f.number(0.0, std::numeric_limits<double>::infinity(), true);  // as positive(), with .inf

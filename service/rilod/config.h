@@ -169,6 +169,11 @@ struct EstimatorConfig {
   /// farther than this beyond the anchors' horizontal bounding box while
   /// ranging holds the estimate (ranging_support.h) (m; .inf: off).
   double max_outside_anchors_m = 10.0;  // as LocalizerParams (config_test checks they agree)
+  /// The physical screen in front of the estimator (estimation/measurements/input_screen.h;
+  /// section `input_screen`). With the BMI263 as the IMU source and no
+  /// accel/gyro bound given, the bounds are its configured full scales.
+  InputScreenParams input_screen;
+  bool input_screen_imu_bounds_given = false;
   /// State window and per-link sigmas once the data hold TDoA rows (`tdoa`
   /// section; LocalizerParams::with_tdoa).
   LocalizerParams::WithTdoa with_tdoa;

@@ -56,6 +56,7 @@ std::string_view toString(FaultKind kind) {
     case FaultKind::kDuplicate: return "duplicate";
     case FaultKind::kOutOfOrder: return "out_of_order";
     case FaultKind::kNonFinite: return "non_finite";
+    case FaultKind::kImpossible: return "impossible";
   }
   return "unknown";
 }
@@ -125,6 +126,12 @@ class FaultInjectingSource::Injector final : public SampleSink {
             corrupt(s);
           }
           break;
+        case FaultKind::kImpossible:
+          if (matches(f.stream, is_imu) && a.remaining > 0) {
+            --a.remaining;
+            makeImpossible(s);
+          }
+          break;
         case FaultKind::kOutOfOrder:
           // The successor of a held sample is never held itself: it must go out first.
           if (matches(f.stream, is_imu) && a.remaining > 0 && !held_[s.index()].has_value() && !hold) {
@@ -192,12 +199,30 @@ class FaultInjectingSource::Injector final : public SampleSink {
     }
   }
 
+  void makeImpossible(Sample& s) noexcept {
+    // Ranging alternates between its two impossible values on its own count.
+    const bool ranging = !std::holds_alternative<ImuSample>(s);
+    const double range = impossible_ranging_ % 2 == 0 ? -5.0 : 1e9;
+    ++injected_.impossible;
+    if (ranging) ++impossible_ranging_;
+    if (auto* imu = std::get_if<ImuSample>(&s)) {
+      imu->accel_m_s2.x() = 1e30;
+    } else if (auto* r = std::get_if<RangeSample>(&s)) {
+      r->range_m = range;
+    } else if (auto* tdoa = std::get_if<TdoaSample>(&s)) {
+      tdoa->diff_m = 1e9;
+    } else if (auto* us = std::get_if<UltrasonicSample>(&s)) {
+      us->range_m = range;
+    }
+  }
+
   SampleSink& out_;
   const std::vector<FaultSpec>& faults_;
   InjectedFaults& injected_;
   std::vector<Active> plan_;
   bool have_t0_ = false;
   std::int64_t t0_ns_ = 0;
+  std::uint64_t impossible_ranging_ = 0;
   std::array<std::optional<Sample>, std::variant_size_v<Sample>> held_{};
 };
 

@@ -22,6 +22,10 @@
 //  - non_finite {at_s, count[, stream]}: the first `count` samples of the
 //    stream from `at` on get a NaN (even ones) or +inf (odd ones) in their
 //    value (IMU: accel x; range, ultrasonic: range_m; TDoA: diff_m).
+//  - impossible {at_s, count[, stream]}: the first `count` samples of the
+//    stream from `at` on get a value no sensor gives (IMU: accel x 1e30
+//    m/s^2; range, ultrasonic: -5 m (even ones) or 1e9 m (odd ones); TDoA:
+//    a 1e9 m difference): the estimator's physical screen drops them.
 // `stream` (imu, ranging, all; default all) selects which samples a counted
 // fault applies to. Faults may overlap; per sample they apply in this order:
 // drop windows, non-finite, out of order, duplicate.
@@ -40,7 +44,7 @@
 
 namespace rilo {
 
-enum class FaultKind { kRangeBlackout, kImuGap, kDuplicate, kOutOfOrder, kNonFinite };
+enum class FaultKind { kRangeBlackout, kImuGap, kDuplicate, kOutOfOrder, kNonFinite, kImpossible };
 enum class FaultStream { kAll, kImu, kRanging };
 
 struct FaultSpec {
@@ -67,6 +71,7 @@ std::string describe(const FaultSpec& fault);
 struct InjectedFaults {
   std::uint64_t dropped = 0;     ///< samples removed by drop windows
   std::uint64_t corrupted = 0;   ///< samples given a non-finite value
+  std::uint64_t impossible = 0;  ///< samples given an impossible value
   std::uint64_t reordered = 0;   ///< samples delivered after their successor
   std::uint64_t duplicated = 0;  ///< extra copies delivered
 };

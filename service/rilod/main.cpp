@@ -95,15 +95,20 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
       std::snprintf(tdoa, sizeof tdoa, ", tdoa %llu (deep NLOS %llu), ultrasonic %llu", u(s.tdoa_samples),
                     u(s.deep_nlos_tdoa_rows), u(s.ultrasonic_samples));
     }
-    char line[600];
+    char screen[128] = "";  // only when the estimator's screen dropped something
+    if (s.out_of_bounds_samples + s.beyond_full_scale_samples + s.far_future_samples + s.time_jumps > 0) {
+      std::snprintf(screen, sizeof screen, "; screened out-of-bounds %llu, beyond-full-scale %llu, far-future %llu, time jumps %llu",
+                    u(s.out_of_bounds_samples), u(s.beyond_full_scale_samples), u(s.far_future_samples), u(s.time_jumps));
+    }
+    char line[760];
     std::snprintf(line, sizeof line,
                   "%s: imu %llu, ranges %llu (rejected %llu)%s, odometry %llu (latency max %.2f ms); update mean %.2f ms, "
                   "p99 %.2f ms, max %.2f ms; faults %llu, overflows %llu, re-inits %llu; dropped non-finite %llu, duplicate %llu, "
-                  "out-of-order %llu; gaps imu %llu, ranging %llu%s%s",
+                  "out-of-order %llu%s; gaps imu %llu, ranging %llu%s%s",
                   stateName(s.state), u(s.imu_samples), u(s.range_samples), u(s.rejected_ranges), tdoa,
                   u(s.published_odometry), s.odometry_latency_ms, s.mean_update_ms, s.p99_update_ms, s.max_update_ms,
                   u(s.sensor_faults), u(s.queue_overflows), u(s.reinitializations), u(s.non_finite_samples),
-                  u(s.duplicate_samples), u(s.out_of_order_samples), u(s.imu_gaps), u(s.ranging_gaps),
+                  u(s.duplicate_samples), u(s.out_of_order_samples), screen, u(s.imu_gaps), u(s.ranging_gaps),
                   s.reason[0] != '\0' ? " -- " : "", s.reason.data());
     // The status line is the log's rate limit: once per status period.
     if (s.state == rilo::TrackingState::kTracking || s.state == rilo::TrackingState::kInitializing) {

@@ -235,6 +235,20 @@ int Service::run(const std::atomic<bool>& stop) {
   return source_failed_.load() ? 1 : 0;
 }
 
+bool Service::noteScreened() {
+  const InputDropCounts& now = localizer_.inputDropped();
+  if (now.total() == screened_.total() && now.time_jumps == screened_.time_jumps) return false;
+  auto delta = [&](InputDrop r) { return now[r] - screened_[r]; };
+  counters_.non_finite_samples.add(delta(InputDrop::kNotFinite));
+  counters_.out_of_order_samples.add(delta(InputDrop::kNonMonotonic));
+  counters_.out_of_bounds_samples.add(delta(InputDrop::kOutOfBounds));
+  counters_.beyond_full_scale_samples.add(delta(InputDrop::kBeyondFullScale));
+  counters_.far_future_samples.add(delta(InputDrop::kFarFuture));
+  counters_.time_jumps.add(now.time_jumps - screened_.time_jumps);
+  screened_ = now;
+  return true;
+}
+
 void Service::estimatorLoop() {
   std::vector<UpdateStats> stats;
   std::vector<TimedPose> smoothed;  // drained and dropped, see below
@@ -319,6 +333,7 @@ void Service::estimatorLoop() {
     } else {
       continue;
     }
+    request_status |= noteScreened();
     stats.clear();
     const auto t_start = std::chrono::steady_clock::now();
     const int updates = localizer_.process(&stats);
@@ -565,6 +580,18 @@ void Service::explain(ServiceStatus& s, const ServiceStatus& previous, std::int6
   }
   if (const auto n = increase(s.out_of_order_samples, previous.out_of_order_samples)) {
     appendReason(s.reason, used, "dropped %llu out-of-order sample%s", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.out_of_bounds_samples, previous.out_of_bounds_samples)) {
+    appendReason(s.reason, used, "dropped %llu out-of-bounds value%s", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.beyond_full_scale_samples, previous.beyond_full_scale_samples)) {
+    appendReason(s.reason, used, "dropped %llu IMU sample%s beyond full scale", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.far_future_samples, previous.far_future_samples)) {
+    appendReason(s.reason, used, "dropped %llu far-future sample%s", n, n == 1 ? "" : "s");
+  }
+  if (const auto n = increase(s.time_jumps, previous.time_jumps)) {
+    appendReason(s.reason, used, "%llu IMU time jump%s", n, n == 1 ? "" : "s");
   }
   if (const auto n = increase(s.queue_overflows, previous.queue_overflows)) {
     appendReason(s.reason, used, "%llu sample%s lost to full queues", n, n == 1 ? "" : "s");

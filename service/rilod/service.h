@@ -130,6 +130,10 @@ class Service {
   OutputPredictor predictor_;
   SensorGapMonitor gaps_;       // estimator thread
   RangeTrustMonitor trust_;     // estimator thread
+  InputDropCounts screened_;    // estimator thread: the screen's counts already in counters_
+  /// Moves what the Localizer's physical screen dropped since the last call
+  /// into the status counters; true when it dropped anything (estimator thread).
+  bool noteScreened();
 
   LatestValue<NavigationState> smoothed_;
   LatestValue<ServiceStatus> status_;

@@ -28,6 +28,13 @@ ServiceOptions serviceOptions(const ServiceConfig& cfg) {
 LocalizerParams localizerParams(const ServiceConfig& cfg) {
   LocalizerParams lp = localizerParams(cfg.estimator);
   lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(cfg.anchors);  // for ultrasonic ranges
+  if (cfg.sources.mode == SourceMode::kHardware && !cfg.estimator.input_screen_imu_bounds_given) {
+    // Beyond the BMI263's configured full scale (5 % for its scale error) a
+    // sample is a decoding fault, not a motion.
+    const bmi263::Bmi263Config& imu = cfg.sources.hardware.imu.bmi263;
+    lp.screen.max_accel_m_s2 = bmi263::accelRangeG(imu.accel_range) * 9.80665 * 1.05;
+    lp.screen.max_gyro_rad_s = bmi263::gyroRangeDps(imu.gyro_range) * (3.14159265358979323846 / 180.0) * 1.05;
+  }
   return lp;
 }
 
@@ -48,6 +55,7 @@ LocalizerParams localizerParams(const EstimatorConfig& e) {
   lp.los_gap.enabled = e.los_gap_calibration;
   lp.rx_level_envelope.enabled = e.rx_level_indicator;
   lp.with_tdoa = e.with_tdoa;
+  lp.screen = e.input_screen;
   return lp;
 }
 

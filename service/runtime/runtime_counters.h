@@ -39,6 +39,10 @@ struct RuntimeCounters {
   EventCounter out_of_order_samples;
   EventCounter imu_gaps;
   EventCounter ranging_gaps;
+  EventCounter out_of_bounds_samples;
+  EventCounter beyond_full_scale_samples;
+  EventCounter far_future_samples;
+  EventCounter time_jumps;
 
   /// Copies every counter into the matching ServiceStatus field (other fields untouched).
   void fill(ServiceStatus& status) const noexcept {
@@ -59,6 +63,10 @@ struct RuntimeCounters {
     status.out_of_order_samples = out_of_order_samples.load();
     status.imu_gaps = imu_gaps.load();
     status.ranging_gaps = ranging_gaps.load();
+    status.out_of_bounds_samples = out_of_bounds_samples.load();
+    status.beyond_full_scale_samples = beyond_full_scale_samples.load();
+    status.far_future_samples = far_future_samples.load();
+    status.time_jumps = time_jumps.load();
   }
 };
 

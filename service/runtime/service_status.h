@@ -54,6 +54,12 @@ struct ServiceStatus {
   // Pauses in the data (sample time), counted once each.
   std::uint64_t imu_gaps = 0;              ///< IMU sample interval longer than status.imu_timeout_s
   std::uint64_t ranging_gaps = 0;          ///< no range for longer than status.range_timeout_s while the IMU ran
+  // Rows the estimator's physical screen dropped (Localizer::inputDropped,
+  // input_screen.h); its non-finite and non-monotonic drops count above.
+  std::uint64_t out_of_bounds_samples = 0;      ///< a range outside (0, max_range_m], a TDoA beyond +-max_range_m
+  std::uint64_t beyond_full_scale_samples = 0;  ///< an IMU axis beyond the screen's full scale
+  std::uint64_t far_future_samples = 0;         ///< a stamp max_time_jump_s ahead of the IMU (or an unconfirmed IMU jump)
+  std::uint64_t time_jumps = 0;                 ///< IMU time jumps taken after confirmation (then re-initialized)
   // Latest smoother update.
   double last_update_ms = 0.0;
   double mean_update_ms = 0.0;

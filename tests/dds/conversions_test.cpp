@@ -245,6 +245,10 @@ TEST(DdsFill, StatusRoundTrip) {
   EXPECT_EQ(back.status.out_of_order_samples, s.out_of_order_samples);
   EXPECT_EQ(back.status.imu_gaps, s.imu_gaps);
   EXPECT_EQ(back.status.ranging_gaps, s.ranging_gaps);
+  EXPECT_EQ(back.status.out_of_bounds_samples, s.out_of_bounds_samples);
+  EXPECT_EQ(back.status.beyond_full_scale_samples, s.beyond_full_scale_samples);
+  EXPECT_EQ(back.status.far_future_samples, s.far_future_samples);
+  EXPECT_EQ(back.status.time_jumps, s.time_jumps);
   EXPECT_EQ(back.status.last_update_ms, s.last_update_ms);
   EXPECT_EQ(back.status.mean_update_ms, s.mean_update_ms);
   EXPECT_EQ(back.status.max_update_ms, s.max_update_ms);

@@ -96,6 +96,10 @@ inline ServiceStatus sampleStatus(std::int64_t t_ns) {
   s.out_of_order_samples = 29;
   s.imu_gaps = 31;
   s.ranging_gaps = 37;
+  s.out_of_bounds_samples = 53;
+  s.beyond_full_scale_samples = 59;
+  s.far_future_samples = 61;
+  s.time_jumps = 67;
   s.last_update_ms = 1.25;
   s.mean_update_ms = 0.875;
   s.max_update_ms = 14.5;

@@ -179,6 +179,10 @@ TEST_F(DdsPubSub, StatusArrivesWithExactFields) {
   EXPECT_EQ(r.out_of_order_samples, s.out_of_order_samples);
   EXPECT_EQ(r.imu_gaps, s.imu_gaps);
   EXPECT_EQ(r.ranging_gaps, s.ranging_gaps);
+  EXPECT_EQ(r.out_of_bounds_samples, s.out_of_bounds_samples);
+  EXPECT_EQ(r.beyond_full_scale_samples, s.beyond_full_scale_samples);
+  EXPECT_EQ(r.far_future_samples, s.far_future_samples);
+  EXPECT_EQ(r.time_jumps, s.time_jumps);
   EXPECT_EQ(r.last_update_ms, s.last_update_ms);
   EXPECT_EQ(r.mean_update_ms, s.mean_update_ms);
   EXPECT_EQ(r.max_update_ms, s.max_update_ms);

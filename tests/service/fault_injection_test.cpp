@@ -203,6 +203,30 @@ TEST(FaultInjection, AHeldSampleIsDeliveredAtTheEndOfTheData) {
   EXPECT_TRUE(sameSample(r.out.back(), input.back()));
 }
 
+TEST(FaultInjection, ImpossibleGivesValuesNoSensorGives) {
+  const auto input = stream(1.0);
+  const Injected r = inject(input, {counted(FaultKind::kImpossible, 0.2, 2, FaultStream::kImu),
+                               counted(FaultKind::kImpossible, 0.2, 2, FaultStream::kRanging)});
+  ASSERT_EQ(r.out.size(), input.size());
+  EXPECT_EQ(r.injected.impossible, 4u);
+  EXPECT_EQ(r.injected.corrupted, 0u);
+  std::size_t huge_accel = 0;
+  std::vector<double> bad_ranges;
+  for (const Sample& s : r.out) {
+    if (const auto* imu = std::get_if<ImuSample>(&s)) {
+      if (imu->accel_m_s2.x() == 1e30) {
+        ++huge_accel;
+        EXPECT_GE(imu->t_ns - kT0, 200'000'000);
+      }
+    } else if (const auto* range = std::get_if<RangeSample>(&s)) {
+      if (range->range_m != 3.0) bad_ranges.push_back(range->range_m);
+    }
+  }
+  EXPECT_EQ(huge_accel, 2u);
+  ASSERT_EQ(bad_ranges.size(), 2u);
+  EXPECT_EQ(bad_ranges[0] * bad_ranges[1], -5.0 * 1e9);  // one of each, in either order
+}
+
 TEST(FaultInjection, NonFiniteAlternatesNanAndInfinityInTheValue) {
   const auto input = stream(1.0);
   // In stream order: IMU 0.20 (NaN), range 0.20 (inf), IMU 0.21 (NaN), IMU 0.22 (inf).

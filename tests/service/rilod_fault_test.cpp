@@ -192,6 +192,30 @@ TEST(RilodFaults, DamagedSamplesAreDroppedCountedAndExplained) {
   EXPECT_TRUE(contains(out.log, "dropped non-finite 30, duplicate 50, out-of-order 40")) << out.log;
 }
 
+TEST(RilodFaults, ImpossibleValuesAreScreenedCountedAndExplainedWhileTracking) {
+  // Issue 37: ranges of -5 and 1e9 m and accelerations of 1e30 m/s^2 were
+  // fused without a word. The estimator's screen drops them; the status
+  // topic, its reason and the log say so; tracking goes on.
+  testing::TempDir dir("rilod-impossible");
+  const std::string faults =
+      "      - {kind: impossible, at_s: 16, count: 12, stream: ranging}\n"
+      "      - {kind: impossible, at_s: 24, count: 7, stream: imu}\n";
+  const RilodOutput out = testing::runRilod(dir, config(officeDemo(), faults), 0.0, 60s);
+  ASSERT_EQ(out.exit_code, 0) << out.log;
+  ASSERT_FALSE(out.status.empty());
+  const dds::StatusMessage& last = lastStatus(out);
+  EXPECT_EQ(last.status.out_of_bounds_samples, 12u);
+  EXPECT_EQ(last.status.beyond_full_scale_samples, 7u);
+  EXPECT_EQ(last.status.far_future_samples, 0u);
+  EXPECT_EQ(last.status.reinitializations, 0u) << "no impossible value reached the estimator";
+  EXPECT_TRUE(trackingApartFromLoad(last)) << "status trail:\n" << statusTrail(out);
+  for (const char* why : {"out-of-bounds value", "beyond full scale"}) {
+    EXPECT_NE(findStatus(out, "degraded", why), nullptr) << why << "\nstatus trail:\n" << statusTrail(out);
+  }
+  expectOdometryClean(out);
+  EXPECT_TRUE(contains(out.log, "screened out-of-bounds 12, beyond-full-scale 7, far-future 0")) << out.log;
+}
+
 TEST(RilodFaults, LongImuGapLosesTrackingStopsOdometryAndReinitializes) {
   testing::TempDir dir("rilod-imu-gap");
   const RilodOutput out =

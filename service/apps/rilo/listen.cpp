@@ -245,6 +245,10 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
         .unsignedInteger("out_of_order_samples", s.out_of_order_samples)
         .unsignedInteger("imu_gaps", s.imu_gaps)
         .unsignedInteger("ranging_gaps", s.ranging_gaps)
+        .unsignedInteger("out_of_bounds_samples", s.out_of_bounds_samples)
+        .unsignedInteger("beyond_full_scale_samples", s.beyond_full_scale_samples)
+        .unsignedInteger("far_future_samples", s.far_future_samples)
+        .unsignedInteger("time_jumps", s.time_jumps)
         .number("last_update_ms", s.last_update_ms)
         .number("mean_update_ms", s.mean_update_ms)
         .number("max_update_ms", s.max_update_ms)
@@ -269,9 +273,16 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
                   static_cast<unsigned long long>(s.tdoa_samples), static_cast<unsigned long long>(s.deep_nlos_tdoa_rows),
                   static_cast<unsigned long long>(s.ultrasonic_samples));
   }
+  char screen[160] = "";  // only when the estimator's screen dropped something
+  if (s.out_of_bounds_samples + s.beyond_full_scale_samples + s.far_future_samples + s.time_jumps > 0) {
+    std::snprintf(screen, sizeof screen, "  screened %llu/%llu/%llu (out-of-bounds/beyond-full-scale/far-future), %llu time jumps",
+                  static_cast<unsigned long long>(s.out_of_bounds_samples),
+                  static_cast<unsigned long long>(s.beyond_full_scale_samples),
+                  static_cast<unsigned long long>(s.far_future_samples), static_cast<unsigned long long>(s.time_jumps));
+  }
   std::printf(
       "status   %14.6f  %-12s imu %llu  ranges %llu (rejected %llu)%s  overflows %llu  late %llu  faults %llu  "
-      "silences %llu  reinit %llu  dropped %llu/%llu/%llu (non-finite/duplicate/out-of-order)  gaps %llu/%llu "
+      "silences %llu  reinit %llu  dropped %llu/%llu/%llu (non-finite/duplicate/out-of-order)%s  gaps %llu/%llu "
       "(imu/ranging)  update %.2f ms (mean %.2f, p99 %.2f, max %.2f)  queues %u/%u (high water)  odometry latency %.2f ms  pose latency "
       "%.2f ms  %5.1f Hz  latency %7.2f ms%s%s%s%s%s%s\n",
       stampSeconds(s.t_ns), m.state_name.c_str(), static_cast<unsigned long long>(s.imu_samples),
@@ -279,7 +290,7 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
       static_cast<unsigned long long>(s.queue_overflows), static_cast<unsigned long long>(s.late_updates),
       static_cast<unsigned long long>(s.sensor_faults), static_cast<unsigned long long>(s.sensor_silences),
       static_cast<unsigned long long>(s.reinitializations), static_cast<unsigned long long>(s.non_finite_samples),
-      static_cast<unsigned long long>(s.duplicate_samples), static_cast<unsigned long long>(s.out_of_order_samples),
+      static_cast<unsigned long long>(s.duplicate_samples), static_cast<unsigned long long>(s.out_of_order_samples), screen,
       static_cast<unsigned long long>(s.imu_gaps), static_cast<unsigned long long>(s.ranging_gaps), s.last_update_ms,
       s.mean_update_ms, s.p99_update_ms, s.max_update_ms, s.estimator_queue_high_water, s.publisher_queue_high_water,
       s.odometry_latency_ms, s.pose_latency_ms, rate_hz, latency_ms,

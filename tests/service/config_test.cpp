@@ -415,6 +415,27 @@ TEST_F(ConfigTest, HardwareSectionMapsOntoDriverConfigs) {
   EXPECT_EQ(imu.bmi263.time_fit.window, 1024u);
 }
 
+TEST_F(ConfigTest, InputScreenMapsOntoTheLocalizerAndFollowsTheImusFullScale) {
+  // Defaults: the library's screen (config/rilod.yaml states the same values).
+  const LocalizerParams defaults = localizerParams(parse(valid("")));
+  EXPECT_EQ(defaults.screen.max_range_m, InputScreenParams().max_range_m);
+  EXPECT_EQ(defaults.screen.max_accel_m_s2, InputScreenParams().max_accel_m_s2);
+  const LocalizerParams set = localizerParams(parse(valid(
+      "estimator:\n  input_screen: {max_range_m: 80, max_time_jump_s: 2, jump_confirmations: 5, max_gyro_rad_s: 20}\n")));
+  EXPECT_DOUBLE_EQ(set.screen.max_range_m, 80.0);
+  EXPECT_DOUBLE_EQ(set.screen.max_time_jump_s, 2.0);
+  EXPECT_EQ(set.screen.jump_confirmations, 5);
+  EXPECT_DOUBLE_EQ(set.screen.max_gyro_rad_s, 20.0);
+  // On hardware the IMU bounds are the BMI263's configured full scales (+5 %) ...
+  const ServiceConfig hw = parse(hardware("", "        accel_range_g: 4\n        gyro_range_dps: 500\n"));
+  const LocalizerParams on_hw = localizerParams(hw);
+  EXPECT_NEAR(on_hw.screen.max_accel_m_s2, 4.0 * 9.80665 * 1.05, 1e-9);
+  EXPECT_NEAR(on_hw.screen.max_gyro_rad_s, 500.0 * M_PI / 180.0 * 1.05, 1e-9);
+  // ... unless the configuration gives them.
+  const ServiceConfig hw_set = parse(hardware("", "        accel_range_g: 4\n") + "estimator:\n  input_screen: {max_accel_m_s2: 100}\n");
+  EXPECT_DOUBLE_EQ(localizerParams(hw_set).screen.max_accel_m_s2, 100.0);
+}
+
 TEST_F(ConfigTest, InactiveHardwareSectionNeedNotMatchTheAnchors) {
   // mode replay: the hardware section is checked, but its responders may
   // belong to another site.
@@ -844,6 +865,12 @@ std::vector<BadCase> badCases() {
          return y;
        }(),
        "sources.hardware.imu.bmi263.config_blob_path", "required key 'config_blob_path' is missing", 0},
+      {"input_screen_negative_range", valid("estimator:\n  input_screen: {max_range_m: -1}\n"),
+       "estimator.input_screen.max_range_m", "", 0},
+      {"input_screen_unknown_key", valid("estimator:\n  input_screen: {max_rnage_m: 10}\n"),
+       "estimator.input_screen", "unknown key 'max_rnage_m': did you mean 'max_range_m'?", 0},
+      {"input_screen_zero_confirmations", valid("estimator:\n  input_screen: {jump_confirmations: 0}\n"),
+       "estimator.input_screen.jump_confirmations", "", 0},
       {"bmi263_bad_odr", hardware("", "        odr_hz: 400\n"), "sources.hardware.imu.bmi263.odr_hz",
        "expected one of 800, 1600, got '400'", 0},
       {"bmi263_driver_validation", hardware("", "        pairing_tolerance_ns: 1000\n"),

@@ -245,9 +245,10 @@ std::string fileSafeLabel(const std::string& label) {
   return out;
 }
 
-ReportHeader currentReportHeader(const std::string& command) {
+ReportHeader currentReportHeader(const std::string& command, const std::string& version) {
   ReportHeader h;
   h.command = command;
+  h.version = version;
   {
     const std::time_t now = std::time(nullptr);
     std::tm local{};
@@ -276,16 +277,6 @@ ReportHeader currentReportHeader(const std::string& command) {
         if (colon != std::string::npos) h.cpu_model = line.substr(line.find_first_not_of(' ', colon + 1));
         break;
       }
-    }
-  }
-  // Read-only; no --dirty (it refreshes the index, which would write to the repository).
-  if (FILE* pipe = ::popen("git describe --always --tags 2>/dev/null", "r")) {
-    char buf[256];
-    std::string text;
-    while (std::fgets(buf, sizeof buf, pipe) != nullptr) text += buf;
-    if (::pclose(pipe) == 0) {
-      while (!text.empty() && (text.back() == '\n' || text.back() == '\r' || text.back() == ' ')) text.pop_back();
-      h.git_describe = text;
     }
   }
   return h;
@@ -338,7 +329,7 @@ std::string reportMarkdown(const std::vector<ReportRecording>& recordings, const
   md += "- Machine: " + (header.machine.empty() ? std::string("unknown") : header.machine) + "\n";
   md += "- CPU: " + (header.cpu_model.empty() ? std::string("unknown") : header.cpu_model) +
         strf(", %u processors available (nproc)\n", header.cpus);
-  md += "- Version: " + (header.git_describe.empty() ? std::string("unknown (no git describe)") : header.git_describe) +
+  md += "- Version: " + (header.version.empty() ? std::string("unknown") : header.version) +
         "\n";
   if (!header.command.empty()) md += "- Command: `" + header.command + "`\n";
   md += strf("- Runs: %zu (%zu failed, of which %zu threw) in %.1f s wall time on %d worker threads\n\n",

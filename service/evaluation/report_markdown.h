@@ -27,14 +27,15 @@ struct ReportHeader {
   std::string machine;       ///< uname: system, release, architecture, host
   std::string cpu_model;     ///< empty if unknown
   unsigned cpus = 0;         ///< processors available to the process (nproc)
-  std::string git_describe;  ///< empty if unknown
+  std::string version;       ///< the build that made the report (rilo --version); empty if unknown
   std::string command;       ///< command line that made the report
 };
 
 /// The header for a report made now by this process (uname, nproc,
-/// /proc/cpuinfo, `git describe --always --tags` in the working directory
-/// when git is there: never fails, unknown fields stay empty).
-ReportHeader currentReportHeader(const std::string& command);
+/// /proc/cpuinfo; `version`: the build's, RILO_VERSION_TEXT, given by the
+/// program, not `git describe` of whatever directory it runs in): never
+/// fails, unknown fields stay empty.
+ReportHeader currentReportHeader(const std::string& command, const std::string& version);
 
 inline constexpr const char* kReportMarkdownFile = "report.md";
 inline constexpr const char* kReportCsvFile = "results.csv";

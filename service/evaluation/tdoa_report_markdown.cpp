@@ -179,7 +179,7 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
         "baseline and rilo's D-iSAM2, made with `rilo report --system tdoa`.\n\n";
   const auto known = [](const std::string& s) { return s.empty() ? std::string("unknown") : s; };
   add(md, "- Date: ", known(header.date), "\n- Machine: ", known(header.machine), "\n- CPU: ", known(header.cpu_model),
-      strf(", %u processors available (nproc)\n", header.cpus), "- Version: ", known(header.git_describe), "\n");
+      strf(", %u processors available (nproc)\n", header.cpus), "- Version: ", known(header.version), "\n");
   if (!header.command.empty()) add(md, "- Command: `", header.command, "`\n");
   md += strf("- Runs: %zu (%zu failed, of which %zu threw) in %.1f s wall time on %d worker threads\n\n",
              results.runs.size(), failed, threw, results.wall_s, o.jobs);

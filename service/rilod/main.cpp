@@ -10,8 +10,10 @@
 #include <cstdio>
 #include <memory>
 
+#include "rilo_version.h"
 #include "rilod/config.h"
 #include "rilod/hardware_sources.h"
+#include "rilod/logging.h"
 #include "rilod/notify.h"
 #include "rilod/recorder.h"
 #include "rilod/recorder_config.h"
@@ -183,17 +185,18 @@ int main(int argc, char** argv) {
   CLI::App app{"rilod: UWB + IMU localization service (publishes the pose over DDS)"};
   std::string config_path;
   double max_seconds = 0.0;
+  app.set_version_flag("--version", "rilod " RILO_VERSION_TEXT);
   app.add_option("--config", config_path, "YAML configuration (see config/README.md)")->required()->check(CLI::ExistingFile);
   app.add_option("--duration", max_seconds, "Stop after this many seconds (0: until the data ends or SIGTERM)")
       ->check(CLI::NonNegativeNumber);
   CLI11_PARSE(app, argc, argv);
 
-  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  rilo::setUpServiceLogging();  // journald with priorities under systemd, else the console
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   try {
     const rilo::ServiceConfig cfg = rilo::loadServiceConfig(config_path);
-    spdlog::info("rilod starting with {}", cfg.file.string());
+    spdlog::info("rilod {} starting with {}", RILO_VERSION_TEXT, cfg.file.string());
     return runService(cfg, max_seconds);
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());

@@ -6,6 +6,7 @@
 #include <exception>
 
 #include "demo.h"
+#include "rilo_version.h"
 #include "eval_command.h"
 #include "import_command.h"
 #include "listen.h"
@@ -18,6 +19,7 @@
 int main(int argc, char** argv) {
   CLI::App app{"rilo: Ranging-Inertial LOcalization tools"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", "rilo " RILO_VERSION_TEXT);
 
   rilo::tool::DemoOptions demo;
   CLI::App* demo_cmd = app.add_subcommand("demo", "Simulate an office walk and solve it in batch with each range noise model");

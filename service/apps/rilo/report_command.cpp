@@ -1,4 +1,5 @@
 #include "report_command.h"
+#include "rilo_version.h"
 
 #include <CLI/CLI.hpp>
 #include <unistd.h>
@@ -152,7 +153,7 @@ int runTdoaReportCommand(const ReportCommandOptions& o) {
     options.progress = [&bar](std::size_t done, std::size_t total) { bar(done, total); };
     results = runTdoaReport(recordings, options);
   }
-  writeTdoaReport(out, recordings, results, currentReportHeader(commandLine(o)));
+  writeTdoaReport(out, recordings, results, currentReportHeader(commandLine(o), "rilo " RILO_VERSION_TEXT));
   std::size_t failed = 0, threw = 0;
   for (const TdoaRun& r : results.runs) {
     if (r.failed(options.fail_mean_m)) ++failed;
@@ -211,7 +212,7 @@ int runReportCommand(const ReportCommandOptions& o) {
       options.progress = [&bar](std::size_t done, std::size_t total) { bar(done, total); };
       results = runReport(recordings, options);
     }
-    writeReport(out, recordings, results, currentReportHeader(commandLine(o)));
+    writeReport(out, recordings, results, currentReportHeader(commandLine(o), "rilo " RILO_VERSION_TEXT));
 
     std::size_t failed = 0, threw = 0;
     for (const ReportRun& r : results.runs) {

@@ -33,6 +33,11 @@ class SampleSink {
   /// long (hardware sources lose samples otherwise).
   virtual void push(const Sample& sample) noexcept = 0;
   virtual void fault(const SourceFault& fault) noexcept = 0;
+  /// The source's loop is alive without a sample or fault to give (a wait
+  /// timed out, a paced replay sleeps): the service's watchdog sees its
+  /// thread beat. Called at least every few hundred milliseconds; wrappers
+  /// forward it.
+  virtual void idle() noexcept {}
 };
 
 enum class SourceEnd { kStopped, kEndOfData, kFailed };

@@ -161,6 +161,7 @@ SourceEnd Bmi263Source::run(SampleSink& sink, const std::atomic<bool>& stop) {
       case hal::WaitResult::kError: step = onIrqError(error); break;
     }
     if (step == Step::kFatal) return SourceEnd::kFailed;
+    sink.idle();  // the loop went round (the watchdog watches this thread too)
     if (step == Step::kRestart) {
       counters_.recoveries.fetch_add(1, std::memory_order_relaxed);
       if (!startDevice(stop)) return stop.load() ? SourceEnd::kStopped : SourceEnd::kFailed;

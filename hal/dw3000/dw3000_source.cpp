@@ -199,6 +199,7 @@ SourceEnd Dw3000Source::run(SampleSink& sink, const std::atomic<bool>& stop) {
   }
 
   while (!stop.load(std::memory_order_relaxed)) {
+    sink.idle();  // the loop went round (the watchdog watches this thread too)
     const std::int64_t now_ns = clock_.nowNs();
     const AnchorScheduler::Pick pick = scheduler_.next(now_ns);
     if (pick.at_ns > now_ns) {

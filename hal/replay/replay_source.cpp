@@ -157,6 +157,7 @@ SourceEnd ReplaySource::run(SampleSink& sink, const std::atomic<bool>& stop) {
       for (std::int64_t clock = now(); clock < due; clock = now()) {
         if (stop.load(std::memory_order_relaxed)) return SourceEnd::kStopped;
         sleepUntil(std::min(due, clock + options_.max_sleep_ns));
+        sink.idle();
       }
       if (stop.load(std::memory_order_relaxed)) return SourceEnd::kStopped;
     }

@@ -18,6 +18,7 @@
 #include "hal/recording/recording_reader.h"
 #include "rilod/config_hardware.h"
 #include "rilod/config_reader.h"
+#include "rilod/notify.h"
 
 namespace rilo {
 
@@ -501,6 +502,12 @@ WatchdogConfig readWatchdog(const ConfigField& field) {
   m.read("heartbeat_timeout_s", c.heartbeat_timeout_ns,
          [](const ConfigField& f) { return f.secondsAsNs(0.01, 600.0); });
   m.read("startup_grace_s", c.startup_grace_ns, [](const ConfigField& f) { return f.secondsAsNs(0.0, 3600.0); });
+  // Under a systemd watchdog (WATCHDOG_USEC for this process) the timeout
+  // must fit in the unit's period (issue 37: 100 s was taken under WatchdogSec=5).
+  if (const auto interval = notify::watchdogInterval(); interval && c.enabled) {
+    const std::string problem = notify::heartbeatTimeoutProblem(c.heartbeat_timeout_ns, *interval);
+    if (!problem.empty()) (m.has("heartbeat_timeout_s") ? m.require("heartbeat_timeout_s") : field).fail(problem);
+  }
   return c;
 }
 

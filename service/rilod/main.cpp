@@ -131,6 +131,14 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
     }
   };
   so.on_event = [](const std::string& e) { spdlog::info("{}", e); };
+  // STOPPING=1 as soon as the stop request is seen (issue 37: it went out
+  // only after shutdown, so systemd waited without knowing).
+  std::atomic<bool> stopping_sent{false};
+  so.on_stop_requested = [&stopping_sent] {
+    spdlog::info("stop requested: shutting down");
+    rilo::notify::stopping();
+    stopping_sent.store(true);
+  };
   so.on_thread_start = [&cfg](const std::string& role, std::thread& t) {
     const rilo::ThreadRealtimeSettings& rt = role == "estimator" ? cfg.realtime.estimator
                                              : role == "publisher" ? cfg.realtime.publisher
@@ -144,8 +152,13 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   rilo::notify::readyWithStatus("sources and DDS up, initializing");
   std::unique_ptr<rilo::notify::WatchdogPinger> watchdog;
   if (cfg.watchdog.enabled) {
-    watchdog = rilo::notify::startWatchdogIfRequested(service.estimatorHeartbeat(), cfg.watchdog.heartbeat_timeout_ns,
+    // Every real-time thread must beat for a ping: sources, estimator, publisher, status.
+    watchdog = rilo::notify::startWatchdogIfRequested(service.watchedThreads(), cfg.watchdog.heartbeat_timeout_ns,
                                                       cfg.watchdog.startup_grace_ns);
+    if (watchdog) {
+      spdlog::info("systemd watchdog: pinging every {} ms while {} threads beat", watchdog->period().count() / 1000,
+                   service.watchedThreads().size());
+    }
   }
 
   std::atomic<bool> stop{false};
@@ -163,8 +176,11 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
   const int code = service.run(g_stop);
   stop.store(true);
   if (timer.joinable()) timer.join();
-  rilo::notify::stopping();
-  if (watchdog) watchdog->stop();
+  if (!stopping_sent.load()) rilo::notify::stopping();  // the data ended: no stop request came
+  if (watchdog) {
+    if (watchdog->stalled()) spdlog::warn("systemd watchdog: '{}' had stopped beating", watchdog->stalledThread());
+    watchdog->stop();
+  }
   if (recorder) {
     recorder->close();
     const auto c = recorder->counters();

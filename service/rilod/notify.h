@@ -2,8 +2,9 @@
 // systemd notification (sd_notify(3)) for a Type=notify service:
 //   READY=1     once sources and DDS are up,
 //   STATUS=...  one human-readable line shown by `systemctl status`,
-//   WATCHDOG=1  from WatchdogPinger only while the real-time loop beats,
-//   STOPPING=1  when shutdown begins.
+//   WATCHDOG=1  from WatchdogPinger only while every watched thread beats
+//               (sources, estimator, publisher, status),
+//   STOPPING=1  as soon as the stop request (SIGTERM) is seen.
 // Every call is a no-op returning 0 when NOTIFY_SOCKET is unset (run from a
 // shell, tests, CI), so the service never needs to know how it was started.
 // Each call opens, sends and closes a datagram socket (libsystemd): cheap,
@@ -19,6 +20,7 @@
 #include <string>
 #include <string_view>
 #include <thread>
+#include <vector>
 
 #include "runtime/heartbeat.h"
 
@@ -64,6 +66,15 @@ struct WatchdogPingerOptions {
   std::function<int()> ping;
 };
 
+/// One thread the watchdog watches.
+struct WatchedThread {
+  std::string name;                ///< for the log: "estimator", "source 0 (dwm3000 /dev/spidev0.0)"
+  const Heartbeat* heartbeat = nullptr;  ///< must outlive the pinger
+  /// True once the thread ended its work on purpose (a replay at the end of
+  /// its data): it no longer beats and is no longer judged. Empty: never.
+  std::function<bool()> finished;
+};
+
 /// A thread that checks `heartbeat` every interval / 2 and sends WATCHDOG=1
 /// only while it is alive (or, before the first beat, within the start-up
 /// grace). Once the loop stops beating, pings stop within
@@ -77,6 +88,11 @@ class WatchdogPinger {
   /// Throws std::invalid_argument if options.interval is not positive or
   /// heartbeat_max_age_ns is not positive. `heartbeat` must outlive the pinger.
   WatchdogPinger(const Heartbeat& heartbeat, WatchdogPingerOptions options);
+  /// Pings only while every thread in `threads` beats (or is finished, or,
+  /// before its first beat, within the start-up grace): a hung publisher or
+  /// source stops the pings as a hung estimator does. Throws
+  /// std::invalid_argument for an empty list or a null heartbeat.
+  WatchdogPinger(std::vector<WatchedThread> threads, WatchdogPingerOptions options);
   ~WatchdogPinger();
   WatchdogPinger(const WatchdogPinger&) = delete;
   WatchdogPinger& operator=(const WatchdogPinger&) = delete;
@@ -89,6 +105,8 @@ class WatchdogPinger {
   std::uint64_t skipped() const noexcept { return skipped_.load(std::memory_order_acquire); }
   /// True if the last check found the heartbeat stale.
   bool stalled() const noexcept { return stalled_.load(std::memory_order_acquire); }
+  /// The first thread the last check found stale ("" while every one beats).
+  const std::string& stalledThread() const noexcept;
   std::chrono::microseconds period() const noexcept { return period_; }
   /// For real-time settings (name, affinity) of the watchdog thread.
   std::thread& thread() noexcept { return thread_; }
@@ -96,7 +114,7 @@ class WatchdogPinger {
  private:
   void run();
 
-  const Heartbeat& heartbeat_;
+  std::vector<WatchedThread> threads_;
   WatchdogPingerOptions options_;
   std::chrono::microseconds period_;
   std::mutex mutex_;
@@ -104,6 +122,7 @@ class WatchdogPinger {
   bool stop_requested_ = false;
   std::atomic<std::uint64_t> checks_{0}, pings_{0}, skipped_{0};
   std::atomic<bool> stalled_{false};
+  std::atomic<int> stalled_index_{-1};
   std::thread thread_;
 };
 
@@ -111,5 +130,14 @@ class WatchdogPinger {
 std::unique_ptr<WatchdogPinger> startWatchdogIfRequested(const Heartbeat& heartbeat,
                                                          std::int64_t heartbeat_max_age_ns,
                                                          std::int64_t startup_grace_ns = 0);
+std::unique_ptr<WatchdogPinger> startWatchdogIfRequested(std::vector<WatchedThread> threads,
+                                                         std::int64_t heartbeat_max_age_ns,
+                                                         std::int64_t startup_grace_ns = 0);
+
+/// Why a heartbeat timeout cannot work under the unit's watchdog period
+/// (`interval`, WATCHDOG_USEC): pings stop only heartbeat_max_age_ns after
+/// the last beat, so a timeout at or past the period lets systemd kill a
+/// healthy service or never notice a stuck one. Empty when it fits.
+std::string heartbeatTimeoutProblem(std::int64_t heartbeat_max_age_ns, std::chrono::microseconds interval);
 
 }  // namespace rilo::notify

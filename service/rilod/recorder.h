@@ -143,6 +143,10 @@ class TeeSink final : public SampleSink {
     a_.push(sample);
     b_.push(sample);
   }
+  void idle() noexcept override {
+    a_.idle();
+    b_.idle();
+  }
   void fault(const SourceFault& fault) noexcept override {
     a_.fault(fault);
     b_.fault(fault);

@@ -43,6 +43,7 @@ struct Service::SourceLane {
   std::atomic<bool> carries_imu{false};  // has delivered an IMU sample: the IMU timeout applies
   std::atomic<bool> silent{false};       // quiet beyond its timeout now (estimator writes)
   std::atomic<std::int64_t> last_sample_wall_ns{0};
+  Heartbeat beat;  // the source's thread went round: a sample, a fault or an idle wait (the watchdog's view)
   // Estimator side: one sample taken out of `samples`, waiting for the merge.
   Sample pending;
   bool has_pending = false;
@@ -53,6 +54,7 @@ class Service::LaneSink final : public SampleSink {
   LaneSink(Service& service, SourceLane& lane) : service_(service), lane_(lane) {}
   void push(const Sample& sample) noexcept override {
     const std::int64_t now = hal::monotonicNowNs();
+    lane_.beat.beat(now);
     lane_.last_sample_wall_ns.store(now, std::memory_order_relaxed);
     RuntimeCounters& counters = service_.counters_;
     switch (lane_.screen.check(sample)) {
@@ -75,7 +77,9 @@ class Service::LaneSink final : public SampleSink {
       counters.ultrasonic_samples.add();
     }
   }
+  void idle() noexcept override { lane_.beat.beat(hal::monotonicNowNs()); }
   void fault(const SourceFault& fault) noexcept override {
+    lane_.beat.beat(hal::monotonicNowNs());
     service_.counters_.sensor_faults.add();
     if (fault.fatal) service_.source_failed_.store(true);
     try {
@@ -96,6 +100,7 @@ class Service::LaneSink final : public SampleSink {
     if (!service_.options_.backpressure) return false;
     while (!service_.stop_sources_.load(std::memory_order_relaxed)) {
       std::this_thread::sleep_for(std::chrono::microseconds(100));
+      lane_.beat.beat(hal::monotonicNowNs());  // waiting on the estimator, whose own beat tells if it is stuck
       if (queue.tryPush(value)) return true;
     }
     return false;
@@ -220,12 +225,16 @@ int Service::run(const std::atomic<bool>& stop) {
   std::int64_t next_status_ns = hal::monotonicNowNs();
   while (!stop.load() && !estimator_done_.load()) {
     const std::int64_t now = hal::monotonicNowNs();
+    status_beat_.beat(now);
     if (now >= next_status_ns) {
       publishStatus(now);
       next_status_ns = now + period_ns;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
+  // Tell systemd now, not after the threads are joined (a stop may take a
+  // while: sources finish their transfer, the recorder flushes).
+  if (stop.load() && options_.on_stop_requested) options_.on_stop_requested();
   stop_sources_.store(true);
   for (std::thread& t : source_threads) t.join();
   stop_threads_.store(true);
@@ -233,6 +242,19 @@ int Service::run(const std::atomic<bool>& stop) {
   publisher.join();
   publishStatus(hal::monotonicNowNs());
   return source_failed_.load() ? 1 : 0;
+}
+
+std::vector<notify::WatchedThread> Service::watchedThreads() const {
+  std::vector<notify::WatchedThread> threads;
+  threads.push_back({"estimator", &estimator_beat_, [this] { return estimator_done_.load(); }});
+  threads.push_back({"publisher", &publisher_beat_, [this] { return estimator_done_.load(); }});
+  threads.push_back({"status", &status_beat_, [this] { return estimator_done_.load(); }});
+  for (std::size_t i = 0; i < lanes_.size(); ++i) {
+    const SourceLane* lane = lanes_[i].get();
+    threads.push_back({"source " + std::to_string(i) + " (" + sources_[i]->describe() + ")", &lane->beat,
+                       [lane] { return lane->ended.load(std::memory_order_acquire); }});
+  }
+  return threads;
 }
 
 bool Service::noteScreened() {

@@ -26,6 +26,7 @@
 #include "dds/publisher.h"
 #include "estimation/tracking/localizer.h"
 #include "hal/source.h"
+#include "rilod/notify.h"
 #include "rilod/range_trust_monitor.h"
 #include "rilod/sensor_gap_monitor.h"
 #include "runtime/heartbeat.h"
@@ -74,6 +75,9 @@ struct ServiceOptions {
   /// Called on notable estimator events: tracking started or lost, ranging
   /// lost and back, initialization progress (rate-limited). Estimator thread.
   std::function<void(const std::string& event)> on_event;
+  /// Called once by run() as soon as it sees the stop request, before the
+  /// threads are stopped and joined (rilod: STOPPING=1 to systemd).
+  std::function<void()> on_stop_requested;
   /// Called for each thread the service starts, before it runs ("source 0",
   /// "estimator", "publisher"): real-time priority and CPU affinity.
   std::function<void(const std::string& role, std::thread& thread)> on_thread_start;
@@ -99,6 +103,10 @@ class Service {
   /// Beats from the estimator and publisher loops (for the systemd watchdog).
   const Heartbeat& estimatorHeartbeat() const { return estimator_beat_; }
   const Heartbeat& publisherHeartbeat() const { return publisher_beat_; }
+  /// Every thread the systemd watchdog must see beat: each source, the
+  /// estimator, the publisher and the status loop of run() (issue 37: the
+  /// estimator's alone kept the pings going under a hung publisher).
+  std::vector<notify::WatchedThread> watchedThreads() const;
 
  private:
   struct SourceLane;
@@ -138,7 +146,7 @@ class Service {
   LatestValue<NavigationState> smoothed_;
   LatestValue<ServiceStatus> status_;
   RuntimeCounters counters_;
-  Heartbeat estimator_beat_, publisher_beat_;
+  Heartbeat estimator_beat_, publisher_beat_, status_beat_;
   WakeSignal publisher_wake_;  ///< sources notify per IMU sample; the publisher sleeps on it
   std::atomic<bool> stop_sources_{false};
   std::atomic<bool> estimator_done_{false};

@@ -4,6 +4,7 @@
 #include "rilod/config.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <string>
 #include <vector>
@@ -434,6 +435,27 @@ TEST_F(ConfigTest, InputScreenMapsOntoTheLocalizerAndFollowsTheImusFullScale) {
   // ... unless the configuration gives them.
   const ServiceConfig hw_set = parse(hardware("", "        accel_range_g: 4\n") + "estimator:\n  input_screen: {max_accel_m_s2: 100}\n");
   EXPECT_DOUBLE_EQ(localizerParams(hw_set).screen.max_accel_m_s2, 100.0);
+}
+
+TEST_F(ConfigTest, HeartbeatTimeoutMustFitTheUnitsWatchdogPeriodUnderSystemd) {
+  // Issue 37: heartbeat_timeout_s: 100 was taken under WatchdogSec=5.
+  const std::string yaml = valid("watchdog: {heartbeat_timeout_s: 100}\n");
+  EXPECT_EQ(parse(yaml).watchdog.heartbeat_timeout_ns, 100'000'000'000);  // no watchdog asked: any timeout
+  ::setenv("WATCHDOG_USEC", "5000000", 1);
+  ::setenv("WATCHDOG_PID", std::to_string(::getpid()).c_str(), 1);
+  std::string key, what;
+  try {
+    parse(yaml);
+  } catch (const ConfigError& e) {
+    key = e.keyPath();
+    what = e.what();
+  }
+  const ServiceConfig fits = parse(valid("watchdog: {heartbeat_timeout_s: 2}\n"));
+  ::unsetenv("WATCHDOG_USEC");
+  ::unsetenv("WATCHDOG_PID");
+  EXPECT_EQ(key, "watchdog.heartbeat_timeout_s") << what;
+  EXPECT_NE(what.find("WatchdogSec=5 s"), std::string::npos) << what;
+  EXPECT_EQ(fits.watchdog.heartbeat_timeout_ns, 2'000'000'000);
 }
 
 TEST_F(ConfigTest, InactiveHardwareSectionNeedNotMatchTheAnchors) {

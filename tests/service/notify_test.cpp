@@ -263,6 +263,66 @@ TEST_F(NotifyTest, StartupGraceCoversTheTimeBeforeTheFirstBeat) {
   EXPECT_EQ(countWatchdogMessages(socket_.drain()), 0u);
 }
 
+TEST_F(NotifyTest, EveryWatchedThreadMustBeat) {
+  // Issue 37: with the estimator's heartbeat alone, a hung publisher kept
+  // the pings going.
+  FakeClock clock;
+  Heartbeat estimator, publisher, source;
+  const std::int64_t t0 = clock.now_ns.load();
+  estimator.beat(t0);
+  publisher.beat(t0);
+  source.beat(t0);
+  std::atomic<bool> source_ended{false};
+  notify::WatchdogPinger pinger({{"estimator", &estimator, {}},
+                                 {"publisher", &publisher, {}},
+                                 {"source 0 (replay)", &source, [&] { return source_ended.load(); }}},
+                                fastOptions(clock));
+  ASSERT_TRUE(waitFor([&] { return pinger.pings() >= 2; }));
+  EXPECT_EQ(pinger.stalledThread(), "");
+
+  // The publisher hangs while the estimator and the source go on.
+  clock.now_ns += 2'000'000'000;
+  estimator.beat(clock.now_ns.load());
+  source.beat(clock.now_ns.load());
+  const std::uint64_t c0 = pinger.checks();
+  ASSERT_TRUE(waitFor([&] { return pinger.checks() >= c0 + 2; }));
+  const std::uint64_t pings = pinger.pings();
+  socket_.drain();
+  ASSERT_TRUE(waitFor([&] { return pinger.checks() >= c0 + 6; }));
+  EXPECT_EQ(pinger.pings(), pings) << "pinged with the publisher stuck";
+  EXPECT_EQ(countWatchdogMessages(socket_.drain()), 0u);
+  EXPECT_TRUE(pinger.stalled());
+  EXPECT_EQ(pinger.stalledThread(), "publisher");
+
+  // It resumes; then the replay source ends its data and stops beating on purpose.
+  publisher.beat(clock.now_ns.load());
+  ASSERT_TRUE(waitFor([&] { return pinger.pings() > pings; }));
+  source_ended.store(true);
+  clock.now_ns += 2'000'000'000;
+  estimator.beat(clock.now_ns.load());
+  publisher.beat(clock.now_ns.load());
+  const std::uint64_t p1 = pinger.pings();
+  ASSERT_TRUE(waitFor([&] { return pinger.pings() >= p1 + 3; })) << "an ended source must not stop the pings";
+  EXPECT_EQ(pinger.stalledThread(), "");
+}
+
+TEST(WatchdogPingerTest, RefusesAnEmptyListOrAMissingHeartbeat) {
+  notify::WatchdogPingerOptions o;
+  o.interval = std::chrono::milliseconds(100);
+  EXPECT_THROW(notify::WatchdogPinger(std::vector<notify::WatchedThread>{}, o), std::invalid_argument);
+  EXPECT_THROW(notify::WatchdogPinger(std::vector<notify::WatchedThread>{{"status", nullptr, {}}}, o),
+               std::invalid_argument);
+}
+
+TEST(WatchdogPingerTest, AHeartbeatTimeoutMustFitTheUnitsWatchdogPeriod) {
+  using std::chrono::seconds;
+  EXPECT_EQ(notify::heartbeatTimeoutProblem(1'000'000'000, seconds(5)), "");
+  const std::string problem = notify::heartbeatTimeoutProblem(100'000'000'000, seconds(5));
+  EXPECT_NE(problem.find("watchdog.heartbeat_timeout_s (100 s)"), std::string::npos) << problem;
+  EXPECT_NE(problem.find("WatchdogSec=5 s"), std::string::npos) << problem;
+  EXPECT_NE(notify::heartbeatTimeoutProblem(5'000'000'000, seconds(5)), "");  // equal does not fit either
+}
+
 TEST(WatchdogPingerTest, RejectsBadOptions) {
   Heartbeat heartbeat;
   notify::WatchdogPingerOptions o;

@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <signal.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -148,6 +151,71 @@ TEST(RilodEndToEnd, SigtermStopsCleanlyWithinOneSecond) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_EQ(code, 0);
   EXPECT_LT(seconds, 1.0);
+}
+
+TEST(RilodEndToEnd, UnderSystemdItPingsWhileEveryThreadBeatsAndSaysStoppingOnTheSignal) {
+  // Issue 37: STOPPING=1 went out after shutdown, after the last status;
+  // now it goes when the stop request is seen. The watchdog watches every
+  // real-time thread (its log line counts them: 1 source, estimator,
+  // publisher, status).
+  testing::TempDir dir("rilod-notify");
+  testing::writeFile(dir / "rilod.yaml", configText("real_time", 1.0));
+  const std::string socket_path = "/tmp/rilod-notify-" + std::to_string(::getpid()) + ".sock";
+  ::unlink(socket_path.c_str());
+  const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", socket_path.c_str());
+  ASSERT_EQ(::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
+  ::setenv("NOTIFY_SOCKET", socket_path.c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "2000000", 1);  // pings every second
+  const pid_t pid = startRilod(dir / "rilod.yaml", 60.0, dir / "rilod.log");
+  ::unsetenv("NOTIFY_SOCKET");
+  ::unsetenv("WATCHDOG_USEC");
+  ASSERT_GT(pid, 0);
+  std::vector<std::string> messages;
+  auto receive = [&](std::chrono::milliseconds for_ms) {
+    const auto end = std::chrono::steady_clock::now() + for_ms;
+    while (std::chrono::steady_clock::now() < end) {
+      pollfd p{fd, POLLIN, 0};
+      if (::poll(&p, 1, 20) <= 0) continue;
+      char buf[2048];
+      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+      if (n > 0) messages.emplace_back(buf, static_cast<std::size_t>(n));
+    }
+  };
+  receive(3500ms);  // up and replaying, a few pings
+  ASSERT_EQ(::kill(pid, SIGTERM), 0);
+  const int code = waitExit(pid, 5000ms);
+  receive(200ms);
+  ::close(fd);
+  ::unlink(socket_path.c_str());
+  EXPECT_EQ(code, 0);
+
+  auto first = [&](const std::string& prefix) {
+    for (std::size_t i = 0; i < messages.size(); ++i) {
+      if (messages[i].rfind(prefix, 0) == 0) return static_cast<long>(i);
+    }
+    return -1L;
+  };
+  auto last = [&](const std::string& prefix) {
+    for (std::size_t i = messages.size(); i-- > 0;) {
+      if (messages[i].rfind(prefix, 0) == 0) return static_cast<long>(i);
+    }
+    return -1L;
+  };
+  std::string all;
+  for (const std::string& m : messages) all += "[" + m + "] ";
+  ASSERT_GE(first("READY=1"), 0) << all;
+  EXPECT_GE(std::count(messages.begin(), messages.end(), std::string("WATCHDOG=1")), 2) << all;
+  const long stopping = first("STOPPING=1");
+  ASSERT_GE(stopping, 0) << all;
+  EXPECT_LT(stopping, last("STATUS=")) << "STOPPING=1 came after the final status: " << all;
+  EXPECT_EQ(std::count(messages.begin(), messages.end(), std::string("STOPPING=1")), 1) << all;
+  const std::string log = testing::readFile(dir / "rilod.log");
+  EXPECT_NE(log.find("while 4 threads beat"), std::string::npos) << log;
+  EXPECT_NE(log.find("stop requested: shutting down"), std::string::npos) << log;
 }
 
 TEST(RilodEndToEnd, BadConfigurationExitsWithACodeAndNoCrash) {

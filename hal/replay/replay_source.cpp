@@ -96,7 +96,7 @@ std::string ReplaySource::describe() const {
 SourceEnd ReplaySource::run(SampleSink& sink, const std::atomic<bool>& stop) {
   for (const ReadWarning& w : report_.warnings) {
     SourceFault f;
-    f.device = "replay:" + (std::filesystem::path(name_) / w.file).string();
+    f.device = "replay";  // the message names the file and line (it printed the path twice)
     f.what = w.message;
     f.fatal = false;
     sink.fault(f);

@@ -159,6 +159,43 @@ TEST(RiloReplay, NothingEstimatedIsNullInTheSummaryAndNotAvailableOnTheConsole) 
   EXPECT_NE(text.str().find("0 updates, update times n/a"), std::string::npos) << text.str();
 }
 
+TEST(RiloReplay, TheReadersWarningsArePrintedOnceWithFileAndLine) {
+  // Issue 37: rilo replay hid them (a duplicate row, an unknown meta key).
+  testing::TempDir dir("rilo-replay-warnings");
+  const std::filesystem::path rec = dir / "rec";
+  std::filesystem::copy(testing::sourceDir() / "tests" / "data" / "office-demo", rec);
+  {
+    std::ifstream in(rec / "imu.csv");
+    std::vector<std::string> lines;
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+    in.close();
+    lines.insert(lines.begin() + 5, lines[4]);  // data row 4 twice: file lines 5 and 6
+    std::ofstream out(rec / "imu.csv", std::ios::trunc);
+    for (const std::string& line : lines) out << line << '\n';
+  }
+  std::ofstream(rec / "meta.yaml", std::ios::app) << "bogus_key: 3\n";
+  const std::string exe = (testing::binaryDir() / "rilo").string();
+  const std::string out_dir = (dir / "out").string();
+  const std::string errors = (dir / "stderr.txt").string();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (std::freopen(errors.c_str(), "w", stderr) == nullptr) ::_exit(126);
+    ::execl(exe.c_str(), exe.c_str(), "replay", rec.c_str(), "--out", out_dir.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0);
+  std::stringstream text;
+  text << std::ifstream(errors).rdbuf();
+  const std::string e = text.str();
+  const std::string duplicate = "warning: " + (rec / "imu.csv").string() + ":6: column 't_ns': duplicate of line 5 skipped";
+  EXPECT_NE(e.find(duplicate), std::string::npos) << e;
+  EXPECT_EQ(e.find(duplicate), e.rfind(duplicate)) << "printed twice: " << e;
+  EXPECT_NE(e.find("key 'bogus_key': unknown key ignored"), std::string::npos) << e;
+}
+
 TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
   testing::TempDir out("rilo-replay");
   const std::string exe = (testing::binaryDir() / "rilo").string();

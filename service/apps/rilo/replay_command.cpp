@@ -120,7 +120,11 @@ void applyShippedConfig(GivenOptions given, ReplaySettings& settings) {
 }
 
 int runReplay(const ReplayOptions& o) {
-  const Recording rec = readRecording(o.recording);
+  ReadReport read_report;
+  const Recording rec = readRecording(o.recording, &read_report);
+  // What the reader accepted with a remark (a duplicate row skipped, an
+  // unknown meta.yaml key, a cut-off last line): each once, with its file and line.
+  for (const ReadWarning& w : read_report.warnings) std::fprintf(stderr, "rilo replay: warning: %s\n", w.message.c_str());
   const ReplayResult run = replayRecording(rec, o.settings);
 
   const std::filesystem::path dir(o.out);

@@ -95,7 +95,8 @@ TEST(SystemdUnitTest, KeepsItsContract) {
        {"Type=notify", "WatchdogSec=", "Restart=on-failure", "User=rilo", "ProtectSystem=strict", "ProtectHome=yes",
         "PrivateTmp=yes", "NoNewPrivileges=yes", "DevicePolicy=closed", "DeviceAllow=char-spi rw",
         "DeviceAllow=char-i2c rw", "DeviceAllow=char-gpiochip rw", "CapabilityBoundingSet=CAP_SYS_NICE CAP_IPC_LOCK",
-        "AmbientCapabilities=CAP_SYS_NICE CAP_IPC_LOCK", "LimitRTPRIO=", "LimitMEMLOCK=", "StateDirectory=rilo"}) {
+        "AmbientCapabilities=CAP_SYS_NICE CAP_IPC_LOCK", "LimitRTPRIO=", "LimitMEMLOCK=", "StateDirectory=rilo",
+        "MemoryMax="}) {
     EXPECT_NE(unit.find(setting), std::string::npos) << "missing " << setting;
   }
   EXPECT_NE(unit.find(kExecStart), std::string::npos);

@@ -59,11 +59,12 @@ void Dw3000Source::report(SampleSink& sink, const std::string& what, bool fatal)
   sink.fault(SourceFault{clock_.nowNs(), device_.path(), what, fatal});
 }
 
-void Dw3000Source::sleepInterruptible(std::int64_t duration_ns, const std::atomic<bool>& stop) {
+void Dw3000Source::sleepInterruptible(std::int64_t duration_ns, const std::atomic<bool>& stop, SampleSink& sink) {
   while (duration_ns > 0 && !stop.load(std::memory_order_relaxed)) {
     const std::int64_t chunk_ns = std::min(duration_ns, kMaxSleepChunkNs);
     clock_.sleepForNs(chunk_ns);
     duration_ns -= chunk_ns;
+    sink.idle();  // a back-off of seconds is the loop waiting, not stuck (the service's watchdog)
   }
 }
 
@@ -104,7 +105,7 @@ bool Dw3000Source::reinitialize(SampleSink& sink, const std::atomic<bool>& stop)
              true);
       return false;
     }
-    sleepInterruptible(deviceBackoffNs(consecutive_reinit_failures_), stop);
+    sleepInterruptible(deviceBackoffNs(consecutive_reinit_failures_), stop, sink);
   }
   return true;
 }
@@ -175,7 +176,7 @@ bool Dw3000Source::handleDeviceFault(SampleSink& sink, const ExchangeResult& r, 
   what += "; " + std::to_string(consecutive_device_faults_) + " device fault(s) in a row, " +
           (reinit ? "re-initializing" : "retrying") + " in " + msText(backoff_ns);
   report(sink, what);
-  sleepInterruptible(backoff_ns, stop);
+  sleepInterruptible(backoff_ns, stop, sink);
   if (stop.load(std::memory_order_relaxed) || !reinit) return true;
   return reinitialize(sink, stop);
 }
@@ -187,7 +188,7 @@ SourceEnd Dw3000Source::run(SampleSink& sink, const std::atomic<bool>& stop) {
       up = true;
       break;
     }
-    if (attempt < config_.startup_attempts) sleepInterruptible(deviceBackoffNs(attempt), stop);
+    if (attempt < config_.startup_attempts) sleepInterruptible(deviceBackoffNs(attempt), stop, sink);
   }
   if (!up) {
     if (stop.load(std::memory_order_relaxed)) return SourceEnd::kStopped;
@@ -203,7 +204,7 @@ SourceEnd Dw3000Source::run(SampleSink& sink, const std::atomic<bool>& stop) {
     const std::int64_t now_ns = clock_.nowNs();
     const AnchorScheduler::Pick pick = scheduler_.next(now_ns);
     if (pick.at_ns > now_ns) {
-      sleepInterruptible(pick.at_ns - now_ns, stop);
+      sleepInterruptible(pick.at_ns - now_ns, stop, sink);
       continue;
     }
     if (pick.discovery) Dw3000Stats::add(stats_.discovery_polls);

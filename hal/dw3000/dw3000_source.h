@@ -55,7 +55,7 @@ class Dw3000Source final : public SampleSource {
   /// Returns false if run() must end (re-initialization gave up).
   bool handleDeviceFault(SampleSink& sink, const ExchangeResult& r, const std::atomic<bool>& stop);
   void report(SampleSink& sink, const std::string& what, bool fatal = false);
-  void sleepInterruptible(std::int64_t duration_ns, const std::atomic<bool>& stop);
+  void sleepInterruptible(std::int64_t duration_ns, const std::atomic<bool>& stop, SampleSink& sink);
   std::int64_t deviceBackoffNs(int faults) const noexcept;
   std::string anchorName(std::size_t index) const;
 

@@ -17,18 +17,37 @@
 // back stays dropped until it passes its previous time again (counted all the
 // while): sources use CLOCK_MONOTONIC, which never does.
 //
+//
+// The estimator's physical screen (estimation/measurements/input_screen.h)
+// applies here too, before the odometry publisher sees a sample (issue 37: an
+// IMU sample of 1e30 m/s^2 was screened from the estimator but extrapolated
+// into the odometry): values beyond its bounds are dropped, and a stamp more
+// than its jump bound ahead of its stream is held until the samples after it
+// confirm it (a lone bad stamp would otherwise become the stream's last one
+// and every real sample after it "out of order").
+//
 // IMU-rate path: no allocation, no lock, a handful of compares. One per
 // source, used by that source's thread only.
 #include <cstdint>
 
+#include "estimation/measurements/input_screen.h"
 #include "hal/source.h"
 
 namespace rilo {
 
-enum class SampleVerdict : std::uint8_t { kAccept, kNonFinite, kDuplicate, kOutOfOrder };
+enum class SampleVerdict : std::uint8_t {
+  kAccept,
+  kNonFinite,
+  kDuplicate,
+  kOutOfOrder,
+  kOutOfBounds,      ///< a range or TDoA value outside the screen's bounds
+  kBeyondFullScale,  ///< an IMU axis beyond the screen's full scale
+  kFarFuture,        ///< a stamp jump not (yet) confirmed by the samples after it
+};
 
 class SampleScreen {
  public:
+  explicit SampleScreen(const InputScreenParams& params = {});
   /// Judges `sample` and, if accepted, remembers it as its stream's last one.
   SampleVerdict check(const Sample& sample) noexcept;
 
@@ -37,8 +56,14 @@ class SampleScreen {
     bool seen = false;
     std::int64_t t_ns = 0;
     std::uint32_t a = 0, b = 0;  // anchor (and tag, or the TDoA pair's second anchor)
+    StampJumpGuard jump;
   };
-  static SampleVerdict order(Last& last, std::int64_t t_ns, std::uint32_t a, std::uint32_t b, bool key_matters) noexcept;
+  SampleVerdict order(Last& last, std::int64_t t_ns, std::uint32_t a, std::uint32_t b, bool key_matters,
+                      std::int64_t max_jump_ns) noexcept;
+  static SampleVerdict verdictOf(InputDrop why) noexcept;
+
+  InputScreenParams params_;
+  std::int64_t max_jump_ns_ = 0, max_imu_jump_ns_ = 0;
 
   Last imu_, range_, tdoa_, ultrasonic_;
 };

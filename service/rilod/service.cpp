@@ -35,7 +35,8 @@ struct TimedImu {
 // One source's queues: every sample to the estimator, IMU samples also to the
 // publisher. Single producer (the source's thread), single consumer each.
 struct Service::SourceLane {
-  explicit SourceLane(std::size_t capacity) : samples(capacity), imu(capacity) {}
+  SourceLane(std::size_t capacity, const InputScreenParams& screen_params)
+      : samples(capacity), imu(capacity), screen(screen_params) {}
   SpscQueue<Sample> samples;
   SpscQueue<TimedImu> imu;
   SampleScreen screen;  // the source's thread only
@@ -62,6 +63,9 @@ class Service::LaneSink final : public SampleSink {
       case SampleVerdict::kNonFinite: counters.non_finite_samples.add(); return;
       case SampleVerdict::kDuplicate: counters.duplicate_samples.add(); return;
       case SampleVerdict::kOutOfOrder: counters.out_of_order_samples.add(); return;
+      case SampleVerdict::kOutOfBounds: counters.out_of_bounds_samples.add(); return;
+      case SampleVerdict::kBeyondFullScale: counters.beyond_full_scale_samples.add(); return;
+      case SampleVerdict::kFarFuture: counters.far_future_samples.add(); return;
     }
     if (!pushOrWait(lane_.samples, sample)) counters.queue_overflows.add();
     if (const auto* imu = std::get_if<ImuSample>(&sample)) {
@@ -180,7 +184,7 @@ Service::Service(ServiceOptions options, std::vector<std::unique_ptr<SampleSourc
   if (!(options_.status_period_s > 0.0)) throw std::invalid_argument("Service: status_period_s must be > 0");
   if (!(options_.init_log_interval_s >= 0.0)) throw std::invalid_argument("Service: init_log_interval_s must be >= 0");
   for (std::size_t i = 0; i < sources_.size(); ++i) {
-    lanes_.push_back(std::make_unique<SourceLane>(options_.queue_capacity));
+    lanes_.push_back(std::make_unique<SourceLane>(options_.queue_capacity, localizer_.params().screen));
   }
 }
 

@@ -108,6 +108,27 @@ TEST(InputScreen, ALoneImuStampFarAheadIsDroppedAndTheStreamGoesOn) {
   EXPECT_EQ(screen.dropped().time_jumps, 0u);
 }
 
+TEST(InputScreen, AShortBadImuStepIsHeldToo) {
+  // 3 s ahead: past the localizer's 1 s IMU gap (which would end tracking)
+  // but within max_time_jump_s. Held like any jump; the stream goes on.
+  InputScreen screen;
+  std::int64_t t = 0;
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(screen.admit(imu(t += 5 * kMs)));
+  EXPECT_FALSE(screen.admit(imu(t + 3 * kS)));
+  for (int i = 0; i < 5; ++i) EXPECT_TRUE(screen.admit(imu(t += 5 * kMs)));
+  EXPECT_EQ(screen.dropped()[InputDrop::kFarFuture], 1u);
+  EXPECT_EQ(screen.dropped().time_jumps, 0u);
+}
+
+TEST(InputScreen, BeforeAnyImuAMeasurementJumpIsConfirmedByItsOwnStream) {
+  InputScreen screen;
+  ASSERT_TRUE(screen.admit(range(1 * kS, 3.0)));
+  for (int i = 1; i <= 3; ++i) EXPECT_FALSE(screen.admit(range(100 * kS + i * kMs, 3.0))) << i;
+  EXPECT_TRUE(screen.admit(range(100 * kS + 4 * kMs, 3.0)));  // the fourth continues it: taken
+  EXPECT_TRUE(screen.admit(range(100 * kS + 5 * kMs, 3.0)));
+  EXPECT_EQ(screen.dropped()[InputDrop::kFarFuture], 3u);
+}
+
 TEST(InputScreen, AnImuJumpConfirmedBySamplesThatContinueItIsTaken) {
   // A paused device: the clock moved on and every sample after it agrees.
   InputScreenParams p;

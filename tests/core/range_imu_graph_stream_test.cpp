@@ -603,7 +603,7 @@ TEST(RangeImuGraphStream, RefusesAGapBeyondMaxGapInsteadOfPlanningAcrossIt) {
   const sim::Scenario s = makeScenario(2.0);
   const RangeImuGraphParams gp = graphParams(s);
   RangeImuStreamOptions options;
-  options.max_gap_ns = 60'000'000'000;
+  options.max_gap_ns = 60'000'000'000;  // the default is 600 s
   RangeImuGraphStream stream(s.p_w_anchors, gp, options);
   const std::int64_t t0 = s.ranges.front().t_ns;
   stream.start(t0, s.truthAt(t0).T_w_b, s.truthAt(t0).v_w);
@@ -622,7 +622,7 @@ TEST(RangeImuGraphStream, RefusesAGapBeyondMaxGapInsteadOfPlanningAcrossIt) {
   RangeImuGraphStream imu_stream(s.p_w_anchors, gp, options);
   imu_stream.start(t0, s.truthAt(t0).T_w_b, s.truthAt(t0).v_w);
   ImuSample jump = s.imu.back();
-  jump.t_ns = t0 + 3'600'000'000'000;
+  jump.t_ns = t0 + options.max_range_wait_ns + options.max_gap_ns + 1;
   EXPECT_THROW(imu_stream.addImu(jump), std::invalid_argument);
   EXPECT_EQ(imu_stream.imuBufferSize(), 0u);
   RangeImuStreamOptions bad;

@@ -441,18 +441,30 @@ TEST_F(ConfigTest, HeartbeatTimeoutMustFitTheUnitsWatchdogPeriodUnderSystemd) {
   // Issue 37: heartbeat_timeout_s: 100 was taken under WatchdogSec=5.
   const std::string yaml = valid("watchdog: {heartbeat_timeout_s: 100}\n");
   EXPECT_EQ(parse(yaml).watchdog.heartbeat_timeout_ns, 100'000'000'000);  // no watchdog asked: any timeout
-  ::setenv("WATCHDOG_USEC", "5000000", 1);
-  ::setenv("WATCHDOG_PID", std::to_string(::getpid()).c_str(), 1);
+  struct UnderSystemd {  // WATCHDOG_USEC for this process, for the scope only
+    UnderSystemd() {
+      ::setenv("WATCHDOG_USEC", "5000000", 1);
+      ::setenv("WATCHDOG_PID", std::to_string(::getpid()).c_str(), 1);
+    }
+    ~UnderSystemd() {
+      ::unsetenv("WATCHDOG_USEC");
+      ::unsetenv("WATCHDOG_PID");
+    }
+    UnderSystemd(const UnderSystemd&) = delete;
+    UnderSystemd& operator=(const UnderSystemd&) = delete;
+  };
   std::string key, what;
-  try {
-    parse(yaml);
-  } catch (const ConfigError& e) {
-    key = e.keyPath();
-    what = e.what();
+  ServiceConfig fits;
+  {
+    const UnderSystemd env;
+    try {
+      parse(yaml);
+    } catch (const ConfigError& e) {
+      key = e.keyPath();
+      what = e.what();
+    }
+    fits = parse(valid("watchdog: {heartbeat_timeout_s: 2}\n"));
   }
-  const ServiceConfig fits = parse(valid("watchdog: {heartbeat_timeout_s: 2}\n"));
-  ::unsetenv("WATCHDOG_USEC");
-  ::unsetenv("WATCHDOG_PID");
   EXPECT_EQ(key, "watchdog.heartbeat_timeout_s") << what;
   EXPECT_NE(what.find("WatchdogSec=5 s"), std::string::npos) << what;
   EXPECT_EQ(fits.watchdog.heartbeat_timeout_ns, 2'000'000'000);

@@ -98,8 +98,10 @@ TEST(RiloReplay, ImpossibleRowsAreDroppedAndCountedUnderAMemoryCap) {
   const std::string out_dir = (dir / "out").string();
   const pid_t pid = ::fork();
   if (pid == 0) {
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)  // their shadow memory needs more address space
     const rlimit cap{4ull << 30, 4ull << 30};
     ::setrlimit(RLIMIT_AS, &cap);
+#endif
     ::execl(exe.c_str(), exe.c_str(), "replay", rec.c_str(), "--out", out_dir.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
   }

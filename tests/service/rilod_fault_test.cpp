@@ -213,6 +213,9 @@ TEST(RilodFaults, ImpossibleValuesAreScreenedCountedAndExplainedWhileTracking) {
     EXPECT_NE(findStatus(out, "degraded", why), nullptr) << why << "\nstatus trail:\n" << statusTrail(out);
   }
   expectOdometryClean(out);
+  // Nor did they reach the odometry, extrapolated from the IMU at IMU rate
+  // (the entrance screens them before the publisher sees them).
+  for (const auto& o : out.odometry) ASSERT_LT(o.p_w_b.norm(), 1e3) << "an impossible IMU sample reached the odometry";
   EXPECT_TRUE(contains(out.log, "screened out-of-bounds 12, beyond-full-scale 7, far-future 0")) << out.log;
 }
 

@@ -90,8 +90,52 @@ TEST(SampleScreen, TdoaAndUltrasonicHaveTheirOwnOrder) {
   UltrasonicSample u;
   u.t_ns = 10;  // older than the TDoA: another stream
   u.anchor_id = 4;
+  u.range_m = 2.0;  // a distance (0 m is out of the screen's bounds)
   EXPECT_EQ(screen.check(u), SampleVerdict::kAccept);
   EXPECT_EQ(screen.check(u), SampleVerdict::kDuplicate);
+}
+
+TEST(SampleScreen, ImpossibleValuesStopAtTheEntranceBeforeTheOdometry) {
+  // Issue 37: the estimator's screen alone let a 1e30 m/s^2 sample reach the
+  // odometry publisher. The entrance applies the same bounds.
+  SampleScreen screen;
+  Sample huge = imu(10);
+  std::get<ImuSample>(huge).accel_m_s2.x() = 1e30;
+  EXPECT_EQ(screen.check(huge), SampleVerdict::kBeyondFullScale);
+  EXPECT_EQ(screen.check(imu(10)), SampleVerdict::kAccept);  // the screened one was not remembered
+  EXPECT_EQ(screen.check(range(11, 1, -5.0)), SampleVerdict::kOutOfBounds);
+  EXPECT_EQ(screen.check(range(11, 1, 1e9)), SampleVerdict::kOutOfBounds);
+  EXPECT_EQ(screen.check(range(11, 1, 0.0)), SampleVerdict::kOutOfBounds);
+  EXPECT_EQ(screen.check(range(11, 1, 3.0)), SampleVerdict::kAccept);
+  InputScreenParams narrow;
+  narrow.max_accel_m_s2 = 40.0;  // e.g. the BMI263 at 4 g
+  SampleScreen four_g(narrow);
+  Sample hard = imu(10);
+  std::get<ImuSample>(hard).accel_m_s2.x() = 45.0;
+  EXPECT_EQ(four_g.check(hard), SampleVerdict::kBeyondFullScale);
+}
+
+TEST(SampleScreen, ALoneFarFutureStampIsHeldAndTheStreamGoesOn) {
+  // It used to become the stream's last stamp: every real sample after it
+  // was then "out of order" for as long as the bad stamp was ahead.
+  SampleScreen screen;
+  const std::int64_t ms = 1'000'000;
+  for (std::int64_t t = 1; t <= 5; ++t) ASSERT_EQ(screen.check(imu(t * ms)), SampleVerdict::kAccept);
+  EXPECT_EQ(screen.check(imu(900'000'000'000'000'000)), SampleVerdict::kFarFuture);
+  for (std::int64_t t = 6; t <= 10; ++t) EXPECT_EQ(screen.check(imu(t * ms)), SampleVerdict::kAccept) << t;
+  EXPECT_EQ(screen.check(range(5 * ms, 1)), SampleVerdict::kAccept);
+  EXPECT_EQ(screen.check(range(900'000'000'000'000'000, 1)), SampleVerdict::kFarFuture);
+  EXPECT_EQ(screen.check(range(6 * ms, 2)), SampleVerdict::kAccept);
+}
+
+TEST(SampleScreen, AJumpTheNextSamplesConfirmIsTaken) {
+  SampleScreen screen;  // three confirmations
+  const std::int64_t ms = 1'000'000, later = 3'600'000 * ms;
+  ASSERT_EQ(screen.check(imu(1 * ms)), SampleVerdict::kAccept);
+  for (int i = 1; i <= 3; ++i) EXPECT_EQ(screen.check(imu(later + i * ms)), SampleVerdict::kFarFuture) << i;
+  EXPECT_EQ(screen.check(imu(later + 4 * ms)), SampleVerdict::kAccept);
+  EXPECT_EQ(screen.check(imu(later + 5 * ms)), SampleVerdict::kAccept);
+  EXPECT_EQ(screen.check(imu(2 * ms)), SampleVerdict::kOutOfOrder);  // the old timeline is behind now
 }
 
 }  // namespace

@@ -162,10 +162,10 @@ void RangeImuGraphStream::addImu(const ImuSample& s) {
   }
   // Bounds commitImuOnlyStates' loop (none when waiting forever for ranges).
   if (started_ && options_.max_range_wait_ns != RangeImuStreamOptions::kWaitForever &&
-      s.t_ns - newest_state_t_ns_ > options_.max_gap_ns) {
+      s.t_ns - newest_state_t_ns_ > options_.max_range_wait_ns + options_.max_gap_ns) {
     throw std::invalid_argument("RangeImuGraphStream::addImu: IMU sample at t_ns=" + ns(s.t_ns) + " is " +
-                                ns(s.t_ns - newest_state_t_ns_) + " ns past the newest state (max_gap_ns " +
-                                ns(options_.max_gap_ns) + ")");
+                                ns(s.t_ns - newest_state_t_ns_) + " ns past the newest state (max_range_wait_ns + max_gap_ns " +
+                                ns(options_.max_range_wait_ns + options_.max_gap_ns) + ")");
   }
   imu_.push_back(s);
   if (params_.zero_velocity_sigma_m_s > 0.0) standstill_.add(s);

@@ -88,13 +88,15 @@ struct RangeImuStreamOptions {
   /// IMU-only state is committed (see the file comment); >= max_state_interval_ns.
   std::int64_t max_range_wait_ns = 2'000'000'000;
   std::size_t initial_imu_capacity = 1024;  ///< IMU ring preallocation (samples)
-  /// A measurement or IMU sample this far (ns) past the newest state is
-  /// refused (std::invalid_argument naming the gap) instead of planning a
-  /// state every max_state_interval_ns across it: one stamp years ahead
-  /// planned billions (issue 37). The Localizer screens such rows first
-  /// (input_screen.h) and re-initializes on an IMU gap; this bounds the
-  /// stream on its own.
-  std::int64_t max_gap_ns = 60'000'000'000;
+  /// A measurement this far (ns) past the newest state, or an IMU sample
+  /// this far past max_range_wait_ns after it, is refused
+  /// (std::invalid_argument naming the gap) instead of planning a state
+  /// every max_state_interval_ns across it: one stamp years ahead planned
+  /// billions (issue 37). Ten minutes: longer than any initialization window
+  /// or ranging gap the batch builder is given. The Localizer screens such
+  /// rows first (input_screen.h) and re-initializes on an IMU gap; this
+  /// bounds the stream on its own (at most 1200 planned states).
+  std::int64_t max_gap_ns = 600'000'000'000;
   /// Per-link sigmas of new measurement factors (measurement_noise.h): off,
   /// every factor has its kind's sigma from RangeImuGraphParams. On, a link's
   /// factors get its DynamicCovariance estimate, fed from the innovation at

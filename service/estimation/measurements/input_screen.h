@@ -23,15 +23,36 @@ struct InputScreenParams {
   /// largest full scales (16 g, 2000 dps) with 5 % margin.
   double max_accel_m_s2 = 16.0 * 9.80665 * 1.05;
   double max_gyro_rad_s = 2000.0 * 3.14159265358979323846 / 180.0 * 1.05;
-  /// A stamp this far (s) ahead of the newest IMU sample is far-future. An IMU
-  /// stamp this far ahead of the previous one is a time jump: dropped
-  /// unless the next jump_confirmations samples continue from it (a real
-  /// gap, e.g. a paused device: the localizer then re-initializes on the
-  /// IMU gap); a lone bad stamp is dropped and the stream goes on.
+  /// A measurement stamped this far (s) ahead of the newest IMU sample is
+  /// far-future (before any IMU: ahead of its own stream, confirmed as below).
   double max_time_jump_s = 5.0;
+  /// An IMU stamp this far (s) ahead of the previous one is a time jump:
+  /// dropped unless the next jump_confirmations samples continue from it (a
+  /// real gap, e.g. a paused device: the localizer then re-initializes on
+  /// the IMU gap); a lone bad stamp is dropped and the stream goes on. The
+  /// localizer's max_imu_gap_s (1 s): a shorter bad step would end tracking.
+  double max_imu_jump_s = 1.0;
   int jump_confirmations = 3;
 
   void validate() const;
+};
+
+/// One stream's forward stamp jumps: a stamp more than max_jump_ns ahead of
+/// the stream's newest is held back (the caller drops it) until
+/// `confirmations` samples in a row continue from it; then it is taken. A
+/// sample back on the old timeline cancels the candidate, so one bad stamp
+/// costs one sample. Allocation-free; also rilod's entrance check per source.
+class StampJumpGuard {
+ public:
+  enum class Verdict { kTake, kTakeJump, kHold };
+  /// `newest_ns`: the stream's newest taken stamp; t_ns after it.
+  Verdict judge(std::int64_t newest_ns, std::int64_t t_ns, std::int64_t max_jump_ns, int confirmations) noexcept;
+  /// A sample at or before the stream's newest: any candidate was a bad stamp.
+  void cancel() noexcept { seen_ = 0; }
+
+ private:
+  int seen_ = 0;
+  std::int64_t candidate_ns_ = 0;
 };
 
 enum class InputDrop : int {
@@ -64,25 +85,29 @@ class InputScreen {
   bool admit(const UltrasonicSample& s);
 
   const InputDropCounts& dropped() const { return counts_; }
+
+  /// The value checks alone (no stamps): kCount when the sample is physical.
+  static InputDrop judgeValue(const ImuSample& s, const InputScreenParams& p) noexcept;
+  static InputDrop judgeValue(const RangeSample& s, const InputScreenParams& p) noexcept;
+  static InputDrop judgeValue(const TdoaSample& s, const InputScreenParams& p) noexcept;
+  static InputDrop judgeValue(const UltrasonicSample& s, const InputScreenParams& p) noexcept;
   const InputScreenParams& params() const { return params_; }
 
  private:
   struct Stream {
     bool seen = false;
     std::int64_t newest_ns = 0;
+    StampJumpGuard jump;
   };
   bool drop(InputDrop reason);
   /// Stamp checks of a measurement row against its stream and the IMU.
   bool admitStamp(Stream& stream, std::int64_t t_ns);
-  bool inBounds(double value_m) const;
 
   InputScreenParams params_;
   std::int64_t max_jump_ns_ = 0;
+  std::int64_t max_imu_jump_ns_ = 0;
   InputDropCounts counts_;
   Stream imu_, range_, tdoa_, ultrasonic_;
-  // An IMU jump awaiting confirmation: the newest sample on the new timeline.
-  int jump_seen_ = 0;
-  std::int64_t jump_newest_ns_ = 0;
 };
 
 }  // namespace rilo

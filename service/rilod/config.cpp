@@ -344,11 +344,13 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
               std::to_string(static_cast<double>(e.with_tdoa.state_window_ns) * 1e-9) + " s; set it in a tdoa section)");
   }
   if (auto f = m.get("input_screen")) {
-    const ConfigMap s = f->map({"max_range_m", "max_accel_m_s2", "max_gyro_rad_s", "max_time_jump_s", "jump_confirmations"});
+    const ConfigMap s = f->map(
+        {"max_range_m", "max_accel_m_s2", "max_gyro_rad_s", "max_time_jump_s", "max_imu_jump_s", "jump_confirmations"});
     s.read("max_range_m", e.input_screen.max_range_m, [](const ConfigField& v) { return v.positive(1e5); });
     s.read("max_accel_m_s2", e.input_screen.max_accel_m_s2, [](const ConfigField& v) { return v.positive(1e5); });
     s.read("max_gyro_rad_s", e.input_screen.max_gyro_rad_s, [](const ConfigField& v) { return v.positive(1e4); });
     s.read("max_time_jump_s", e.input_screen.max_time_jump_s, [](const ConfigField& v) { return v.number(0.01, 3600.0); });
+    s.read("max_imu_jump_s", e.input_screen.max_imu_jump_s, [](const ConfigField& v) { return v.number(0.01, 3600.0); });
     s.read("jump_confirmations", e.input_screen.jump_confirmations, [](const ConfigField& v) {
       return static_cast<int>(v.integer(1, 1000));
     });

@@ -224,7 +224,10 @@ void compareRecords(const GoldenTrace& expected, const GoldenTrace& actual, cons
       diffs.push_back(at + " " + e.kind + ": line missing in " + actual.source);
       continue;
     }
-    for (const auto& [key, value] : e.fields) {
+    // Named references, not captured structured bindings (clang before 16: the fuzzing build).
+    for (const auto& field : e.fields) {
+      const std::string& key = field.first;
+      const std::string& value = field.second;
       const auto af = std::find_if(a->fields.begin(), a->fields.end(), [&](const auto& f) { return f.first == key; });
       if (af == a->fields.end()) {
         diffs.push_back(at + " " + e.kind + "." + key + ": expected " + value + ", missing in " + actual.source);
@@ -232,7 +235,9 @@ void compareRecords(const GoldenTrace& expected, const GoldenTrace& actual, cons
         compareField(at, e.kind, key, value, af->second, tol, diffs);
       }
     }
-    for (const auto& [key, value] : a->fields) {
+    for (const auto& field : a->fields) {
+      const std::string& key = field.first;
+      const std::string& value = field.second;
       if (std::none_of(e.fields.begin(), e.fields.end(), [&](const auto& f) { return f.first == key; })) {
         diffs.push_back(where(actual.source, a->line) + " " + e.kind + "." + key + ": actual " + value +
                         ", not in " + expected.source);

@@ -29,6 +29,7 @@
 // IMU-rate path: no allocation, no lock, a handful of compares. One per
 // source, used by that source's thread only.
 #include <cstdint>
+#include <limits>
 
 #include "estimation/measurements/input_screen.h"
 #include "hal/source.h"
@@ -49,7 +50,12 @@ class SampleScreen {
  public:
   explicit SampleScreen(const InputScreenParams& params = {});
   /// Judges `sample` and, if accepted, remembers it as its stream's last one.
-  SampleVerdict check(const Sample& sample) noexcept;
+  /// `newest_imu_ns`: the newest IMU stamp the service took from any source
+  /// (kNoImu: none yet). A measurement more than max_time_jump_s ahead of it
+  /// is far-future (the IMU leads; a ranging blackout is not a jump); before
+  /// any IMU, a measurement's jump is held until its own stream confirms it.
+  static constexpr std::int64_t kNoImu = std::numeric_limits<std::int64_t>::min();
+  SampleVerdict check(const Sample& sample, std::int64_t newest_imu_ns = kNoImu) noexcept;
 
  private:
   struct Last {
@@ -58,8 +64,12 @@ class SampleScreen {
     std::uint32_t a = 0, b = 0;  // anchor (and tag, or the TDoA pair's second anchor)
     StampJumpGuard jump;
   };
+  /// max_jump_ns < 0: no jump guard (a measurement judged against the IMU instead).
   SampleVerdict order(Last& last, std::int64_t t_ns, std::uint32_t a, std::uint32_t b, bool key_matters,
                       std::int64_t max_jump_ns) noexcept;
+  /// The stamp checks of a measurement (see check()).
+  SampleVerdict measurement(Last& last, std::int64_t t_ns, std::uint32_t a, std::uint32_t b,
+                            std::int64_t newest_imu_ns) noexcept;
   static SampleVerdict verdictOf(InputDrop why) noexcept;
 
   InputScreenParams params_;

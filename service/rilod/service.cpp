@@ -20,6 +20,12 @@ namespace rilo {
 
 namespace {
 
+void atomicMax(std::atomic<std::int64_t>& target, std::int64_t value) noexcept {
+  std::int64_t current = target.load(std::memory_order_relaxed);
+  while (value > current && !target.compare_exchange_weak(current, value, std::memory_order_relaxed)) {
+  }
+}
+
 std::int64_t sampleTime(const Sample& s) {
   return std::visit([](const auto& v) { return v.t_ns; }, s);
 }
@@ -58,7 +64,7 @@ class Service::LaneSink final : public SampleSink {
     lane_.beat.beat(now);
     lane_.last_sample_wall_ns.store(now, std::memory_order_relaxed);
     RuntimeCounters& counters = service_.counters_;
-    switch (lane_.screen.check(sample)) {
+    switch (lane_.screen.check(sample, service_.newest_imu_ns_.load(std::memory_order_relaxed))) {
       case SampleVerdict::kAccept: break;
       case SampleVerdict::kNonFinite: counters.non_finite_samples.add(); return;
       case SampleVerdict::kDuplicate: counters.duplicate_samples.add(); return;
@@ -69,6 +75,7 @@ class Service::LaneSink final : public SampleSink {
     }
     if (!pushOrWait(lane_.samples, sample)) counters.queue_overflows.add();
     if (const auto* imu = std::get_if<ImuSample>(&sample)) {
+      atomicMax(service_.newest_imu_ns_, imu->t_ns);  // the other sources' measurements are judged against it
       if (!lane_.carries_imu.load(std::memory_order_relaxed)) lane_.carries_imu.store(true, std::memory_order_relaxed);
       counters.imu_samples.add();
       if (!pushOrWait(lane_.imu, TimedImu{*imu, now})) counters.queue_overflows.add();
@@ -116,6 +123,14 @@ class Service::LaneSink final : public SampleSink {
 
 namespace {
 
+/// The Localizer behind rilod's entrance (sample_screen.h), which holds and
+/// confirms stamp jumps per source: it takes a confirmed jump at once instead
+/// of holding its samples a second time. Its value and stamp checks stay.
+LocalizerParams behindTheEntrance(LocalizerParams p) {
+  p.screen.jump_confirmations = 0;
+  return p;
+}
+
 std::int64_t secondsToNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
 
 std::string initPositionText(const Localizer::ProvisionalPosition& fix) {
@@ -162,12 +177,6 @@ void noteFill(const Queue& queue, std::atomic<std::uint32_t>& high_water) noexce
   if (fill > high_water.load(std::memory_order_relaxed)) high_water.store(fill, std::memory_order_relaxed);
 }
 
-void atomicMax(std::atomic<std::int64_t>& target, std::int64_t value) noexcept {
-  std::int64_t current = target.load(std::memory_order_relaxed);
-  while (value > current && !target.compare_exchange_weak(current, value, std::memory_order_relaxed)) {
-  }
-}
-
 }  // namespace
 
 Service::Service(ServiceOptions options, std::vector<std::unique_ptr<SampleSource>> sources)
@@ -175,7 +184,7 @@ Service::Service(ServiceOptions options, std::vector<std::unique_ptr<SampleSourc
       sources_(std::move(sources)),
       participant_(options_.participant),
       publisher_(participant_, options_.publisher),
-      localizer_(options_.p_w_anchors, options_.localizer),
+      localizer_(options_.p_w_anchors, behindTheEntrance(options_.localizer)),
       predictor_(options_.predictor),
       gaps_(checkedTimeoutNs(options_.sensor_silence_s, "sensor_silence_s"),
             checkedTimeoutNs(options_.ranging_silence_s, "ranging_silence_s")),

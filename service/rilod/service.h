@@ -28,6 +28,7 @@
 #include "hal/source.h"
 #include "rilod/notify.h"
 #include "rilod/range_trust_monitor.h"
+#include "rilod/sample_screen.h"
 #include "rilod/sensor_gap_monitor.h"
 #include "runtime/heartbeat.h"
 #include "runtime/latency_histogram.h"
@@ -158,6 +159,9 @@ class Service {
   std::atomic<std::int64_t> ranging_silence_ns_{0};
   /// Worst odometry latency since the status thread last took it (ns).
   std::atomic<std::int64_t> odometry_latency_max_ns_{0};
+  /// The newest IMU stamp any source delivered (sample_screen.h judges the
+  /// other sources' measurements against it); SampleScreen::kNoImu: none yet.
+  std::atomic<std::int64_t> newest_imu_ns_{SampleScreen::kNoImu};
 
   std::mutex status_mutex_;  ///< serializes publishStatus (status thread, estimator on changes)
   // Estimator statistics (estimator thread writes, status thread reads under the mutex).

@@ -138,5 +138,17 @@ TEST(SampleScreen, AJumpTheNextSamplesConfirmIsTaken) {
   EXPECT_EQ(screen.check(imu(2 * ms)), SampleVerdict::kOutOfOrder);  // the old timeline is behind now
 }
 
+TEST(SampleScreen, ARangingBlackoutIsNotAJumpWhileTheImuLeads) {
+  // Ranges 30 s after the previous one, with the IMU running all along: the
+  // first is taken at once (judged against the newest IMU stamp, not its own
+  // stream); one far ahead of the IMU is far-future, whatever its stream says.
+  SampleScreen screen;
+  const std::int64_t s = 1'000'000'000;
+  ASSERT_EQ(screen.check(range(1 * s, 1), 1 * s), SampleVerdict::kAccept);
+  EXPECT_EQ(screen.check(range(31 * s, 1), 31 * s), SampleVerdict::kAccept);
+  EXPECT_EQ(screen.check(range(40 * s, 2), 31 * s), SampleVerdict::kFarFuture);
+  EXPECT_EQ(screen.check(range(32 * s, 2), 32 * s), SampleVerdict::kAccept);
+}
+
 }  // namespace
 }  // namespace rilo

@@ -221,7 +221,10 @@ Solution solve(const PairGraph& graph, const Hypotheses& h, const std::vector<Ve
   }
   std::stable_sort(scored.begin(), scored.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
   std::vector<Vec4> starts;
-  for (const auto& [c, x] : scored) {
+  for (const auto& scored_start : scored) {
+    // A named variable, not a structured binding: clang before 16 cannot
+    // capture those in the lambda (the fuzzing build, scripts/fuzz.sh).
+    const Vec4& x = scored_start.second;
     if (static_cast<int>(starts.size()) >= params.refine_candidates) break;
     const bool distinct = std::none_of(starts.begin(), starts.end(), [&](const Vec4& q) {
       return (q.head<3>() - x.head<3>()).norm() < 0.5;

@@ -15,7 +15,7 @@ void InputScreenParams::validate() const {
   if (!(max_gyro_rad_s > 0.0)) fail("max_gyro_rad_s", "must be > 0");
   if (!(max_time_jump_s > 0.0 && max_time_jump_s <= 3600.0)) fail("max_time_jump_s", "must be in (0, 3600] s");
   if (!(max_imu_jump_s > 0.0 && max_imu_jump_s <= 3600.0)) fail("max_imu_jump_s", "must be in (0, 3600] s");
-  if (jump_confirmations < 1) fail("jump_confirmations", "must be >= 1");
+  if (jump_confirmations < 0) fail("jump_confirmations", "must be >= 0");
 }
 
 std::string_view inputDropName(InputDrop reason) {

@@ -32,6 +32,8 @@ struct InputScreenParams {
   /// the IMU gap); a lone bad stamp is dropped and the stream goes on. The
   /// localizer's max_imu_gap_s (1 s): a shorter bad step would end tracking.
   double max_imu_jump_s = 1.0;
+  /// 0: a jump is taken at once (rilod's Localizer, behind an entrance that
+  /// confirmed it already).
   int jump_confirmations = 3;
 
   void validate() const;

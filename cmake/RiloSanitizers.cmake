@@ -4,6 +4,11 @@ if(RILO_SANITIZE)
   add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   add_link_options(-fsanitize=address,undefined)
 endif()
+# -DRILO_FUZZ=ON: libFuzzer's coverage instrumentation on every target (the
+# fuzz executables add its main; tests/fuzz/CMakeLists.txt).
+if(RILO_FUZZ)
+  add_compile_options(-fsanitize=fuzzer-no-link)
+endif()
 
 # -DRILO_TSAN=ON: ThreadSanitizer on every target, for the lock-free runtime
 # (queues, seqlock, heartbeat). Its runtime cannot be combined with ASan's.

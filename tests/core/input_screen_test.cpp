@@ -173,7 +173,9 @@ TEST(InputScreen, ParametersAreCheckedByName) {
   EXPECT_NE(refused([](InputScreenParams& p) { p.max_accel_m_s2 = -1.0; }).find("max_accel_m_s2"), std::string::npos);
   EXPECT_NE(refused([](InputScreenParams& p) { p.max_gyro_rad_s = std::nan(""); }).find("max_gyro_rad_s"), std::string::npos);
   EXPECT_NE(refused([](InputScreenParams& p) { p.max_time_jump_s = 0.0; }).find("max_time_jump_s"), std::string::npos);
-  EXPECT_NE(refused([](InputScreenParams& p) { p.jump_confirmations = 0; }).find("jump_confirmations"), std::string::npos);
+  EXPECT_NE(refused([](InputScreenParams& p) { p.jump_confirmations = -1; }).find("jump_confirmations"), std::string::npos);
+  EXPECT_NE(refused([](InputScreenParams& p) { p.max_imu_jump_s = -1.0; }).find("max_imu_jump_s"), std::string::npos);
+  EXPECT_EQ(refused([](InputScreenParams& p) { p.jump_confirmations = 0; }), "");  // rilod's Localizer, behind its entrance
   EXPECT_EQ(inputDropName(InputDrop::kFarFuture), "far_future");
 }
 

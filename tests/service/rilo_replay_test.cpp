@@ -34,14 +34,28 @@ std::vector<std::vector<double>> readTum(const std::filesystem::path& file) {
   return rows;
 }
 
+/// How runRilo runs the child: where its output goes, and an address-space cap.
+struct RunOptions {
+  std::string stdout_file, stderr_file;  ///< empty: inherited
+  bool cap_4gb = false;                  ///< RLIMIT_AS of 4 GB (not under sanitizers: their shadow memory)
+};
+
 /// Runs `rilo args...`; returns the exit code (-1 if it did not exit).
-int runRilo(const std::vector<std::string>& args) {
+int runRilo(const std::vector<std::string>& args, const RunOptions& run = {}) {
   const std::string exe = (testing::binaryDir() / "rilo").string();
   std::vector<char*> argv{const_cast<char*>(exe.c_str())};
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
   const pid_t pid = ::fork();
   if (pid == 0) {
+    if (!run.stdout_file.empty() && std::freopen(run.stdout_file.c_str(), "w", stdout) == nullptr) ::_exit(126);
+    if (!run.stderr_file.empty() && std::freopen(run.stderr_file.c_str(), "w", stderr) == nullptr) ::_exit(126);
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+    if (run.cap_4gb) {
+      const rlimit cap{4ull << 30, 4ull << 30};
+      ::setrlimit(RLIMIT_AS, &cap);
+    }
+#endif
     ::execv(exe.c_str(), argv.data());
     ::_exit(127);
   }
@@ -94,21 +108,8 @@ TEST(RiloReplay, ImpossibleRowsAreDroppedAndCountedUnderAMemoryCap) {
     std::ofstream out(ranges, std::ios::app);
     out << "900000000000000000,1,3.0,0,,,\n";
   }
-  const std::string exe = (testing::binaryDir() / "rilo").string();
-  const std::string out_dir = (dir / "out").string();
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)  // their shadow memory needs more address space
-    const rlimit cap{4ull << 30, 4ull << 30};
-    ::setrlimit(RLIMIT_AS, &cap);
-#endif
-    ::execl(exe.c_str(), exe.c_str(), "replay", rec.c_str(), "--out", out_dir.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  int status = 0;
-  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
-  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
-  ASSERT_EQ(WEXITSTATUS(status), 0);
+  ASSERT_EQ(runRilo({"replay", rec.string(), "--out", (dir / "out").string()}, RunOptions{"", "", true}), 0)
+      << "killed, or out of memory under the 4 GB cap";
   std::ifstream in(dir / "out" / "summary.json");
   std::stringstream text;
   text << in.rdbuf();
@@ -137,19 +138,8 @@ TEST(RiloReplay, NothingEstimatedIsNullInTheSummaryAndNotAvailableOnTheConsole) 
     std::ofstream out(rec / name, std::ios::trunc);
     for (const std::string& line : kept) out << line << '\n';
   }
-  const std::string exe = (testing::binaryDir() / "rilo").string();
-  const std::string out_dir = (dir / "out").string();
   const std::string console = (dir / "console.txt").string();
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    if (std::freopen(console.c_str(), "w", stdout) == nullptr) ::_exit(126);
-    ::execl(exe.c_str(), exe.c_str(), "replay", rec.c_str(), "--out", out_dir.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  int status = 0;
-  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
-  ASSERT_TRUE(WIFEXITED(status));
-  ASSERT_EQ(WEXITSTATUS(status), 0);
+  ASSERT_EQ(runRilo({"replay", rec.string(), "--out", (dir / "out").string()}, RunOptions{console, "", false}), 0);
   std::stringstream summary, text;
   summary << std::ifstream(dir / "out" / "summary.json").rdbuf();
   text << std::ifstream(console).rdbuf();
@@ -176,19 +166,8 @@ TEST(RiloReplay, TheReadersWarningsArePrintedOnceWithFileAndLine) {
     for (const std::string& line : lines) out << line << '\n';
   }
   std::ofstream(rec / "meta.yaml", std::ios::app) << "bogus_key: 3\n";
-  const std::string exe = (testing::binaryDir() / "rilo").string();
-  const std::string out_dir = (dir / "out").string();
   const std::string errors = (dir / "stderr.txt").string();
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    if (std::freopen(errors.c_str(), "w", stderr) == nullptr) ::_exit(126);
-    ::execl(exe.c_str(), exe.c_str(), "replay", rec.c_str(), "--out", out_dir.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  int status = 0;
-  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
-  ASSERT_TRUE(WIFEXITED(status));
-  ASSERT_EQ(WEXITSTATUS(status), 0);
+  ASSERT_EQ(runRilo({"replay", rec.string(), "--out", (dir / "out").string()}, RunOptions{"", errors, false}), 0);
   std::stringstream text;
   text << std::ifstream(errors).rdbuf();
   const std::string e = text.str();

@@ -40,7 +40,8 @@ FaultSpec readFault(const ConfigField& field) {
                                                 {"duplicate", FaultKind::kDuplicate},
                                                 {"out_of_order", FaultKind::kOutOfOrder},
                                                 {"non_finite", FaultKind::kNonFinite},
-                                                {"impossible", FaultKind::kImpossible}});
+                                                {"impossible", FaultKind::kImpossible},
+                                                {"far_future", FaultKind::kFarFuture}});
   f.at_s = m.require("at_s").number(0.0, 1e7);
   const std::string kind(toString(f.kind));
   if (f.isWindow()) {

@@ -57,6 +57,7 @@ std::string_view toString(FaultKind kind) {
     case FaultKind::kOutOfOrder: return "out_of_order";
     case FaultKind::kNonFinite: return "non_finite";
     case FaultKind::kImpossible: return "impossible";
+    case FaultKind::kFarFuture: return "far_future";
   }
   return "unknown";
 }
@@ -130,6 +131,13 @@ class FaultInjectingSource::Injector final : public SampleSink {
           if (matches(f.stream, is_imu) && a.remaining > 0) {
             --a.remaining;
             makeImpossible(s);
+          }
+          break;
+        case FaultKind::kFarFuture:
+          if (matches(f.stream, is_imu) && a.remaining > 0) {
+            --a.remaining;
+            ++injected_.far_future;
+            std::visit([](auto& v) { v.t_ns += 900'000'000'000'000'000; }, s);
           }
           break;
         case FaultKind::kOutOfOrder:

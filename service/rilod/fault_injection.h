@@ -22,6 +22,9 @@
 //  - non_finite {at_s, count[, stream]}: the first `count` samples of the
 //    stream from `at` on get a NaN (even ones) or +inf (odd ones) in their
 //    value (IMU: accel x; range, ultrasonic: range_m; TDoA: diff_m).
+//  - far_future {at_s, count[, stream]}: the first `count` samples of the
+//    stream from `at` on are stamped 28 years later (a clock or driver
+//    glitch): the entrance drops each, and the stream goes on.
 //  - impossible {at_s, count[, stream]}: the first `count` samples of the
 //    stream from `at` on get a value no sensor gives (IMU: accel x 1e30
 //    m/s^2; range, ultrasonic: -5 m (even ones) or 1e9 m (odd ones); TDoA:
@@ -44,7 +47,7 @@
 
 namespace rilo {
 
-enum class FaultKind { kRangeBlackout, kImuGap, kDuplicate, kOutOfOrder, kNonFinite, kImpossible };
+enum class FaultKind { kRangeBlackout, kImuGap, kDuplicate, kOutOfOrder, kNonFinite, kImpossible, kFarFuture };
 enum class FaultStream { kAll, kImu, kRanging };
 
 struct FaultSpec {
@@ -72,6 +75,7 @@ struct InjectedFaults {
   std::uint64_t dropped = 0;     ///< samples removed by drop windows
   std::uint64_t corrupted = 0;   ///< samples given a non-finite value
   std::uint64_t impossible = 0;  ///< samples given an impossible value
+  std::uint64_t far_future = 0;  ///< samples stamped 28 years later
   std::uint64_t reordered = 0;   ///< samples delivered after their successor
   std::uint64_t duplicated = 0;  ///< extra copies delivered
 };

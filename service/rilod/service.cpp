@@ -193,7 +193,8 @@ Service::Service(ServiceOptions options, std::vector<std::unique_ptr<SampleSourc
   if (!(options_.status_period_s > 0.0)) throw std::invalid_argument("Service: status_period_s must be > 0");
   if (!(options_.init_log_interval_s >= 0.0)) throw std::invalid_argument("Service: init_log_interval_s must be >= 0");
   for (std::size_t i = 0; i < sources_.size(); ++i) {
-    lanes_.push_back(std::make_unique<SourceLane>(options_.queue_capacity, localizer_.params().screen));
+    // The full screen (jump confirmations included), not the Localizer's copy behind it.
+    lanes_.push_back(std::make_unique<SourceLane>(options_.queue_capacity, options_.localizer.screen));
   }
 }
 

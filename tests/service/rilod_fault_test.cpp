@@ -219,6 +219,28 @@ TEST(RilodFaults, ImpossibleValuesAreScreenedCountedAndExplainedWhileTracking) {
   EXPECT_TRUE(contains(out.log, "screened out-of-bounds 12, beyond-full-scale 7, far-future 0")) << out.log;
 }
 
+TEST(RilodFaults, FarFutureStampsAreDroppedAndTheStreamsGoOn) {
+  // Issue 37 (and the review of its first fix): a stamp 28 years ahead
+  // became the stream's last one at the entrance, and every real sample
+  // after it was "out of order". Now each is dropped and the streams go on.
+  testing::TempDir dir("rilod-far-future");
+  const std::string faults =
+      "      - {kind: far_future, at_s: 16, count: 1, stream: imu}\n"
+      "      - {kind: far_future, at_s: 20, count: 1, stream: ranging}\n"
+      "      - {kind: far_future, at_s: 24, count: 1, stream: imu}\n";
+  const RilodOutput out = testing::runRilod(dir, config(officeDemo(), faults), 0.0, 60s);
+  ASSERT_EQ(out.exit_code, 0) << out.log;
+  ASSERT_FALSE(out.status.empty());
+  const dds::StatusMessage& last = lastStatus(out);
+  EXPECT_EQ(last.status.far_future_samples, 3u);
+  EXPECT_EQ(last.status.out_of_order_samples, 0u);
+  EXPECT_EQ(last.status.time_jumps, 0u);
+  EXPECT_EQ(last.status.reinitializations, 0u) << last.status.last_fault.data();
+  EXPECT_TRUE(trackingApartFromLoad(last)) << "status trail:\n" << statusTrail(out);
+  EXPECT_NE(findStatus(out, "degraded", "far-future sample"), nullptr) << "status trail:\n" << statusTrail(out);
+  expectOdometryClean(out);
+}
+
 TEST(RilodFaults, LongImuGapLosesTrackingStopsOdometryAndReinitializes) {
   testing::TempDir dir("rilod-imu-gap");
   const RilodOutput out =
@@ -228,12 +250,16 @@ TEST(RilodFaults, LongImuGapLosesTrackingStopsOdometryAndReinitializes) {
   ASSERT_EQ(out.exit_code, 0) << out.log;
   ASSERT_FALSE(out.status.empty());
   // More than LocalizerParams::max_imu_gap_s (1 s): the motion model is broken, tracking is lost.
-  const dds::StatusMessage* lost = findStatus(out, "lost", "IMU silent for 1.50 s");
+  // The entrance holds the first three samples after the gap until they
+  // confirm the step (input_screen.max_imu_jump_s): 1.5 s plus 3.75 ms.
+  const dds::StatusMessage* lost = findStatus(out, "lost", "IMU silent for 1.51 s");
   ASSERT_NE(lost, nullptr) << "status trail:\n" << statusTrail(out);
   EXPECT_TRUE(contains(reasonOf(*lost), "; initializing")) << reasonOf(*lost);
   const dds::StatusMessage& last = lastStatus(out);
   EXPECT_TRUE(trackingApartFromLoad(last)) << "status trail:\n" << statusTrail(out);
   EXPECT_EQ(last.status.reinitializations, 1u);
+  EXPECT_EQ(last.status.far_future_samples, 3u);
+  EXPECT_EQ(last.status.time_jumps, 1u);
   // While lost the service published no odometry (it would be dead reckoning
   // from a state it declared wrong): the longest pause in the received
   // stamps is the re-initialization, after the gap.
@@ -249,7 +275,7 @@ TEST(RilodFaults, LongImuGapLosesTrackingStopsOdometryAndReinitializes) {
   }
   EXPECT_GT(longest, 5'000'000'000) << "no odometry while re-initializing";
   EXPECT_GE(longest_from - t0, 17'000'000'000 - 1'300'000'000) << "the pause starts at the gap (a queue early at most)";
-  EXPECT_TRUE(contains(out.log, "tracking lost: IMU silent for 1.50 s")) << out.log;
+  EXPECT_TRUE(contains(out.log, "tracking lost: IMU silent for 1.51 s")) << out.log;
 }
 
 }  // namespace

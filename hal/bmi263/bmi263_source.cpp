@@ -283,7 +283,13 @@ void Bmi263Source::feedFit(std::int64_t sample_tick, std::int64_t read_tick, std
 void Bmi263Source::emit(std::int64_t tick, const std::array<std::int16_t, 3>& accel,
                         const std::array<std::int16_t, 3>& gyro, std::int64_t fallback_ns) noexcept {
   std::int64_t t_ns = (fit_.hasEstimate() ? fit_.hostTimeNs(tick) : fallback_ns) - config_.sample_time_offset_ns;
-  if (has_emitted_ && t_ns <= last_emitted_ns_) t_ns = last_emitted_ns_ + 1;  // sinks need increasing time
+  // Sinks need increasing time: a jitter step back is nudged past the last
+  // stamp. A larger one means the last stamp was wrong (a bad SENSORTIME
+  // read, a fit restart): nudging would chain every later sample to it,
+  // 1 ns apart, so the time goes out as it is and the service's entrance
+  // judges it (rilod/sample_screen.h).
+  constexpr std::int64_t kMaxNudgeNs = 5'000'000;
+  if (has_emitted_ && t_ns <= last_emitted_ns_ && last_emitted_ns_ - t_ns < kMaxNudgeNs) t_ns = last_emitted_ns_ + 1;
   has_emitted_ = true;
   last_emitted_ns_ = t_ns;
   ImuSample sample;

@@ -251,7 +251,8 @@ TEST(RilodFaults, LongImuGapLosesTrackingStopsOdometryAndReinitializes) {
   ASSERT_FALSE(out.status.empty());
   // More than LocalizerParams::max_imu_gap_s (1 s): the motion model is broken, tracking is lost.
   // The entrance holds the first three samples after the gap until they
-  // confirm the step (input_screen.max_imu_jump_s): 1.5 s plus 3.75 ms.
+  // confirm the step (input_screen.max_imu_jump_s): the gap the tracker
+  // sees is 1.5 s + one period (1.25 ms) + three held samples (3.75 ms).
   const dds::StatusMessage* lost = findStatus(out, "lost", "IMU silent for 1.51 s");
   ASSERT_NE(lost, nullptr) << "status trail:\n" << statusTrail(out);
   EXPECT_TRUE(contains(reasonOf(*lost), "; initializing")) << reasonOf(*lost);

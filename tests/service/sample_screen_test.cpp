@@ -150,5 +150,17 @@ TEST(SampleScreen, ARangingBlackoutIsNotAJumpWhileTheImuLeads) {
   EXPECT_EQ(screen.check(range(32 * s, 2), 32 * s), SampleVerdict::kAccept);
 }
 
+TEST(SampleScreen, StampsNudgedPastABadOneDoNotConfirmIt) {
+  // A driver forcing increasing times wrote last + 1 ns after one bad stamp
+  // (the review of the first version): those are not samples continuing a
+  // new timeline, and the jump stays held.
+  SampleScreen screen;
+  const std::int64_t ms = 1'000'000, bad = 300'000 * ms;
+  ASSERT_EQ(screen.check(imu(1 * ms)), SampleVerdict::kAccept);
+  EXPECT_EQ(screen.check(imu(bad)), SampleVerdict::kFarFuture);
+  for (int k = 1; k <= 5; ++k) EXPECT_EQ(screen.check(imu(bad + k)), SampleVerdict::kFarFuture) << k;
+  EXPECT_EQ(screen.check(imu(2 * ms)), SampleVerdict::kAccept);  // real time again
+}
+
 }  // namespace
 }  // namespace rilo

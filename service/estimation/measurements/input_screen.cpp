@@ -44,7 +44,13 @@ StampJumpGuard::Verdict StampJumpGuard::judge(std::int64_t newest_ns, std::int64
   }
   // Ahead of the stream: the first sample of a new timeline, or the next one
   // continuing a pending candidate.
-  const bool continues = seen_ > 0 && t_ns > candidate_ns_ && t_ns - candidate_ns_ <= max_jump_ns;
+  // A confirmation must be a sample of its own, not a stamp nudged past the
+  // candidate (a driver forcing increasing times writes last + 1 ns).
+  const bool continues =
+      seen_ > 0 && t_ns - candidate_ns_ >= kMinConfirmationStepNs && t_ns - candidate_ns_ <= max_jump_ns;
+  if (seen_ > 0 && !continues && t_ns > candidate_ns_ && t_ns - candidate_ns_ < kMinConfirmationStepNs) {
+    return Verdict::kHold;  // too close to the candidate to confirm it, and still far ahead
+  }
   seen_ = continues ? seen_ + 1 : 1;
   candidate_ns_ = t_ns;
   if (seen_ <= confirmations) return Verdict::kHold;

@@ -47,6 +47,9 @@ struct InputScreenParams {
 class StampJumpGuard {
  public:
   enum class Verdict { kTake, kTakeJump, kHold };
+  /// A confirming sample must follow the previous one by at least this (ns):
+  /// 0.1 ms, well below any sensor's period here (IMU 0.6 ms at 1600 Hz).
+  static constexpr std::int64_t kMinConfirmationStepNs = 100'000;
   /// `newest_ns`: the stream's newest taken stamp; t_ns after it.
   Verdict judge(std::int64_t newest_ns, std::int64_t t_ns, std::int64_t max_jump_ns, int confirmations) noexcept;
   /// A sample at or before the stream's newest: any candidate was a bad stamp.

@@ -608,23 +608,24 @@ void Service::explain(ServiceStatus& s, const ServiceStatus& previous, std::int6
   if (const auto n = increase(s.ranging_gaps, previous.ranging_gaps); n > 0 && used == 0) {
     appendReason(s.reason, used, "%llu ranging gap%s", n, n == 1 ? "" : "s");
   }
-  if (const auto n = increase(s.non_finite_samples, previous.non_finite_samples)) {
-    appendReason(s.reason, used, "dropped %llu non-finite sample%s", n, n == 1 ? "" : "s");
-  }
-  if (const auto n = increase(s.duplicate_samples, previous.duplicate_samples)) {
-    appendReason(s.reason, used, "dropped %llu duplicated sample%s", n, n == 1 ? "" : "s");
-  }
-  if (const auto n = increase(s.out_of_order_samples, previous.out_of_order_samples)) {
-    appendReason(s.reason, used, "dropped %llu out-of-order sample%s", n, n == 1 ? "" : "s");
-  }
-  if (const auto n = increase(s.out_of_bounds_samples, previous.out_of_bounds_samples)) {
-    appendReason(s.reason, used, "dropped %llu out-of-bounds value%s", n, n == 1 ? "" : "s");
-  }
-  if (const auto n = increase(s.beyond_full_scale_samples, previous.beyond_full_scale_samples)) {
-    appendReason(s.reason, used, "dropped %llu IMU sample%s beyond full scale", n, n == 1 ? "" : "s");
-  }
-  if (const auto n = increase(s.far_future_samples, previous.far_future_samples)) {
-    appendReason(s.reason, used, "dropped %llu far-future sample%s", n, n == 1 ? "" : "s");
+  // Samples dropped at the entrance or by the estimator's screen, one entry per reason.
+  struct Dropped {
+    std::uint64_t ServiceStatus::*count;
+    const char* what;   // before the plural 's'
+    const char* after;  // after it
+  };
+  static constexpr Dropped kDropped[] = {
+      {&ServiceStatus::non_finite_samples, "non-finite sample", ""},
+      {&ServiceStatus::duplicate_samples, "duplicated sample", ""},
+      {&ServiceStatus::out_of_order_samples, "out-of-order sample", ""},
+      {&ServiceStatus::out_of_bounds_samples, "out-of-bounds value", ""},
+      {&ServiceStatus::beyond_full_scale_samples, "IMU sample", " beyond full scale"},
+      {&ServiceStatus::far_future_samples, "far-future sample", ""},
+  };
+  for (const Dropped& d : kDropped) {
+    if (const auto n = increase(s.*d.count, previous.*d.count)) {
+      appendReason(s.reason, used, "dropped %llu %s%s%s", n, d.what, n == 1 ? "" : "s", d.after);
+    }
   }
   if (const auto n = increase(s.time_jumps, previous.time_jumps)) {
     appendReason(s.reason, used, "%llu IMU time jump%s", n, n == 1 ? "" : "s");

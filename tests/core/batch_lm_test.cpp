@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <random>
 
@@ -505,6 +506,27 @@ TEST(BatchLm, ErrorNeverIncreasesAcrossAcceptedIterations) {
     EXPECT_TRUE(result.converged()) << "seed " << seed << ": " << result.message;
     for (std::size_t i = 1; i < result.trace.size(); ++i) EXPECT_GE(result.trace[i].time_s, result.trace[i - 1].time_s);
   }
+}
+
+// LmParams::cancel (an initialization attempt over its time budget): set
+// before the solve, no iteration runs and the start comes back; cleared, the
+// same solver converges as without it.
+TEST(BatchLm, ACancelFlagStopsBeforeTheNextIteration) {
+  const Problem p = trilaterationChain(20, 0.6, 3.0, 1u);
+  std::atomic<bool> cancel{true};
+  LmParams params;
+  params.cancel = &cancel;
+  BatchLevenbergMarquardt lm(params);
+  const auto [values, result] = lm.optimize(p.graph, p.initial);
+  EXPECT_EQ(result.status, LmStatus::kCancelled) << result.message;
+  EXPECT_FALSE(result.converged());
+  EXPECT_EQ(result.iterations, 0);
+  EXPECT_EQ(result.final_error, result.initial_error);
+  EXPECT_STREQ(toString(result.status), "cancelled");
+  cancel.store(false);
+  const auto [solved, again] = lm.optimize(p.graph, p.initial);
+  EXPECT_TRUE(again.converged()) << again.message;
+  EXPECT_LT(again.final_error, again.initial_error);
 }
 
 TEST(BatchLm, RobustLossReachesAStationaryPointOfTheRobustCost) {

@@ -227,6 +227,11 @@ BatchLevenbergMarquardt::Output BatchLevenbergMarquardt::optimize(const FactorGr
   std::string indeterminate_message;
   if (params_.record_trace) res.trace.reserve(static_cast<std::size_t>(params_.max_iterations));
   for (int iter = 0; iter < params_.max_iterations && !done; ++iter) {
+    if (params_.cancel && params_.cancel->load(std::memory_order_relaxed)) {
+      finish(LmStatus::kCancelled, "cancelled before iteration " + std::to_string(iter), error, lambda);
+      done = true;
+      break;
+    }
     if (iter > 0 || !reuse_start) normal_.linearize(graph, x);
     linearized_at_solution_ = true;
     const std::span<const double> h = normal_.hessianValues();

@@ -2,6 +2,7 @@
 // Parameters of BatchLevenbergMarquardt. Errors are FactorGraph::error values
 // (sum of robust losses of whitened residuals, ~ chi^2 / 2); steps are tangent
 // vectors (rad for rotations, m or m/s otherwise).
+#include <atomic>
 #include <stdexcept>
 #include <string>
 
@@ -49,6 +50,10 @@ struct LmParams {
 
   Ordering ordering = Ordering::kColamd;
   bool record_trace = true;  ///< fill LmResult::trace
+  /// Checked before each iteration: once it reads true the solve stops with
+  /// LmStatus::kCancelled (an initialization attempt over its time budget,
+  /// localizer.h). nullptr: never. Not owned; must outlive the solve.
+  const std::atomic<bool>* cancel = nullptr;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const {

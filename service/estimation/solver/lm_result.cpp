@@ -18,6 +18,8 @@ const char* toString(LmStatus s) {
       return "non-finite error";
     case LmStatus::kLinearSolverFailure:
       return "linear solver failure";
+    case LmStatus::kCancelled:
+      return "cancelled";
   }
   return "unknown";
 }

@@ -15,6 +15,7 @@ enum class LmStatus {
   kLambdaMaxReached,     ///< no acceptable step even at lambda_max
   kNonFiniteError,       ///< the initial error is NaN or infinite
   kLinearSolverFailure,  ///< CHOLMOD failed for a reason other than indefiniteness (e.g. out of memory)
+  kCancelled,            ///< LmParams::cancel was set
 };
 const char* toString(LmStatus s);
 /// True for the three tolerance statuses.

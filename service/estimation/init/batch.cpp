@@ -191,6 +191,7 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
   ++status_.batch_solves;
   last_batch_ns_ = t_now;
   BatchLevenbergMarquardt::Output out = lm.optimize(win.graph.graph, initial);
+  if (out.result.status == LmStatus::kCancelled) return false;  // attempt() says why
   BatchCosts costs = batchCosts(win.graph, out.values);  // residualScale reorders the residuals
   const int ranges = costs.ranges, short_ranges = costs.short_ranges;
   const double residual_scale = residualScale(costs.abs_residuals);

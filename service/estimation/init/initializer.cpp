@@ -232,6 +232,11 @@ const InitResult& Initializer::result() const {
 
 bool Initializer::process() {
   if (initialized()) return true;
+  return attemptDue() && attempt();
+}
+
+bool Initializer::attemptDue() {
+  if (initialized()) return false;
   updateProvisionalFix();
   if (imu_.empty()) {
     setStatus(InitState::kWaitingForData, meas_.empty() ? "waiting: no samples" : "waiting: no IMU samples (ranges only)");
@@ -244,8 +249,31 @@ bool Initializer::process() {
               strprintf("waiting: %.1f s of data, need %.1f s", std::max(0.0, span_s), params_.min_window_s));
     return false;
   }
-  if (attempted_ && t_now - last_attempt_ns_ < toNs(interval_s_)) return false;
-  return attempt();
+  return !attempted_ || t_now - last_attempt_ns_ >= toNs(interval_s_);
+}
+
+void Initializer::setCancelFlag(const std::atomic<bool>* cancel) {
+  cancel_ = cancel;
+  params_.lm.cancel = cancel;
+}
+
+void Initializer::adoptAttempt(Initializer&& attempted) {
+  status_ = std::move(attempted.status_);
+  result_ = std::move(attempted.result_);
+  attempted_ = attempted.attempted_;
+  last_attempt_ns_ = attempted.last_attempt_ns_;
+  interval_s_ = attempted.interval_s_;
+  grow_window_ = attempted.grow_window_;
+  no_fix_before_ns_ = attempted.no_fix_before_ns_;
+  rejected_input_ = attempted.rejected_input_;
+  batch_stage_reached_ = attempted.batch_stage_reached_;
+  last_batch_ns_ = attempted.last_batch_ns_;
+  if (result_ && (imu_.empty() || result_->state.t_ns < imu_.front().t_ns)) {
+    setStatus(InitState::kBatchRejected,
+              strprintf("the attempt's result came %.1f s of data late: its hand-over state is no longer buffered",
+                        imu_.empty() ? 0.0 : toS(imu_.back().t_ns - result_->state.t_ns)));
+    result_.reset();
+  }
 }
 
 bool Initializer::attempt() {
@@ -256,6 +284,13 @@ bool Initializer::attempt() {
   status_.t_ns = last_attempt_ns_;
   try {
     const bool ok = runAttempt();
+    if (cancelled()) {
+      // Not the data's verdict: the same data may be tried again, at the usual interval.
+      setStatus(InitState::kBatchRejected, "attempt stopped unfinished (over its time budget)");
+      rejected_input_.reset();
+      result_.reset();
+      return false;
+    }
     if (!ok && (status_.state == InitState::kYawUnobservable || status_.state == InitState::kBatchRejected)) {
       interval_s_ = std::min(params_.max_attempt_interval_s, 1.5 * interval_s_);
     }
@@ -300,6 +335,7 @@ bool Initializer::runAttempt() {
   AlignedWindow aligned;
   if (!grow_window_ || W >= W_max) {
     aligned = alignWindow(W, t_now, end, P.fix_max_window_s);
+    if (cancelled()) return false;
     if (!aligned.ok && aligned.state == InitState::kYawUnobservable && W >= toNs(P.window_s) && W < toNs(P.max_window_s)) {
       grow_window_ = true;  // the motion is too gentle for this window: take longer ones from now on
     }
@@ -329,12 +365,13 @@ bool Initializer::runAttempt() {
       Wg = std::max(Wg, W);
       const bool after_failure = no_fix_before_ns_ && *no_fix_before_ns_ > t_now - W_max;
       aligned = alignWindow(Wg, t_now, end, after_failure && Wg > W ? short_fix_s : P.fix_max_window_s);
-      if (aligned.ok || !aligned.fix_failed || Wg == W) break;
+      if (aligned.ok || !aligned.fix_failed || Wg == W || cancelled()) break;
       no_fix_before_ns_ = meas_[aligned.begin].t_ns + step_ns;
       Wg = t_now - *no_fix_before_ns_;
     }
     if (!aligned.ok) aligned.message += strprintf(" (window %.1f s)", toS(Wg));
   }
+  if (cancelled()) return false;
   if (!aligned.ok) {
     setStatus(aligned.state, aligned.message);
     return false;

@@ -56,7 +56,9 @@
 // Memory: samples older than max_window_s (plus a margin) are dropped while
 // not initialized. After initialization every sample from the result's state
 // time on is kept for the hand-over (hand over promptly).
-// Single-threaded.
+// Single-threaded. An attempt may run on a copy elsewhere while this one
+// keeps buffering (attemptDue, adoptAttempt: the Localizer's init runner).
+#include <atomic>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -360,6 +362,22 @@ class Initializer {
   bool process();
   /// Runs an attempt now on what is buffered. Returns initialized().
   bool attempt();
+  /// Whether process() would run an attempt now; refreshes the provisional
+  /// fix and the waiting status as process() does. For a caller that runs
+  /// attempts elsewhere: copy this initializer, call attempt() on the copy
+  /// (on any thread) while this one keeps buffering, then adoptAttempt().
+  bool attemptDue();
+  /// Takes what an attempt on a copy of this initializer concluded: its
+  /// status, its result, and the attempt schedule and window growth it
+  /// chose. Keeps this one's samples (those that arrived meanwhile too), so
+  /// a hand-over replays them. A result whose hand-over state is no longer
+  /// buffered here (the attempt outlasted max_window_s of data) is dropped,
+  /// and the status says so.
+  void adoptAttempt(Initializer&& attempted);
+  /// Attempts stop unfinished once *cancel reads true (checked between the
+  /// steps and before each batch iteration): status kBatchRejected, "stopped
+  /// unfinished", no result. nullptr: never. Not owned; copies share it.
+  void setCancelFlag(const std::atomic<bool>* cancel);
 
   bool initialized() const { return status_.state == InitState::kInitialized; }
   /// The newest position-only fix since construction or reset, if any
@@ -397,6 +415,7 @@ class Initializer {
   };
 
   void setStatus(InitState s, std::string message);
+  bool cancelled() const { return cancel_ != nullptr && cancel_->load(std::memory_order_relaxed); }
   void trim();
   bool runAttempt();
   /// fix_max_window_s: how far the fix's own window may grow (step 1).
@@ -436,6 +455,7 @@ class Initializer {
   /// start before it (with the fix window that attempt allowed).
   std::optional<std::int64_t> no_fix_before_ns_;
   std::size_t dropped_imu_ = 0, dropped_meas_ = 0;
+  const std::atomic<bool>* cancel_ = nullptr;  ///< setCancelFlag
 
   /// What an attempt saw: the newest IMU time and the measurement buffer's size and newest time.
   struct InputStamp {

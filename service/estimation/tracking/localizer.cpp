@@ -29,6 +29,7 @@ void LocalizerParams::validate() const {
   rx_level_envelope.validate();
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
+  if (!(init_attempt_budget_s >= 0.0)) fail("init_attempt_budget_s", "must be >= 0 (+inf: no bound)");
   height_band.validate("LocalizerParams.height_band");
   if (with_tdoa.state_window_ns < 0 || with_tdoa.state_window_ns >= graph.max_state_interval_ns) {
     fail("with_tdoa.state_window_ns", "must be in [0, graph.max_state_interval_ns) (0: the graph's window)");
@@ -146,6 +147,16 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
   if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
 }
 
+Localizer::~Localizer() {
+  if (pending_) init_runner_->wait();
+}
+
+void Localizer::setInitRunner(std::unique_ptr<InitAttemptRunner> runner) {
+  if (pending_) init_runner_->wait();
+  pending_.reset();
+  init_runner_ = std::move(runner);
+}
+
 void Localizer::addImu(const ImuSample& sample) {
   if (!screen_.admit(sample)) return;
   if (have_imu_ && phase_ == Phase::kTracking &&
@@ -234,7 +245,7 @@ void Localizer::addUltrasonic(const UltrasonicSample& sample) {
 
 int Localizer::process(std::vector<UpdateStats>* stats) {
   if (phase_ == Phase::kInitializing) {
-    if (!initializer_.process()) return 0;
+    if (!(init_runner_ ? initializeElsewhere() : initializer_.process())) return 0;
     startTracking();
     if (phase_ != Phase::kTracking) return 0;
   }
@@ -252,7 +263,36 @@ int Localizer::process(std::vector<UpdateStats>* stats) {
 }
 
 void Localizer::finish() {
+  if (phase_ == Phase::kInitializing && pending_) {
+    // The end of the data: the running attempt is the last one, take it.
+    init_runner_->wait();
+    if (initializeElsewhere()) startTracking();
+  }
   if (phase_ == Phase::kTracking) guarded([&] { estimator_->finish(); });
+}
+
+bool Localizer::initializeElsewhere() {
+  const bool due = initializer_.attemptDue();  // also refreshes the provisional fix
+  if (pending_) {
+    if (!init_runner_->idle()) {
+      const double running_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - pending_->started).count();
+      if (running_s > params_.init_attempt_budget_s && !pending_->cancel.load(std::memory_order_relaxed)) {
+        pending_->cancel.store(true, std::memory_order_relaxed);
+        ++init_attempts_over_budget_;
+      }
+      return false;
+    }
+    initializer_.adoptAttempt(std::move(pending_->initializer));
+    pending_.reset();
+    return initializer_.initialized();
+  }
+  if (!due) return false;
+  // A copy of the buffers (~1 MB for 54 s of 200 Hz IMU and 40 Hz ranging):
+  // the attempt reads them while this thread appends to the originals.
+  pending_ = std::make_unique<PendingAttempt>(initializer_);
+  pending_->initializer.setCancelFlag(&pending_->cancel);
+  init_runner_->start([attempt = pending_.get()] { attempt->initializer.attempt(); });
+  return false;
 }
 
 template <typename F>

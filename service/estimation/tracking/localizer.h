@@ -4,7 +4,10 @@
 // to the incremental estimator, failure detection, and re-initialization.
 // Used by rilod's estimator thread and by `rilo replay`; single-threaded, no
 // I/O. Samples go in time order per stream; estimates come out after
-// process().
+// process(). With an init runner (setInitRunner: rilod), initialization
+// attempts run elsewhere while the samples keep coming.
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -23,6 +26,7 @@
 #include "estimation/smoother/smoother_method_names.h"
 #include "estimation/smoother/smoother_params.h"
 #include "estimation/tracking/hand_over.h"
+#include "estimation/tracking/init_attempt_runner.h"
 #include "estimation/tracking/range_imu_estimator.h"
 #include "estimation/tracking/ranging_support.h"
 #include "estimation/tracking/rejection_window.h"
@@ -144,6 +148,14 @@ struct LocalizerParams {
   /// clear of max_consecutive_rejections. rejection_window 0: off.
   int rejection_window = 100;
   double max_rejection_share = 0.5;
+  /// With an init runner (Localizer::setInitRunner): wall time (s) an
+  /// attempt may run before it is told to stop unfinished; the next one
+  /// starts on newer data at the usual interval. Why a bound: an attempt's
+  /// result must be caught up with every sample that came meanwhile, and a
+  /// solver that crawls must not hold initialization for good. An attempt on
+  /// a 45 s window takes 0.1-1.3 s here (heavy NLOS the most), so 15 s leaves
+  /// room for a core ten times slower. +inf: no bound.
+  double init_attempt_budget_s = 15.0;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -160,6 +172,19 @@ class Localizer {
 
   /// `p_w_anchors[id]`: surveyed anchor positions (m, world).
   Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params);
+  /// Waits for an attempt still running in the init runner.
+  ~Localizer();
+  Localizer(const Localizer&) = delete;
+  Localizer& operator=(const Localizer&) = delete;
+
+  /// Initialization attempts run in `runner` from now on: process() starts
+  /// one on a copy of the buffered data when it is due, returns at once, and
+  /// takes its outcome at the first call after the runner is idle (the
+  /// tracker then starts at the attempt's state and catches up with every
+  /// sample buffered since). Without a runner (the default: `rilo replay`,
+  /// which must give the same figures on every run) attempts run inside
+  /// process(). Call before the first sample.
+  void setInitRunner(std::unique_ptr<InitAttemptRunner> runner);
 
   void addImu(const ImuSample& sample);
   void addRange(const RangeSample& sample);
@@ -210,6 +235,11 @@ class Localizer {
   void drainSmoothed(std::vector<TimedPose>& out, bool all = false) {
     if (estimator_) estimator_->drainSmoothed(out, all);
   }
+
+  /// An attempt is running in the init runner.
+  bool initAttemptRunning() const { return pending_ != nullptr; }
+  /// Attempts told to stop unfinished, over init_attempt_budget_s.
+  std::uint64_t initAttemptsOverBudget() const { return init_attempts_over_budget_; }
 
   std::uint64_t initializations() const { return initializations_; }
   std::uint64_t reinitializations() const { return reinitializations_; }
@@ -262,6 +292,9 @@ class Localizer {
   /// Measured: docs/noise-models.md, session 31.
   RangeSample withRxLevelIndicator(const RangeSample& sample);
 
+  /// With an init runner: takes a finished attempt's outcome, or starts one
+  /// when due. Returns whether the initializer is now initialized.
+  bool initializeElsewhere();
   void startTracking();
   void checkHealth(const UpdateStats& stats);
   void checkConsistency();
@@ -302,6 +335,17 @@ class Localizer {
   std::uint64_t reinitializations_ = 0;
   std::string last_failure_;
   std::vector<UpdateStats> scratch_;
+
+  /// An attempt in the init runner: on a copy of initializer_, told to stop by `cancel`.
+  struct PendingAttempt {
+    explicit PendingAttempt(const Initializer& buffered) : initializer(buffered) {}
+    Initializer initializer;
+    std::atomic<bool> cancel{false};
+    std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
+  };
+  std::unique_ptr<InitAttemptRunner> init_runner_;
+  std::unique_ptr<PendingAttempt> pending_;  ///< after init_runner_: destroyed first (the destructor waits)
+  std::uint64_t init_attempts_over_budget_ = 0;
 };
 
 }  // namespace rilo

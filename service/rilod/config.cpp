@@ -302,13 +302,16 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
   m.read("anchors_as_variables", e.graph.anchors_as_variables, [](const ConfigField& f) { return f.boolean(); });
   m.read("anchor_sigma_m", e.graph.anchor_sigma_m, [](const ConfigField& f) { return f.positive(100.0); });
   if (auto f = m.get("init")) {
-    const ConfigMap init = f->map({"window_s", "max_outside_anchors_m", "heavy_nlos_after_s"});
+    const ConfigMap init = f->map({"window_s", "max_outside_anchors_m", "heavy_nlos_after_s", "attempt_budget_s"});
     init.read("window_s", e.init_window_s, [](const ConfigField& w) { return w.number(0.5, 600.0); });
     init.read("max_outside_anchors_m", e.init_max_outside_anchors_m, [](const ConfigField& w) {
       return w.number(0.0, std::numeric_limits<double>::infinity(), true);  // >= 0 (m) or .inf
     });
     init.read("heavy_nlos_after_s", e.init_heavy_nlos_after_s, [](const ConfigField& w) {
       return w.number(0.0, std::numeric_limits<double>::infinity(), true);  // >= 0 (s) or .inf
+    });
+    init.read("attempt_budget_s", e.init_attempt_budget_s, [](const ConfigField& w) {
+      return w.number(0.1, std::numeric_limits<double>::infinity(), true);  // >= 0.1 (s) or .inf
     });
   }
   if (auto f = m.get("height_band")) {

@@ -148,6 +148,9 @@ struct EstimatorConfig {
   /// Start-up widens its cost gates for heavy NLOS this long after the first
   /// two-way range without a start (s; InitializerParams::heavy_nlos_after_s; .inf: off).
   double init_heavy_nlos_after_s = InitializerParams().heavy_nlos_after_s;
+  /// Wall time an initialization attempt on the worker thread may take before
+  /// it is told to stop unfinished (s; LocalizerParams::init_attempt_budget_s; .inf: no bound).
+  double init_attempt_budget_s = LocalizerParams().init_attempt_budget_s;
   /// Quantile of the flagged ranges' residuals taken as their excess (FlaggedExcessParams; 0: off).
   double flagged_excess_quantile = FlaggedExcessParams().quantile;
   /// Lower nlos_power_gap_db to where the ranges show the LOS gaps end (LosGapParams).

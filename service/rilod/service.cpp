@@ -14,6 +14,7 @@
 #include "hal/bus/clock.h"
 #include "math/so3.h"
 #include "rilod/sample_screen.h"
+#include "runtime/init_worker.h"
 #include "runtime/spsc_queue.h"
 
 namespace rilo {
@@ -192,6 +193,16 @@ Service::Service(ServiceOptions options, std::vector<std::unique_ptr<SampleSourc
   if (sources_.empty()) throw std::invalid_argument("Service: no sample source configured");
   if (!(options_.status_period_s > 0.0)) throw std::invalid_argument("Service: status_period_s must be > 0");
   if (!(options_.init_log_interval_s >= 0.0)) throw std::invalid_argument("Service: init_log_interval_s must be >= 0");
+  // Initialization attempts off the estimator thread, which keeps draining
+  // the queues meanwhile. Made here, on the constructing thread: the worker
+  // takes its normal scheduling, not the estimator's SCHED_FIFO. With
+  // backpressure (a replay as fast as possible) no queue can overflow and
+  // the data would run ahead of the attempts: inline, as `rilo replay`.
+  if (options_.make_init_runner) {
+    localizer_.setInitRunner(options_.make_init_runner());
+  } else if (!options_.backpressure) {
+    localizer_.setInitRunner(std::make_unique<InitWorker>("rilod-init"));
+  }
   for (std::size_t i = 0; i < sources_.size(); ++i) {
     // The full screen (jump confirmations included), not the Localizer's copy behind it.
     lanes_.push_back(std::make_unique<SourceLane>(options_.queue_capacity, options_.localizer.screen));
@@ -449,6 +460,15 @@ void Service::noteInitProgress(std::int64_t now_ns) {
   {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     if (init_message_ != init.message) init_message_ = init.message;
+  }
+  if (localizer_.initAttemptsOverBudget() != init_over_budget_seen_) {
+    init_over_budget_seen_ = localizer_.initAttemptsOverBudget();
+    if (options_.on_event) {
+      char text[128];
+      std::snprintf(text, sizeof text, "initialization attempt still running after its %.1f s budget: told to stop",
+                    localizer_.params().init_attempt_budget_s);
+      options_.on_event(text);
+    }
   }
   if (init.attempts == init_attempts_seen_) return;
   init_attempts_seen_ = init.attempts;

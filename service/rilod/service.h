@@ -85,6 +85,11 @@ struct ServiceOptions {
   /// Called first thing ON each thread the service starts, with its role as
   /// above (per-thread instrumentation in tests; must not block).
   std::function<void(const char* role)> on_thread_enter;
+  /// Where initialization attempts run (called once, by the constructor).
+  /// Empty: an InitWorker thread (runtime/init_worker.h), or inside the
+  /// estimator thread with backpressure (nothing overflows, and the data
+  /// would run ahead of the attempts). Tests give slow runners.
+  std::function<std::unique_ptr<InitAttemptRunner>()> make_init_runner;
 };
 
 class Service {
@@ -183,6 +188,7 @@ class Service {
 
   // Estimator thread only: rate limit of the initialization log.
   int init_attempts_seen_ = 0;
+  std::uint64_t init_over_budget_seen_ = 0;  ///< Localizer::initAttemptsOverBudget already logged
   InitState init_state_logged_ = InitState::kWaitingForData;
   std::int64_t init_logged_ns_ = 0;
   std::uint64_t provisional_published_ = 0;  ///< sequence of the last position-only fix published

@@ -47,6 +47,7 @@ LocalizerParams localizerParams(const EstimatorConfig& e) {
   lp.init.window_s = e.init_window_s;
   lp.init.max_outside_anchors_m = e.init_max_outside_anchors_m;
   lp.init.heavy_nlos_after_s = e.init_heavy_nlos_after_s;
+  lp.init_attempt_budget_s = e.init_attempt_budget_s;
   lp.height_band = e.height_band;
   lp.vertical_speed_sigma_m_s = e.vertical_speed_sigma_m_s;
   lp.zero_velocity_sigma_m_s = e.zero_velocity_sigma_m_s;

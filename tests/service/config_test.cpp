@@ -94,6 +94,10 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_DOUBLE_EQ(c.estimator.init_heavy_nlos_after_s, 60.0);
   EXPECT_EQ(parse(valid("estimator:\n  init: {heavy_nlos_after_s: .inf}\n")).estimator.init_heavy_nlos_after_s,
             std::numeric_limits<double>::infinity());
+  EXPECT_DOUBLE_EQ(localizerParams(parse(valid(""))).init_attempt_budget_s, 15.0);
+  EXPECT_DOUBLE_EQ(localizerParams(parse(valid("estimator:\n  init: {attempt_budget_s: 40}\n"))).init_attempt_budget_s, 40.0);
+  EXPECT_EQ(localizerParams(parse(valid("estimator:\n  init: {attempt_budget_s: .inf}\n"))).init_attempt_budget_s,
+            std::numeric_limits<double>::infinity());
   EXPECT_EQ(parse(valid("estimator:\n  init: {max_outside_anchors_m: .inf}\n")).estimator.init_max_outside_anchors_m,
             std::numeric_limits<double>::infinity());
   EXPECT_EQ(localizerParams(parse(valid("estimator:\n  init: {max_outside_anchors_m: 0}\n"))).init.max_outside_anchors_m,
@@ -422,8 +426,10 @@ TEST_F(ConfigTest, InputScreenMapsOntoTheLocalizerAndFollowsTheImusFullScale) {
   EXPECT_EQ(defaults.screen.max_range_m, InputScreenParams().max_range_m);
   EXPECT_EQ(defaults.screen.max_accel_m_s2, InputScreenParams().max_accel_m_s2);
   const LocalizerParams set = localizerParams(parse(valid(
-      "estimator:\n  input_screen: {max_range_m: 80, max_time_jump_s: 2, jump_confirmations: 5, max_gyro_rad_s: 20}\n")));
+      "estimator:\n  input_screen: {max_range_m: 80, max_time_jump_s: 2, jump_confirmations: 5, max_gyro_rad_s: 20, "
+      "max_imu_jump_s: 0.5}\n")));
   EXPECT_DOUBLE_EQ(set.screen.max_range_m, 80.0);
+  EXPECT_DOUBLE_EQ(set.screen.max_imu_jump_s, 0.5);
   EXPECT_DOUBLE_EQ(set.screen.max_time_jump_s, 2.0);
   EXPECT_EQ(set.screen.jump_confirmations, 5);
   EXPECT_DOUBLE_EQ(set.screen.max_gyro_rad_s, 20.0);
@@ -781,6 +787,8 @@ std::vector<BadCase> badCases() {
        "estimator.relinearization.skip", "[1, 1000]", 11},
       {"heavy_nlos_after_negative", valid("estimator:\n  init: {heavy_nlos_after_s: -1}\n"),
        "estimator.init.heavy_nlos_after_s", "expected a number in [0, .inf], got -1", 11},
+      {"attempt_budget_zero", valid("estimator:\n  init: {attempt_budget_s: 0}\n"),
+       "estimator.init.attempt_budget_s", "expected a number in [0.1, .inf], got 0", 11},
       {"damped_without_recent_relinearization", valid("estimator:\n  relinearization: {recent_updates: 0}\n"),
        "estimator.relinearization.recent_updates", "must be >= 1 with smoother d-isam2", 11},
       {"relinearize_interval_negative", valid("estimator:\n  relinearization: {interval_s: -0.1}\n"),

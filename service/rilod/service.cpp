@@ -259,7 +259,10 @@ int Service::run(const std::atomic<bool>& stop) {
   }
   // Tell systemd now, not after the threads are joined (a stop may take a
   // while: sources finish their transfer, the recorder flushes).
-  if (stop.load() && options_.on_stop_requested) options_.on_stop_requested();
+  if (stop.load()) {
+    stop_requested_.store(true);
+    if (options_.on_stop_requested) options_.on_stop_requested();
+  }
   stop_sources_.store(true);
   for (std::thread& t : source_threads) t.join();
   stop_threads_.store(true);
@@ -447,6 +450,9 @@ void Service::estimatorLoop() {
     }
     if (elapsed_ms > options_.late_update_ms && stats.empty()) counters_.late_updates.add();
   }
+  // A stop request does not wait for a start-up attempt; the end of the data
+  // takes the one running (within its budget).
+  if (stop_requested_.load()) localizer_.abandonInitAttempt();
   // End of data: let the last ranging group through.
   localizer_.finish();
   stats.clear();

@@ -157,6 +157,7 @@ class Service {
   std::atomic<bool> stop_sources_{false};
   std::atomic<bool> estimator_done_{false};
   std::atomic<bool> stop_threads_{false};
+  std::atomic<bool> stop_requested_{false};  ///< run() saw the stop request (not the end of the data)
   std::atomic<bool> source_failed_{false};
   std::atomic<TrackingState> tracking_{TrackingState::kInitializing};
   /// Sample time since the last range while ranging is quiet beyond its

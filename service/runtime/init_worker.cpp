@@ -1,5 +1,8 @@
 #include "runtime/init_worker.h"
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <stdexcept>
 #include <utility>
 
@@ -32,6 +35,16 @@ void InitWorker::wait() {
   for (int s = state_.load(std::memory_order_acquire); s == kBusy; s = state_.load(std::memory_order_acquire)) {
     state_.wait(kBusy, std::memory_order_acquire);
   }
+}
+
+bool InitWorker::waitFor(double seconds) {
+  if (!std::isfinite(seconds)) {
+    wait();
+    return true;
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(std::max(0.0, seconds));
+  while (!idle() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  return idle();
 }
 
 void InitWorker::run() {

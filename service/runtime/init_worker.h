@@ -31,6 +31,8 @@ class InitWorker final : public InitAttemptRunner {
   void start(std::function<void()> attempt) override;
   bool idle() const override { return state_.load(std::memory_order_acquire) == kIdle; }
   void wait() override;
+  /// Polls every millisecond (an atomic wait has no timeout).
+  bool waitFor(double seconds) override;
   /// Attempts run so far.
   unsigned long attemptsRun() const { return runs_.load(std::memory_order_relaxed); }
 

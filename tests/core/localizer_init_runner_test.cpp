@@ -6,7 +6,9 @@
 // finishes, or one whose result comes after its data were dropped.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -32,6 +34,10 @@ class HandRunner final : public InitAttemptRunner {
   }
   bool idle() const override { return !attempt_; }
   void wait() override { run(); }
+  bool waitFor(double /*seconds*/) override {
+    run();
+    return true;
+  }
   /// Called after each sample the test feeds.
   void runDue() {
     if (attempt_ && delay_samples_ >= 0 && waited_++ >= delay_samples_) run();
@@ -199,6 +205,47 @@ TEST(LocalizerInitRunner, FinishTakesTheAttemptStillRunning) {
   }
 }
 
+// finish() keeps the budget: an attempt already over it is told to stop
+// before the wait, and ends unfinished. After finish() no attempt starts.
+// abandonInitAttempt (a stop request) drops a running attempt unadopted.
+TEST(LocalizerInitRunner, FinishKeepsTheBudgetAndStartsNoMoreAttempts) {
+  const sim::Scenario s = walk(40.0);
+  LocalizerParams p = paramsFor(s);
+  p.init_attempt_budget_s = 0.0;
+  Localizer localizer(s.p_w_anchors, p);
+  auto owned = std::make_unique<HandRunner>(-1);
+  HandRunner& runner = *owned;
+  localizer.setInitRunner(std::move(owned));
+  feed(s, localizer, &runner, 25.0);
+  ASSERT_EQ(runner.started, 1);
+  localizer.finish();
+  EXPECT_FALSE(localizer.tracking());
+  EXPECT_EQ(localizer.initStatus().attempts, 1);
+  EXPECT_NE(localizer.initStatus().message.find("stopped unfinished"), std::string::npos) << localizer.initStatus().message;
+  // Samples after the data fed so far (an attempt would be due within 1 s).
+  const std::int64_t t_fed = s.imu.front().t_ns + 25'000'000'000;
+  std::size_t i = 0;
+  while (s.imu[i].t_ns < t_fed) ++i;
+  const std::uint64_t dropped_before = localizer.inputDropped().total();
+  for (const std::size_t end = i + 2000; i < end; ++i) {
+    localizer.addImu(s.imu[i]);
+    localizer.process();
+  }
+  EXPECT_EQ(localizer.inputDropped().total(), dropped_before) << "the samples were taken";
+  EXPECT_EQ(runner.started, 1) << "no attempt after finish()";
+
+  Localizer stopped(s.p_w_anchors, paramsFor(s));
+  auto owned2 = std::make_unique<HandRunner>(-1);
+  HandRunner& runner2 = *owned2;
+  stopped.setInitRunner(std::move(owned2));
+  feed(s, stopped, &runner2, 25.0);
+  ASSERT_TRUE(stopped.initAttemptRunning());
+  stopped.abandonInitAttempt();
+  EXPECT_FALSE(stopped.initAttemptRunning());
+  EXPECT_EQ(runner2.ran, 1);
+  EXPECT_EQ(stopped.initStatus().attempts, 0) << "dropped, not adopted";
+}
+
 // A result that comes after its data were dropped (over max_window_s of
 // data later) cannot be caught up: refused, said so, and the next attempt
 // starts.
@@ -221,13 +268,14 @@ TEST(LocalizerInitRunner, AResultWhoseDataWereDroppedIsRefused) {
   EXPECT_NE(localizer.initStatus().message.find("no longer buffered"), std::string::npos) << localizer.initStatus().message;
 
   Localizer inline_localizer(s.p_w_anchors, p);
-  feed(s, inline_localizer, nullptr, 25.0);
+  feed(s, inline_localizer, nullptr, 20.6);
   EXPECT_TRUE(inline_localizer.tracking()) << "inline, the first attempt starts: " << inline_localizer.initStatus().message;
+  EXPECT_EQ(inline_localizer.initStatus().attempts, 1);
 }
 
 // init_attempt_budget_s: an attempt still running at a process() call past
-// its budget is told to stop; it ends unfinished, says so, and the next one
-// starts at the usual interval. A budget of 0 stops every attempt.
+// its budget is told to stop; it ends unfinished, says so, and later ones
+// keep coming. A budget of 0 stops every attempt.
 TEST(LocalizerInitRunner, AnAttemptOverItsBudgetIsToldToStop) {
   const sim::Scenario s = walk(40.0);
   LocalizerParams p = paramsFor(s);

@@ -8,6 +8,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <limits>
 #include <stdexcept>
 #include <thread>
 
@@ -41,6 +42,19 @@ TEST(InitWorker, IsBusyUntilTheAttemptReturnsAndRefusesASecondOne) {
   release.store(true);
   while (!worker.idle()) std::this_thread::yield();
   EXPECT_EQ(written, 42);
+}
+
+TEST(InitWorker, WaitForReturnsWhetherTheAttemptEnded) {
+  InitWorker worker;
+  EXPECT_TRUE(worker.waitFor(0.0)) << "idle";
+  std::atomic<bool> release{false};
+  worker.start([&] {
+    while (!release.load()) std::this_thread::yield();
+  });
+  EXPECT_FALSE(worker.waitFor(0.01)) << "held until released";
+  release.store(true);
+  EXPECT_TRUE(worker.waitFor(std::numeric_limits<double>::infinity()));
+  EXPECT_TRUE(worker.idle());
 }
 
 TEST(InitWorker, ManyAttemptsInARowAreEachRunOnce) {

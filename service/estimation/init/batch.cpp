@@ -188,10 +188,15 @@ bool Initializer::solveBatch(const AlignedWindow& w, std::int64_t t_now) {
       }
     }
   }
+  const std::int64_t previous_batch_ns = last_batch_ns_;
   ++status_.batch_solves;
   last_batch_ns_ = t_now;
   BatchLevenbergMarquardt::Output out = lm.optimize(win.graph.graph, initial);
-  if (out.result.status == LmStatus::kCancelled) return false;  // attempt() says why
+  if (out.result.status == LmStatus::kCancelled) {  // attempt() says why; the gate's clock is not reset
+    --status_.batch_solves;
+    last_batch_ns_ = previous_batch_ns;
+    return false;
+  }
   BatchCosts costs = batchCosts(win.graph, out.values);  // residualScale reorders the residuals
   const int ranges = costs.ranges, short_ranges = costs.short_ranges;
   const double residual_scale = residualScale(costs.abs_residuals);

@@ -171,6 +171,7 @@ void Initializer::reset() {
   interval_s_ = params_.attempt_interval_s;
   grow_window_ = false;
   no_fix_before_ns_.reset();
+  trimmed_before_ns_.reset();
   dropped_imu_ = dropped_meas_ = 0;
   status_ = InitStatus();
   batch_stage_reached_ = false;
@@ -223,6 +224,7 @@ void Initializer::trim() {
   imu_.erase(imu_.begin(), imu_.begin() + static_cast<std::ptrdiff_t>(i));
   const std::size_t k = rangeIndexFrom(meas_, keep_from);
   meas_.erase(meas_.begin(), meas_.begin() + static_cast<std::ptrdiff_t>(k));
+  trimmed_before_ns_ = keep_from;
 }
 
 const InitResult& Initializer::result() const {
@@ -268,7 +270,9 @@ void Initializer::adoptAttempt(Initializer&& attempted) {
   rejected_input_ = attempted.rejected_input_;
   batch_stage_reached_ = attempted.batch_stage_reached_;
   last_batch_ns_ = attempted.last_batch_ns_;
-  if (result_ && (imu_.empty() || result_->state.t_ns < imu_.front().t_ns)) {
+  // The hand-over replays the IMU sample in effect at the state and every measurement from it on.
+  if (result_ && (imu_.empty() || result_->state.t_ns < imu_.front().t_ns ||
+                  (trimmed_before_ns_ && result_->state.t_ns < *trimmed_before_ns_))) {
     setStatus(InitState::kBatchRejected,
               strprintf("the attempt's result came %.1f s of data late: its hand-over state is no longer buffered",
                         imu_.empty() ? 0.0 : toS(imu_.back().t_ns - result_->state.t_ns)));
@@ -284,7 +288,7 @@ bool Initializer::attempt() {
   status_.t_ns = last_attempt_ns_;
   try {
     const bool ok = runAttempt();
-    if (cancelled()) {
+    if (!ok && cancelled()) {
       // Not the data's verdict: the same data may be tried again, at the usual interval.
       setStatus(InitState::kBatchRejected, "attempt stopped unfinished (over its time budget)");
       rejected_input_.reset();

@@ -456,6 +456,7 @@ class Initializer {
   std::optional<std::int64_t> no_fix_before_ns_;
   std::size_t dropped_imu_ = 0, dropped_meas_ = 0;
   const std::atomic<bool>* cancel_ = nullptr;  ///< setCancelFlag
+  std::optional<std::int64_t> trimmed_before_ns_;  ///< trim() dropped the measurements before this (ns)
 
   /// What an attempt saw: the newest IMU time and the measurement buffer's size and newest time.
   struct InputStamp {

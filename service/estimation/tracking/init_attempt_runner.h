@@ -21,6 +21,8 @@ class InitAttemptRunner {
   virtual bool idle() const = 0;
   /// Blocks until idle() (end of data, destruction).
   virtual void wait() = 0;
+  /// Blocks until idle() or for at most `seconds` (+inf: wait()); returns idle().
+  virtual bool waitFor(double seconds) = 0;
 };
 
 }  // namespace rilo

@@ -74,6 +74,10 @@ void setEstimatorByName(LocalizerParams& params, const std::string& name) {
 
 namespace {
 
+double elapsedS(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
 /// The single height band and vertical speed settings pushed into the parts;
 /// a band whose floor does not fit the anchors is dropped (see plausibleFor).
 LocalizerParams resolved(LocalizerParams p, const std::vector<Vec3>& p_w_anchors, std::string& note) {
@@ -147,14 +151,18 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
   if (params_.rejection_window > 0) rejection_window_.emplace(params_.rejection_window, params_.max_rejection_share);
 }
 
-Localizer::~Localizer() {
-  if (pending_) init_runner_->wait();
-}
+Localizer::~Localizer() { abandonInitAttempt(); }
 
 void Localizer::setInitRunner(std::unique_ptr<InitAttemptRunner> runner) {
-  if (pending_) init_runner_->wait();
-  pending_.reset();
+  abandonInitAttempt();
   init_runner_ = std::move(runner);
+}
+
+void Localizer::abandonInitAttempt() {
+  if (!pending_) return;
+  pending_->cancel.store(true, std::memory_order_relaxed);
+  init_runner_->wait();
+  pending_.reset();
 }
 
 void Localizer::addImu(const ImuSample& sample) {
@@ -263,9 +271,15 @@ int Localizer::process(std::vector<UpdateStats>* stats) {
 }
 
 void Localizer::finish() {
+  finished_ = true;  // no attempt starts after this one
   if (phase_ == Phase::kInitializing && pending_) {
-    // The end of the data: the running attempt is the last one, take it.
-    init_runner_->wait();
+    // The end of the data: the running attempt is the last one, take it,
+    // within its budget.
+    const double left_s = params_.init_attempt_budget_s - elapsedS(pending_->started);
+    if (!(left_s > 0.0 && init_runner_->waitFor(left_s))) {
+      pending_->cancel.store(true, std::memory_order_relaxed);
+      init_runner_->wait();
+    }
     if (initializeElsewhere()) startTracking();
   }
   if (phase_ == Phase::kTracking) guarded([&] { estimator_->finish(); });
@@ -275,8 +289,7 @@ bool Localizer::initializeElsewhere() {
   const bool due = initializer_.attemptDue();  // also refreshes the provisional fix
   if (pending_) {
     if (!init_runner_->idle()) {
-      const double running_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - pending_->started).count();
-      if (running_s > params_.init_attempt_budget_s && !pending_->cancel.load(std::memory_order_relaxed)) {
+      if (elapsedS(pending_->started) > params_.init_attempt_budget_s && !pending_->cancel.load(std::memory_order_relaxed)) {
         pending_->cancel.store(true, std::memory_order_relaxed);
         ++init_attempts_over_budget_;
       }
@@ -286,13 +299,21 @@ bool Localizer::initializeElsewhere() {
     pending_.reset();
     return initializer_.initialized();
   }
-  if (!due) return false;
-  // A copy of the buffers (~1 MB for 54 s of 200 Hz IMU and 40 Hz ranging):
-  // the attempt reads them while this thread appends to the originals.
-  pending_ = std::make_unique<PendingAttempt>(initializer_);
-  pending_->initializer.setCancelFlag(&pending_->cancel);
-  init_runner_->start([attempt = pending_.get()] { attempt->initializer.attempt(); });
-  return false;
+  if (!due || finished_) return false;
+  try {
+    // A copy of the buffers (1-3 MB: 54 s of 200-800 Hz IMU and the
+    // ranges): the attempt reads them while this thread appends to the
+    // originals.
+    pending_ = std::make_unique<PendingAttempt>(initializer_);
+    pending_->initializer.setCancelFlag(&pending_->cancel);
+    init_runner_->start([attempt = pending_.get()] { attempt->initializer.attempt(); });
+    return false;
+  } catch (const std::exception&) {
+    // No memory for the copy (or no runner): this attempt runs here, where
+    // Initializer::attempt reports its own failures.
+    pending_.reset();
+    return initializer_.attempt();
+  }
 }
 
 template <typename F>
@@ -419,6 +440,7 @@ void Localizer::checkConsistency() {
 }
 
 void Localizer::fail(std::string why) {
+  abandonInitAttempt();  // none runs while tracking; an attempt on data before the failure must never be adopted
   last_failure_ = std::move(why);
   if (phase_ == Phase::kTracking) ++reinitializations_;
   phase_ = Phase::kInitializing;

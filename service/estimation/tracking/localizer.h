@@ -200,6 +200,8 @@ class Localizer {
   /// Returns the number of smoother updates.
   int process(std::vector<UpdateStats>* stats = nullptr);
   /// No more samples (end of a recording): lets the last ranges through.
+  /// With an init runner, waits for a running attempt (within its budget)
+  /// and takes it; no attempt starts after this.
   void finish();
 
   Phase phase() const { return phase_; }
@@ -238,6 +240,9 @@ class Localizer {
 
   /// An attempt is running in the init runner.
   bool initAttemptRunning() const { return pending_ != nullptr; }
+  /// Tells a running attempt to stop, waits for it and drops it (a stop
+  /// request: the attempt's outcome is not wanted).
+  void abandonInitAttempt();
   /// Attempts told to stop unfinished, over init_attempt_budget_s.
   std::uint64_t initAttemptsOverBudget() const { return init_attempts_over_budget_; }
 
@@ -346,6 +351,7 @@ class Localizer {
   std::unique_ptr<InitAttemptRunner> init_runner_;
   std::unique_ptr<PendingAttempt> pending_;  ///< after init_runner_: destroyed first (the destructor waits)
   std::uint64_t init_attempts_over_budget_ = 0;
+  bool finished_ = false;  ///< finish() was called: no new attempt in the runner
 };
 
 }  // namespace rilo

@@ -18,6 +18,7 @@
 #include "dds/participant.h"
 #include "dds/subscriber.h"
 #include "hal/bus/clock.h"
+#include "unsigned_option.h"
 
 namespace rilo::tool {
 namespace {
@@ -386,9 +387,14 @@ void addListenCommand(CLI::App& app) {
   cmd->add_option("--topic", options->topic, "Topic to listen to")
       ->capture_default_str()
       ->check(CLI::IsMember({"odometry", "pose", "status", "all"}));
-  cmd->add_option("--count", options->count, "Stop after this many samples (0 = until Ctrl-C)")->capture_default_str();
+  cmd->add_option("--count", options->count, "Stop after this many samples (0 = until Ctrl-C)")
+      ->capture_default_str()
+      ->check(cli::notNegative());
   cmd->add_flag("--json", options->json, "One JSON object per line");
-  cmd->add_option("--domain", options->domain, "DDS domain id")->capture_default_str()->check(CLI::Range(0u, 232u));
+  cmd->add_option("--domain", options->domain, "DDS domain id")
+      ->capture_default_str()
+      ->check(cli::notNegative())
+      ->check(CLI::Range(0u, 232u));
   cmd->add_option("--timeout", options->timeout_s,
                   "Exit with code 2 when nothing arrives for this many seconds (0 = wait forever)")
       ->capture_default_str()

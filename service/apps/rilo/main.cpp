@@ -15,6 +15,7 @@
 #include "replay_command.h"
 #include "report_command.h"
 #include "sim_command.h"
+#include "unsigned_option.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"rilo: Ranging-Inertial LOcalization tools"};
@@ -23,7 +24,7 @@ int main(int argc, char** argv) {
 
   rilo::tool::DemoOptions demo;
   CLI::App* demo_cmd = app.add_subcommand("demo", "Simulate an office walk and solve it in batch with each range noise model");
-  demo_cmd->add_option("--seed", demo.seed, "Simulation seed")->capture_default_str();
+  demo_cmd->add_option("--seed", demo.seed, "Simulation seed")->capture_default_str()->check(rilo::cli::notNegative());
   demo_cmd->add_option("--seconds", demo.seconds, "Duration of the walk (s)")->capture_default_str()->check(CLI::Range(2.0, 3600.0));
   demo_cmd->add_option("--range-hz", demo.range_hz, "Total ranging rate (Hz)")->capture_default_str()->check(CLI::Range(0.5, 200.0));
   demo_cmd->add_option("--nlos", demo.nlos_fraction, "Fraction of time an anchor is NLOS")->capture_default_str()->check(CLI::Range(0.0, 0.9));

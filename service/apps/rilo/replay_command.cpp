@@ -20,6 +20,7 @@
 #include "hal/recording/recording_reader.h"
 #include "rilod/config.h"
 #include "rilod/service_setup.h"
+#include "unsigned_option.h"
 
 namespace rilo::tool {
 
@@ -367,7 +368,9 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--reception", options->settings.reception,
                   "Fraction of UWB packets received (0..1): each TDoA epoch and each range kept with this probability (seeded)")
       ->capture_default_str()->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--reception-seed", options->settings.reception_seed, "Seed of the --reception draws")->capture_default_str();
+  cmd->add_option("--reception-seed", options->settings.reception_seed, "Seed of the --reception draws")
+      ->capture_default_str()
+      ->check(cli::notNegative());
   cmd->add_option("--state-window-ms", options->settings.same_state_window_ms,
                   "Measurements closer than this share one state, whatever the data (ms; default: the configuration's range.same_state_window_s, and tdoa.state_window_s once the data hold TDoA rows)")
       ->check(CLI::Range(0.0, 1000.0));

@@ -18,6 +18,7 @@
 #include "evaluation/report_markdown.h"
 #include "evaluation/tdoa_report.h"
 #include "evaluation/tdoa_report_markdown.h"
+#include "unsigned_option.h"
 
 namespace rilo::tool {
 namespace {
@@ -267,7 +268,7 @@ void addReportCommand(CLI::App& app) {
   cmd->add_option("--sim-seeds", o->sim_seeds,
                   "Simulate office sessions with these seeds (as `rilo sim --seed N`) into OUT/recordings/ and "
                   "evaluate them too (comma separated)")
-      ->delimiter(',');
+      ->delimiter(',')->check(cli::notNegative());
   cmd->add_option("--sim-minutes", o->sim_minutes, "Duration of each simulated session (min)")
       ->capture_default_str()
       ->check(CLI::Range(0.05, 600.0));
@@ -289,7 +290,9 @@ void addReportCommand(CLI::App& app) {
   cmd->add_option("--measurements", o->measurements,
                   "--system tdoa: measurement kinds fed (range,tdoa,ultrasonic; comma separated)")
       ->capture_default_str();
-  cmd->add_option("--reception-seed", o->reception_seed, "--system tdoa: seed of the dropped packets")->capture_default_str();
+  cmd->add_option("--reception-seed", o->reception_seed, "--system tdoa: seed of the dropped packets")
+      ->capture_default_str()
+      ->check(cli::notNegative());
   cmd->add_option("--dynamic-covariance", o->dynamic_covariance,
                   "--system tdoa: per-link TDoA/ultrasonic sigmas from their residuals: auto (on for every estimator "
                   "when TDoA is used), on (every estimator) or off")

@@ -14,6 +14,7 @@
 
 #include "hal/recording/recording_files.h"
 #include "sim/office_recording.h"
+#include "unsigned_option.h"
 
 namespace rilo::tool {
 namespace {
@@ -237,7 +238,7 @@ void addSimCommand(CLI::App& app) {
       "write it as a recording folder");
   cmd->add_option("OUT", o->out, "Recording folder to create")->required();
   cmd->add_option("--seed", o->seed, "Seed of the walk, the noise and (with --plan random) the plan")
-      ->capture_default_str();
+      ->capture_default_str()->check(cli::notNegative());
   cmd->add_option("--minutes", o->minutes, "Duration of the session (min)")
       ->capture_default_str()
       ->check(CLI::Range(0.05, 600.0));

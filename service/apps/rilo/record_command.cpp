@@ -153,7 +153,7 @@ void addRecordCommand(CLI::App& app) {
       ->check(CLI::Range(0.0, 1e7));
   cmd->footer(
       "Writes meta.yaml (IMU noise model and rate, lever arm, ranging ss-twr), anchors.csv from the configuration,\n"
-      "imu.csv and ranges.csv as samples arrive, flushed every recording.flush_interval_ns (a crash loses at most\n"
+      "imu.csv and range.csv as samples arrive, flushed every recording.flush_interval_ns (a crash loses at most\n"
       "that). Replay it with `rilo replay DIR` or rilod's replay source. Exit code 0 clean stop, 1 bad input or a\n"
       "source / disk failure (the recording so far is kept), 2 a device could not be opened.");
   cmd->callback([options] {

@@ -284,8 +284,8 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--device-from", options->settings.device_from_recording,
                   "The IMU noise densities, lever arms and antennas: recording (those its meta.yaml and "
                   "tags.csv give, the rest the configuration's) or config (the configuration's only)")
-      ->default_str("recording")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"recording", true}, {"config", false}}));
+      ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"recording", true}, {"config", false}}))
+      ->option_text("recording|config (default recording)");  // names, not the transformer's numbers
   CLI::Option* smoother = cmd->add_option("--smoother", options->settings.smoother,
                                           "Estimator: an incremental smoother, or the EKF baseline (default: the configuration's smoother)")
       ->check(CLI::IsMember(estimatorNames()));
@@ -295,9 +295,9 @@ void addReplayCommand(CLI::App& app) {
       ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
   cmd->add_option("--thinning", options->settings.thinning,
                   "Which ranges --range-hz keeps: rotate (the anchor ranged longest ago, as a low-rate tag's scheduler) or first")
-      ->capture_default_str()
       ->transform(CLI::CheckedTransformer(std::map<std::string, RangeThinning>{{"rotate", RangeThinning::kRotate},
-                                                                               {"first", RangeThinning::kFirst}}));
+                                                                               {"first", RangeThinning::kFirst}}))
+      ->option_text("rotate|first (default " + std::string(rangeThinningName(options->settings.thinning)) + ")");
   CLI::Option* lag = cmd->add_option("--lag", options->settings.lag_s, "Fixed lag of the smoother (s; default: the configuration's lag_s)")
       ->check(CLI::Range(0.5, 600.0));
   cmd->add_option("--range-sigma", options->settings.range_sigma_m, "LOS range noise std-dev (m)")->check(CLI::Range(0.001, 10.0));

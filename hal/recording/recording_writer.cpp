@@ -103,7 +103,9 @@ RecordingWriter::RecordingWriter(std::filesystem::path dir, RecordingWriterOptio
   range_.header = headerLine(recording::kRangeRequired, recording::kRangeOptional);
   tdoa_.header = headerLine(recording::kTdoaRequired, recording::kTdoaOptional);
   ultrasonic_.header = headerLine(recording::kUltrasonicRequired, recording::kUltrasonicOptional);
-  groundtruth_.header = headerLine(recording::kGroundTruthRequired, recording::kGroundTruthOptional);
+  // '#': evo's EuRoC reader takes the header line for a comment only so
+  // (this reader drops the '#', csv_parser.h).
+  groundtruth_.header = std::string(1, '#').append(headerLine(recording::kGroundTruthRequired, recording::kGroundTruthOptional));
   line_.reserve(512);
 }
 

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "hal/recording/recording_reader.h"
 #include "service_test_support.h"
 
 namespace rilo {
@@ -198,6 +199,16 @@ TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
   ASSERT_GE(smoothed.size(), online.size());
   for (const auto& row : smoothed) ASSERT_EQ(row.size(), 8u);
   for (std::size_t i = 1; i < smoothed.size(); ++i) ASSERT_GT(smoothed[i][0], smoothed[i - 1][0]);
+  // The truth as TUM beside them, for evo: every ground-truth row, same pose.
+  const auto truth = readTum(out / "groundtruth.tum");
+  const Recording recording = readRecording(rec);
+  ASSERT_EQ(truth.size(), recording.groundtruth.size());
+  const GroundTruthPose& g = recording.groundtruth[recording.groundtruth.size() / 2];
+  const auto& mid = truth[recording.groundtruth.size() / 2];
+  EXPECT_NEAR(mid[0], static_cast<double>(g.t_ns) * 1e-9, 1e-9);
+  EXPECT_NEAR(mid[1], g.p_w_b.x(), 1e-6);
+  EXPECT_NEAR(mid[3], g.p_w_b.z(), 1e-6);
+  EXPECT_NEAR(std::abs(mid[7]), std::abs(g.q_w_b.w()), 1e-8);  // TUM: qx qy qz qw
   for (const auto& row : online) {
     const double qn = row[4] * row[4] + row[5] * row[5] + row[6] * row[6] + row[7] * row[7];
     ASSERT_NEAR(qn, 1.0, 1e-6);

@@ -145,6 +145,13 @@ int runReplay(const ReplayOptions& o) {
   writeTum(dir / "online.tum", run.online);
   if (!run.position_only.empty()) writeTum(dir / "position_only.tum", run.position_only);
   writeTum(dir / "smoothed.tum", run.smoothed);
+  // The truth beside the estimates, for evo (`evo_ape tum groundtruth.tum online.tum`).
+  if (!rec.groundtruth.empty()) {
+    TumTrajectory truth;
+    truth.reserve(rec.groundtruth.size());
+    for (const GroundTruthPose& g : rec.groundtruth) truth.push_back({g.t_ns, g.pose()});
+    writeTum(dir / "groundtruth.tum", truth);
+  }
 
   std::vector<double> sorted;
   for (const ReplayUpdate& u : run.updates) sorted.push_back(u.stats.time_s * 1e3);
@@ -262,8 +269,8 @@ int runReplay(const ReplayOptions& o) {
                   e.ape_vertical.mean, e.vertical_bias_m);
     }
   }
-  std::printf("  wrote %s/{online.tum,%ssmoothed.tum,timing.csv,summary.json}\n", o.out.c_str(),
-              run.position_only.empty() ? "" : "position_only.tum,");
+  std::printf("  wrote %s/{online.tum,%ssmoothed.tum,%stiming.csv,summary.json}\n", o.out.c_str(),
+              run.position_only.empty() ? "" : "position_only.tum,", rec.groundtruth.empty() ? "" : "groundtruth.tum,");
   return 0;
 }
 

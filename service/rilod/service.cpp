@@ -553,7 +553,8 @@ NavigationState Service::navigationState() {
     n.pose_covariance.bottomRightCorner<3, 3>() = c.topLeftCorner<3, 3>();
   }
   // Linear velocity from the smoother; the body rate's uncertainty is the
-  // gyro's, which the output predictor fills per sample.
+  // gyro's, which the output predictor fills per sample
+  // (OutputPredictorParams::gyro_noise_density, gyro_bias_sigma).
   n.twist_covariance.setIdentity();
   if (const auto cov = localizer_.latestVelocityCovariance()) n.twist_covariance.topLeftCorner<3, 3>() = *cov;
   return n;

@@ -16,6 +16,11 @@ ServiceOptions serviceOptions(const ServiceConfig& cfg) {
   so.publisher.topics = cfg.dds.topics;
   so.publisher.frames = cfg.dds.frames;
   so.queue_capacity = cfg.realtime.queue_capacity;
+  // The odometry's body rate is a gyro sample less the bias: the IMU model's
+  // white noise, and the bias's start prior (a bound: the smoother narrows it).
+  so.predictor.gravity_m_s2 = so.localizer.graph.imu.gravity_m_s2;
+  so.predictor.gyro_noise_density = so.localizer.graph.imu.gyro_noise_density;
+  so.predictor.gyro_bias_sigma = so.localizer.graph.first_gyro_bias_sigma;
   // Nothing real-time upstream of a fast replay: the source waits for the
   // estimator instead of losing samples.
   so.backpressure = cfg.sources.mode == SourceMode::kReplay && cfg.sources.replay.pace == ReplayPace::kAsFastAsPossible;

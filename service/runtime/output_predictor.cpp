@@ -34,12 +34,15 @@ void OutputPredictorParams::validate() const {
   requireFiniteNonNegative(position_random_walk, "position_random_walk");
   requireFiniteNonNegative(rotation_random_walk, "rotation_random_walk");
   requireFiniteNonNegative(velocity_random_walk, "velocity_random_walk");
+  requireFiniteNonNegative(gyro_noise_density, "gyro_noise_density");
+  requireFiniteNonNegative(gyro_bias_sigma, "gyro_bias_sigma");
 }
 
 OutputPredictor::OutputPredictor(const OutputPredictorParams& params)
     : params_(validated(params)),
       g_w_(0.0, 0.0, -params.gravity_m_s2),
-      imu_(params.imu_buffer_capacity) {}
+      imu_(params.imu_buffer_capacity),
+      bias_var_(params.gyro_bias_sigma * params.gyro_bias_sigma) {}
 
 const NavigationState& OutputPredictor::onImu(const ImuSample& sample) noexcept {
   if (!imu_.empty() && sample.t_ns <= imu_.newest().t_ns) {
@@ -111,6 +114,7 @@ void OutputPredictor::step(const ImuSample& sample) noexcept {
   out_.v_w_b += dt_s * a_w;
   out_.omega_b = w1_b;
   out_.t_ns = sample.t_ns;
+  if (dt_s > 0.0) omega_var_ = params_.gyro_noise_density * params_.gyro_noise_density / dt_s + bias_var_;
 
   prev_gyro_rad_s_ = sample.gyro_rad_s;
   prev_accel_m_s2_ = sample.accel_m_s2;
@@ -127,6 +131,11 @@ void OutputPredictor::growCovariance() noexcept {
   out_.pose_covariance.bottomRightCorner<3, 3>().diagonal().array() += var_r;
   out_.twist_covariance = smoothed_twist_cov_;
   out_.twist_covariance.topLeftCorner<3, 3>().diagonal().array() += var_v;
+  if (omega_var_ > 0.0) {
+    out_.twist_covariance.topRightCorner<3, 3>().setZero();
+    out_.twist_covariance.bottomLeftCorner<3, 3>().setZero();
+    out_.twist_covariance.bottomRightCorner<3, 3>() = Mat3::Identity() * omega_var_;
+  }
 }
 
 }  // namespace rilo

@@ -41,6 +41,12 @@ struct OutputPredictorParams {
   double position_random_walk = 0.05;      ///< q_p, m/sqrt(s)
   double rotation_random_walk = 2.0e-3;    ///< q_r, rad/sqrt(s)
   double velocity_random_walk = 0.05;      ///< q_v, m/s/sqrt(s)
+  /// The body rate published is one gyro sample less the estimated bias:
+  /// its variance per axis is the sample's white noise, density^2 / dt (dt
+  /// the sample interval), plus the bias's variance, gyro_bias_sigma^2.
+  /// Both 0: the angular block stays as the smoothed state gave it.
+  double gyro_noise_density = 0.0;         ///< rad/s/sqrt(Hz)
+  double gyro_bias_sigma = 0.0;            ///< rad/s
 
   /// Throws std::invalid_argument naming the first bad field: capacity >= 2,
   /// gravity and random walks finite and >= 0.
@@ -96,6 +102,8 @@ class OutputPredictor {
   Vec3 prev_gyro_rad_s_ = Vec3::Zero();
   Vec3 prev_accel_m_s2_ = Vec3::Zero();
   bool has_prev_ = false;
+  double bias_var_ = 0.0;   ///< gyro_bias_sigma^2
+  double omega_var_ = 0.0;  ///< variance of out_.omega_b per axis, from the last step (0: none yet)
   std::uint64_t dropped_ = 0;
   std::uint64_t rejected_ = 0;
   std::uint64_t truncated_ = 0;

@@ -164,6 +164,32 @@ TEST(OutputPredictor, CovarianceGrowsWithTimeSinceSmoothedState) {
   EXPECT_EQ(angular_out, angular_smoothed);
 }
 
+// The published body rate is one gyro sample less the bias (issue 39: its
+// covariance was a placeholder identity): per axis, the sample's white noise
+// density^2 / dt plus the bias variance, no correlation with the velocity.
+TEST(OutputPredictor, BodyRateCovarianceIsTheGyroSamplesNoiseAndTheBiasUncertainty) {
+  OutputPredictorParams params;
+  params.gyro_noise_density = 2.8e-4;
+  params.gyro_bias_sigma = 0.01;
+  OutputPredictor pred(params);
+  NavigationState s = truthAt(sampleTime(0));
+  s.twist_covariance = Mat6::Identity();
+  s.twist_covariance(4, 1) = s.twist_covariance(1, 4) = 0.5;
+  pred.onSmoothed(s);
+  for (int k = 1; k <= 10; ++k) pred.onImu(idealImuAt(sampleTime(k)));
+  const double dt = toSeconds(sampleTime(10) - sampleTime(9));
+  const Mat6& P = pred.state().twist_covariance;
+  const double expected = 2.8e-4 * 2.8e-4 / dt + 0.01 * 0.01;
+  EXPECT_NEAR(P(3, 3), expected, 1e-15);
+  EXPECT_NEAR(P(5, 5), expected, 1e-15);
+  EXPECT_EQ(P(4, 3), 0.0);
+  const Mat3 cross = P.topRightCorner<3, 3>();
+  const Mat3 cross_t = P.bottomLeftCorner<3, 3>();
+  EXPECT_EQ(cross.cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(cross_t.cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_LT(std::sqrt(P(3, 3)), 0.02) << "rad/s: a gyro's, not 1 rad/s";
+}
+
 // Full ring: the oldest sample is overwritten and counted. A smoothed state
 // older than everything buffered re-integrates what is left, holding the
 // oldest buffered sample over the gap, and is counted as truncated.
@@ -259,6 +285,12 @@ TEST(OutputPredictorParams, RejectsBadValuesNamingTheField) {
   p = {};
   p.velocity_random_walk = -1.0;
   EXPECT_NE(message(p).find("velocity_random_walk"), std::string::npos);
+  p = {};
+  p.gyro_noise_density = -1.0;
+  EXPECT_NE(message(p).find("gyro_noise_density"), std::string::npos);
+  p = {};
+  p.gyro_bias_sigma = std::nan("");
+  EXPECT_NE(message(p).find("gyro_bias_sigma"), std::string::npos);
   EXPECT_NO_THROW(OutputPredictor{OutputPredictorParams{}});
 }
 

@@ -3,6 +3,7 @@
 if(RILO_SANITIZE)
   add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   add_link_options(-fsanitize=address,undefined)
+  add_compile_definitions(RILO_NO_TARGET_CLONES)  # ifunc resolvers run before the sanitizer's runtime
 endif()
 # -DRILO_FUZZ=ON: libFuzzer's coverage instrumentation on every target (the
 # fuzz executables add its main; tests/fuzz/CMakeLists.txt).
@@ -19,4 +20,5 @@ if(RILO_TSAN)
   endif()
   add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
   add_link_options(-fsanitize=thread)
+  add_compile_definitions(RILO_NO_TARGET_CLONES)  # ifunc resolvers run before the sanitizer's runtime
 endif()

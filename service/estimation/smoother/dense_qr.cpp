@@ -12,7 +12,10 @@ namespace rilo {
 // (4-wide instead of SSE2's 2-wide) and picked at load time when the CPU has
 // it. Without FMA (not part of "avx2") every element sees the same
 // operations in the same order, so both versions give bit-identical results.
-#if defined(__x86_64__) && defined(__linux__) && defined(__GNUC__)
+// Not in sanitizer builds: the loader runs the version's resolver (an
+// ifunc) while relocating, before the sanitizer's runtime is up, and its
+// instrumentation crashed every ThreadSanitizer binary at start.
+#if defined(__x86_64__) && defined(__linux__) && defined(__GNUC__) && !defined(RILO_NO_TARGET_CLONES)
 #define RILO_QR_TARGET_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define RILO_QR_TARGET_CLONES

@@ -94,6 +94,7 @@ void OutputPredictor::integrateFrom(std::size_t first) noexcept {
     prev_accel_m_s2_ = after.accel_m_s2;
   }
   has_prev_ = true;
+  prev_sample_t_ns_ = first > 0 ? imu_[first - 1].t_ns : 0;
   for (std::size_t i = first; i < imu_.size(); ++i) step(imu_[i]);
 }
 
@@ -114,7 +115,13 @@ void OutputPredictor::step(const ImuSample& sample) noexcept {
   out_.v_w_b += dt_s * a_w;
   out_.omega_b = w1_b;
   out_.t_ns = sample.t_ns;
-  if (dt_s > 0.0) omega_var_ = params_.gyro_noise_density * params_.gyro_noise_density / dt_s + bias_var_;
+  // Per raw sample interval, not the integration step: the first step after
+  // a smoothed state covers only part of one (a 1 us step read as 0.28 rad/s).
+  if (prev_sample_t_ns_ > 0 && sample.t_ns > prev_sample_t_ns_) {
+    const double period_s = static_cast<double>(sample.t_ns - prev_sample_t_ns_) * kNsToS;
+    omega_var_ = params_.gyro_noise_density * params_.gyro_noise_density / period_s + bias_var_;
+  }
+  prev_sample_t_ns_ = sample.t_ns;
 
   prev_gyro_rad_s_ = sample.gyro_rad_s;
   prev_accel_m_s2_ = sample.accel_m_s2;

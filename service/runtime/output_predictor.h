@@ -19,7 +19,10 @@
 //                                             plus a random walk)
 //   rotation  += q_r^2 dt
 //   velocity  += q_v^2 dt                    (twist, linear block)
-//   angular rate block: the smoother's, unchanged.
+//   angular rate block: one gyro sample's white noise (density^2 over the
+//                       interval between raw samples) plus the bias's
+//                       variance (gyro_noise_density, gyro_bias_sigma);
+//                       both 0: the smoother's, unchanged.
 //
 // Not thread-safe: one thread (the publisher) owns it. No heap allocation
 // after construction.
@@ -104,6 +107,7 @@ class OutputPredictor {
   bool has_prev_ = false;
   double bias_var_ = 0.0;   ///< gyro_bias_sigma^2
   double omega_var_ = 0.0;  ///< variance of out_.omega_b per axis, from the last step (0: none yet)
+  std::int64_t prev_sample_t_ns_ = 0;  ///< the raw sample before the one stepped to (0: none)
   std::uint64_t dropped_ = 0;
   std::uint64_t rejected_ = 0;
   std::uint64_t truncated_ = 0;

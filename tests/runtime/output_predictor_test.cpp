@@ -188,6 +188,17 @@ TEST(OutputPredictor, BodyRateCovarianceIsTheGyroSamplesNoiseAndTheBiasUncertain
   EXPECT_EQ(cross.cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ(cross_t.cwiseAbs().maxCoeff(), 0.0);
   EXPECT_LT(std::sqrt(P(3, 3)), 0.02) << "rad/s: a gyro's, not 1 rad/s";
+
+  // A smoothed state 1 us before a sample (states sit at range times, off
+  // the IMU grid): the first step covers 1 us, the noise is still a whole
+  // sample interval's.
+  OutputPredictor late(params);
+  for (int k = 0; k <= 5; ++k) late.onImu(idealImuAt(sampleTime(k)));
+  NavigationState s2 = truthAt(sampleTime(6) - 1000);
+  late.onSmoothed(s2);
+  late.onImu(idealImuAt(sampleTime(6)));
+  EXPECT_EQ(late.state().t_ns, sampleTime(6));
+  EXPECT_NEAR(late.state().twist_covariance(3, 3), expected, 1e-15);
 }
 
 // Full ring: the oldest sample is overwritten and counted. A smoothed state

@@ -12,7 +12,7 @@ namespace rilo::cli {
 inline CLI::Validator notNegative() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
-        const std::size_t first = text.find_first_not_of(" \t");
+        const std::size_t first = text.find_first_not_of(" \t\n\v\f\r");  // what strtoull skips
         if (first != std::string::npos && text[first] == '-') return "must not be negative, got " + text;
         return {};
       },

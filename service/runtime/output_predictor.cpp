@@ -41,8 +41,7 @@ void OutputPredictorParams::validate() const {
 OutputPredictor::OutputPredictor(const OutputPredictorParams& params)
     : params_(validated(params)),
       g_w_(0.0, 0.0, -params.gravity_m_s2),
-      imu_(params.imu_buffer_capacity),
-      bias_var_(params.gyro_bias_sigma * params.gyro_bias_sigma) {}
+      imu_(params.imu_buffer_capacity) {}
 
 const NavigationState& OutputPredictor::onImu(const ImuSample& sample) noexcept {
   if (!imu_.empty() && sample.t_ns <= imu_.newest().t_ns) {
@@ -119,7 +118,8 @@ void OutputPredictor::step(const ImuSample& sample) noexcept {
   // a smoothed state covers only part of one (a 1 us step read as 0.28 rad/s).
   if (prev_sample_t_ns_ > 0 && sample.t_ns > prev_sample_t_ns_) {
     const double period_s = static_cast<double>(sample.t_ns - prev_sample_t_ns_) * kNsToS;
-    omega_var_ = params_.gyro_noise_density * params_.gyro_noise_density / period_s + bias_var_;
+    omega_var_ = (params_.gyro_noise_density * params_.gyro_noise_density) / period_s +
+                 params_.gyro_bias_sigma * params_.gyro_bias_sigma;
   }
   prev_sample_t_ns_ = sample.t_ns;
 

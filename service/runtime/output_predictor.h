@@ -105,7 +105,6 @@ class OutputPredictor {
   Vec3 prev_gyro_rad_s_ = Vec3::Zero();
   Vec3 prev_accel_m_s2_ = Vec3::Zero();
   bool has_prev_ = false;
-  double bias_var_ = 0.0;   ///< gyro_bias_sigma^2
   double omega_var_ = 0.0;  ///< variance of out_.omega_b per axis, from the last step (0: none yet)
   std::int64_t prev_sample_t_ns_ = 0;  ///< the raw sample before the one stepped to (0: none)
   std::uint64_t dropped_ = 0;

@@ -57,13 +57,7 @@ class HandRunner final : public InitAttemptRunner {
   std::function<void()> attempt_;
 };
 
-LocalizerParams paramsFor(const sim::Scenario& s) {
-  LocalizerParams p;
-  p.graph = testing::graphParamsFor(s);
-  p.smoother.lag_s = 5.0;
-  p.init.window_s = 5.0;
-  return p;
-}
+LocalizerParams paramsFor(const sim::Scenario& s) { return testing::localizerParamsFor(s); }
 
 struct FedRun {
   std::int64_t first_track_ns = -1;  ///< data time of the first tracked estimate

@@ -21,13 +21,7 @@
 namespace rilo {
 namespace {
 
-LocalizerParams paramsFor(const sim::Scenario& s) {
-  LocalizerParams p;
-  p.graph = testing::graphParamsFor(s);
-  p.smoother.lag_s = 5.0;
-  p.init.window_s = 5.0;
-  return p;
-}
+LocalizerParams paramsFor(const sim::Scenario& s) { return testing::localizerParamsFor(s); }
 
 struct FeedResult {
   double mean_error_m = 0.0;

@@ -63,10 +63,7 @@ TEST(LocalizerOnInitWorker, StartsCatchesUpAndTracksLikeInline) {
   sp.duration_s = 60.0;
   sp.seed = 3;
   const sim::Scenario s = sim::simulateScenario(sp);
-  LocalizerParams p;
-  p.graph = testing::graphParamsFor(s);
-  p.smoother.lag_s = 5.0;
-  p.init.window_s = 5.0;
+  const LocalizerParams p = testing::localizerParamsFor(s);
 
   Localizer inline_localizer(s.p_w_anchors, p);
   const Tracked inline_run = feed(s, inline_localizer, 0.0);

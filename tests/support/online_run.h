@@ -4,6 +4,7 @@
 // a sample, process what is ready.
 #include <functional>
 
+#include "estimation/tracking/localizer.h"
 #include "estimation/tracking/range_imu_estimator.h"
 #include "sim/range_imu_scenario.h"
 
@@ -19,6 +20,15 @@ inline RangeImuGraphParams graphParamsFor(const sim::Scenario& s, const std::str
   gp.imu = sim::imuParamsOf(s.params);
   gp.anchors_as_variables = anchors_as_variables;
   return gp;
+}
+
+/// The Localizer tests' settings: the scenario's sensors, a 5 s lag and a 5 s start-up window.
+inline LocalizerParams localizerParamsFor(const sim::Scenario& s) {
+  LocalizerParams p;
+  p.graph = graphParamsFor(s);
+  p.smoother.lag_s = 5.0;
+  p.init.window_s = 5.0;
+  return p;
 }
 
 /// Starts at the true state at the first range (initialization from scratch

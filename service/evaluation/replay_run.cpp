@@ -127,6 +127,9 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.floor_z_m) lp.height_band.floor_z_m = *s.floor_z_m;
   if (s.min_height_m) lp.height_band.min_height_m = *s.min_height_m;
   if (s.max_height_m) lp.height_band.max_height_m = *s.max_height_m;
+  if (s.range_lever) lp.height_band.range_lever = *s.range_lever;
+  if (s.height_hold_sigma_m) lp.height_band.hold_sigma_m = *s.height_hold_sigma_m;
+  if (s.learn_carry_height) lp.height_band.learn_carry_height = *s.learn_carry_height;
   lp.graph.p_w_ultrasonic = ultrasonicBeaconsById(rec.anchors);
   // The vertical speed prior is the replay's own choice (with the service's
   // parameters, only an explicit one changes theirs): set here, it holds in

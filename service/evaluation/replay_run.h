@@ -78,6 +78,9 @@ struct ReplaySettings {
   std::optional<bool> height_band;             ///< soft tag height band on tracked states
   std::optional<double> floor_z_m;             ///< floor height in the world frame (m)
   std::optional<double> min_height_m, max_height_m;  ///< band above the floor (m)
+  std::optional<bool> range_lever;             ///< HeightBand::range_lever
+  std::optional<double> height_hold_sigma_m;   ///< HeightBand::hold_sigma_m (m per sqrt(s); 0: off)
+  std::optional<bool> learn_carry_height;      ///< HeightBand::learn_carry_height
   /// Vertical speed prior (m/s; 0 none). Unset: kTdoaVerticalSpeedSigmaMs
   /// when TDoA rows are used, else kTwoWayVerticalSpeedSigmaMs.
   std::optional<double> vertical_speed_sigma_m_s;

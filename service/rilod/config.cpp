@@ -315,12 +315,17 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     });
   }
   if (auto f = m.get("height_band")) {
-    const ConfigMap band = f->map({"enabled", "floor_z_m", "min_height_m", "max_height_m", "sigma_m"});
+    const ConfigMap band = f->map({"enabled", "floor_z_m", "min_height_m", "max_height_m", "sigma_m", "range_lever",
+                                   "hold_sigma_m", "learn_carry_height", "carry_memory_s"});
     band.read("enabled", e.height_band.enabled, [](const ConfigField& b) { return b.boolean(); });
     band.read("floor_z_m", e.height_band.floor_z_m, [](const ConfigField& b) { return b.number(-1e4, 1e4); });
     band.read("min_height_m", e.height_band.min_height_m, [](const ConfigField& b) { return b.number(-100.0, 100.0); });
     band.read("max_height_m", e.height_band.max_height_m, [](const ConfigField& b) { return b.number(-100.0, 100.0); });
     band.read("sigma_m", e.height_band.sigma_m, [](const ConfigField& b) { return b.positive(100.0); });
+    band.read("range_lever", e.height_band.range_lever, [](const ConfigField& b) { return b.boolean(); });
+    band.read("hold_sigma_m", e.height_band.hold_sigma_m, [](const ConfigField& b) { return b.number(0.0, 100.0); });
+    band.read("learn_carry_height", e.height_band.learn_carry_height, [](const ConfigField& b) { return b.boolean(); });
+    band.read("carry_memory_s", e.height_band.carry_memory_s, [](const ConfigField& b) { return b.positive(1e6); });
     try {
       e.height_band.validate("height_band");
     } catch (const std::invalid_argument& ex) {

@@ -215,6 +215,60 @@ TEST(RangeFactor, InvalidArgumentsThrow) {
   }
 }
 
+TEST(RangeFactor, VerticalWeightScalesTheHeightTheRangeSees) {
+  // Tag 1 m below the anchor, 4 m away horizontally; the weight pins the
+  // prediction's height to z_ref + w (z - z_ref).
+  const Vec3 p_w_anchor(4, 0, 2.5);
+  const double z_ref_m = 1.4;
+  Values x;
+  x.insert(X(0), Pose3(Mat3::Identity(), Vec3(0, 0, 1.5)));
+  RangeFactor f(X(0), p_w_anchor, 4.2, 0.1, Vec3::Zero());
+  EXPECT_NEAR(f.predictedRange(x), std::hypot(4.0, 1.0), 1e-12);
+  f.setVerticalWeight(0.0, z_ref_m);
+  EXPECT_NEAR(f.predictedRange(x), std::hypot(4.0, 1.1), 1e-12);  // at z_ref whatever the state's height
+  Values higher;
+  higher.insert(X(0), Pose3(Mat3::Identity(), Vec3(0, 0, 2.0)));
+  EXPECT_NEAR(f.predictedRange(higher), f.predictedRange(x), 1e-12);
+  Residual r;
+  Jacobians H;
+  f.evaluate(x, r, &H);
+  EXPECT_EQ(H[0](0, 5), 0.0);  // no height information at all
+  EXPECT_NE(H[0](0, 3), 0.0);  // the horizontal stays
+  f.setVerticalWeight(0.5, z_ref_m);
+  EXPECT_NEAR(f.predictedRange(x), std::hypot(4.0, 2.5 - (1.4 + 0.5 * 0.1)), 1e-12);
+  EXPECT_DOUBLE_EQ(f.verticalWeight(), 0.5);
+}
+
+TEST(RangeFactor, JacobiansMatchWithAVerticalWeight) {
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> weight(0.0, 1.0);
+  for (int i = 0; i < 200; ++i) {
+    const Pose3 T_w_b = randomPose(rng, 5.0);
+    const Vec3 p_b_tag = randomVec(rng, 0.3);
+    const Vec3 p_w_anchor = randomVec(rng, 6.0);
+    const double z = (T_w_b.transformFrom(p_b_tag) - p_w_anchor).norm() + randomVec(rng, 0.3).x();
+    const double w = weight(rng);
+    const double z_ref = randomVec(rng, 2.0).z();
+    RangeFactor fv(X(0), L(3), z, 0.1, p_b_tag);
+    fv.setVerticalWeight(w, z_ref);
+    EXPECT_TRUE(testing::jacobiansMatch(fv, poseAndAnchor(T_w_b, p_w_anchor), 1e-6)) << "sample " << i;
+    RangeFactor fc(X(0), p_w_anchor, z, 0.1, p_b_tag);
+    fc.setVerticalWeight(w, z_ref);
+    Values x;
+    x.insert(X(0), T_w_b);
+    EXPECT_TRUE(testing::jacobiansMatch(fc, x, 1e-6)) << "sample " << i;
+  }
+}
+
+TEST(RangeFactor, VerticalWeightOutsideItsRangeThrows) {
+  RangeFactor f(X(0), L(1), 5.0, 0.1, Vec3::Zero());
+  EXPECT_THROW(f.setVerticalWeight(-0.1, 1.0), std::invalid_argument);
+  EXPECT_THROW(f.setVerticalWeight(1.5, 1.0), std::invalid_argument);
+  EXPECT_THROW(f.setVerticalWeight(std::nan(""), 1.0), std::invalid_argument);
+  EXPECT_THROW(f.setVerticalWeight(0.5, std::nan("")), std::invalid_argument);
+  EXPECT_DOUBLE_EQ(f.verticalWeight(), 1.0);
+}
+
 TEST(RangeFactor, WrongVariableTypeThrows) {
   const RangeFactor f(X(0), L(1), 5.0, 0.1, Vec3::Zero());
   Values x;

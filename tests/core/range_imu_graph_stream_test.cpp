@@ -722,18 +722,26 @@ TEST(RangeImuGraphStream, MotionPriorsOnEveryStateWhenEnabled) {
   gp.height_band.floor_z_m = -1.0;
   gp.vertical_speed_sigma_m_s = 0.3;
   std::size_t states = 0;
+  std::int64_t t_prev_ns = 0;
   const IncrementHook hook = [&](const GraphIncrement& inc, const RangeImuGraphStream&) {
     if (!inc.new_state) return;
     ++states;
-    int bands = 0, vertical = 0;
+    int bands = 0, holds = 0, vertical = 0;
     for (const FactorPtr& f : inc.factors) {
       if (const auto* b = dynamic_cast<const HeightBandFactor*>(f.get())) {
-        ++bands;
         EXPECT_EQ(b->keys()[0], sym::X(inc.state_index));
-        // The band is on the tag; the factor holds the body, an upright lever arm below it.
-        EXPECT_DOUBLE_EQ(b->zMin(), -0.1 - gp.p_b_tag.z());
-        EXPECT_DOUBLE_EQ(b->zMax(), 0.9 - gp.p_b_tag.z());
-        EXPECT_DOUBLE_EQ(b->sigma(), gp.height_band.sigma_m);
+        if (b->zMin() < b->zMax()) {
+          ++bands;
+          // The band is on the tag; the factor holds the body, an upright lever arm below it.
+          EXPECT_DOUBLE_EQ(b->zMin(), -0.1 - gp.p_b_tag.z());
+          EXPECT_DOUBLE_EQ(b->zMax(), 0.9 - gp.p_b_tag.z());
+          EXPECT_DOUBLE_EQ(b->sigma(), gp.height_band.sigma_m);
+        } else {
+          ++holds;  // towards the band's middle (no learning here), the same weight per second
+          EXPECT_DOUBLE_EQ(b->zMin(), 0.4 - gp.p_b_tag.z());
+          const double interval_s = 1e-9 * static_cast<double>(inc.t_ns - t_prev_ns);
+          EXPECT_NEAR(b->sigma(), gp.height_band.hold_sigma_m / std::sqrt(interval_s), 1e-9);
+        }
       }
       const auto* v = dynamic_cast<const PriorVec3Factor*>(f.get());
       if (v != nullptr && f->keys()[0] == sym::V(inc.state_index) && v->sqrtInformation()(0, 0) < 1e-3) {
@@ -743,10 +751,91 @@ TEST(RangeImuGraphStream, MotionPriorsOnEveryStateWhenEnabled) {
       }
     }
     EXPECT_EQ(bands, 1) << "state " << inc.state_index;
+    EXPECT_EQ(holds, inc.state_index == 0 ? 0 : 1) << "state " << inc.state_index;
     EXPECT_EQ(vertical, 1) << "state " << inc.state_index;
+    t_prev_ns = inc.t_ns;
   };
   feedStream(s, s.ranges, gp, RangeImuStreamOptions(), Feed(), hook);
   EXPECT_GT(states, 10u);
+}
+
+TEST(RangeImuGraphStream, RangesSpeakToTheHeightByTheirVerticalLever) {
+  const sim::Scenario s = makeScenario(3.0);
+  RangeImuGraphParams gp = graphParams(s);
+  gp.height_band = HeightBand();  // 0.9-1.9 m: middle 1.4 m, half-width 0.5 m
+  gp.height_band.floor_z_m = -1.0;
+  const double mid_z = 0.4;
+  const double s0 = gp.range_noise.sigma_m / 0.5;
+  int zero = 0, full = 0, between = 0;
+  const IncrementHook hook = [&](const GraphIncrement& inc, const RangeImuGraphStream&) {
+    for (const FactorPtr& f : inc.factors) {
+      const auto* r = dynamic_cast<const RangeFactor*>(f.get());
+      if (r == nullptr) continue;
+      const Vec3 p_w_anchor = s.p_w_anchors[keyIndex(r->anchorKey())];
+      const double dz = mid_z - p_w_anchor.z();
+      const double sine = std::abs(dz) / std::max(std::abs(dz), r->measuredRange());
+      if (sine <= s0) {
+        EXPECT_EQ(r->verticalWeight(), 0.0) << "sine " << sine;
+        ++zero;
+      } else if (sine >= 2.0 * s0) {
+        EXPECT_EQ(r->verticalWeight(), 1.0) << "sine " << sine;
+        ++full;
+      } else {
+        EXPECT_GT(r->verticalWeight(), 0.0) << "sine " << sine;
+        EXPECT_LT(r->verticalWeight(), 1.0) << "sine " << sine;
+        ++between;
+      }
+    }
+  };
+  feedStream(s, s.ranges, gp, RangeImuStreamOptions(), Feed(), hook);
+  EXPECT_GT(zero + full + between, 50);
+  EXPECT_GT(full, 0);  // the scenario has anchors well above and below the middle
+  // Without the band, or with the lever off, every range keeps its full weight.
+  for (const bool band_on : {false, true}) {
+    RangeImuGraphParams off = gp;
+    off.height_band.enabled = band_on;
+    off.height_band.range_lever = false;
+    int reduced = 0;
+    feedStream(s, s.ranges, off, RangeImuStreamOptions(), Feed(),
+               [&](const GraphIncrement& inc, const RangeImuGraphStream&) {
+                 for (const FactorPtr& f : inc.factors) {
+                   const auto* r = dynamic_cast<const RangeFactor*>(f.get());
+                   if (r != nullptr && r->verticalWeight() != 1.0) ++reduced;
+                 }
+               });
+    EXPECT_EQ(reduced, 0) << "band " << band_on;
+  }
+}
+
+// With learning on, the hold's centre moves from the band's middle to the
+// heights the tracker estimated where ranges told the height (here the
+// truth, fed back as the post-fit estimate); off, it stays in the middle.
+TEST(RangeImuGraphStream, CarryHeightLearntWhereRangesTellTheHeight) {
+  const sim::Scenario s = makeScenario(20.0);
+  RangeImuGraphParams gp = graphParams(s);
+  gp.height_band = HeightBand();  // 0.9-1.9 m above a floor at 0: middle 1.4 m
+  const double truth_z = s.truthAt(s.t0_ns).T_w_b.transformFrom(s.p_b_tag).z();
+  ASSERT_LT(std::abs(truth_z - 1.4), 0.4) << "the walk must lie in the band, away from its middle";
+  ASSERT_GT(std::abs(truth_z - 1.4), 0.05);
+  for (const bool learn : {false, true}) {
+    RangeImuStreamOptions options;
+    options.carry_height.learn = learn;
+    double carry_m = 0.0, hold_z_m = 0.0;
+    feedStream(s, s.ranges, gp, options, Feed(), [&](const GraphIncrement& inc, const RangeImuGraphStream& stream) {
+      carry_m = stream.carryHeightM();
+      for (const FactorPtr& f : inc.factors) {
+        const auto* b = dynamic_cast<const HeightBandFactor*>(f.get());
+        if (b != nullptr && b->zMin() == b->zMax()) hold_z_m = b->zMin() + gp.p_b_tag.z();
+      }
+    });
+    if (learn) {
+      EXPECT_NEAR(carry_m, truth_z, 0.05);
+      EXPECT_NEAR(hold_z_m, truth_z, 0.05) << "new states are held at the learnt height";
+    } else {
+      EXPECT_DOUBLE_EQ(carry_m, 1.4);
+      EXPECT_DOUBLE_EQ(hold_z_m, 1.4);
+    }
+  }
 }
 
 TEST(RangeImuGraphStream, RejectsBadMotionPriors) {

@@ -172,7 +172,8 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "  anchors_as_variables: false\n"
       "  anchor_sigma_m: 0.05\n"
       "  init: {window_s: 7.5, max_outside_anchors_m: 2.5, heavy_nlos_after_s: 45}\n"
-      "  height_band: {enabled: true, floor_z_m: -0.3, min_height_m: 1.0, max_height_m: 1.6, sigma_m: 0.05}\n"
+      "  height_band: {enabled: true, floor_z_m: -0.3, min_height_m: 1.0, max_height_m: 1.6, sigma_m: 0.05,\n"
+      "                range_lever: false, hold_sigma_m: 0.7, learn_carry_height: true, carry_memory_s: 30}\n"
       "  vertical_speed_sigma_m_s: 0.4\n"
       "dds:\n"
       "  domain: 42\n"
@@ -253,6 +254,10 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_DOUBLE_EQ(c.estimator.height_band.min_height_m, 1.0);
   EXPECT_DOUBLE_EQ(c.estimator.height_band.max_height_m, 1.6);
   EXPECT_DOUBLE_EQ(c.estimator.height_band.sigma_m, 0.05);
+  EXPECT_FALSE(c.estimator.height_band.range_lever);
+  EXPECT_DOUBLE_EQ(c.estimator.height_band.hold_sigma_m, 0.7);
+  EXPECT_TRUE(c.estimator.height_band.learn_carry_height);
+  EXPECT_DOUBLE_EQ(c.estimator.height_band.carry_memory_s, 30.0);
   ASSERT_TRUE(c.estimator.vertical_speed_sigma_m_s.has_value());
   EXPECT_DOUBLE_EQ(*c.estimator.vertical_speed_sigma_m_s, 0.4);
 
@@ -534,6 +539,9 @@ TEST(ShippedConfigTest, EstimatorAloneIsTheWholeFilesEstimator) {
   EXPECT_DOUBLE_EQ(e.graph.imu.accel_noise_density, want.graph.imu.accel_noise_density);
   EXPECT_TRUE(e.graph.p_b_tag.isApprox(want.graph.p_b_tag));
   EXPECT_DOUBLE_EQ(e.height_band.min_height_m, want.height_band.min_height_m);
+  EXPECT_EQ(e.height_band.range_lever, want.height_band.range_lever);
+  EXPECT_DOUBLE_EQ(e.height_band.hold_sigma_m, want.height_band.hold_sigma_m);
+  EXPECT_EQ(e.height_band.learn_carry_height, want.height_band.learn_carry_height);
   EXPECT_EQ(e.rx_level_indicator, want.rx_level_indicator);
   EXPECT_DOUBLE_EQ(e.flagged_excess_quantile, want.flagged_excess_quantile);
   EXPECT_EQ(e.with_tdoa.state_window_ns, want.with_tdoa.state_window_ns);
@@ -797,6 +805,10 @@ std::vector<BadCase> badCases() {
        "trust_radius_min", 11},
       {"height_band_inverted", valid("estimator:\n  height_band: {min_height_m: 1.5, max_height_m: 1.0}\n"),
        "estimator.height_band", "max_height_m must be > min_height_m", 11},
+      {"height_band_hold_negative", valid("estimator:\n  height_band: {hold_sigma_m: -0.5}\n"),
+       "estimator.height_band.hold_sigma_m", "[0, 100]", 11},
+      {"height_band_memory_zero", valid("estimator:\n  height_band: {carry_memory_s: 0}\n"),
+       "estimator.height_band.carry_memory_s", "expected a number > 0", 11},
       {"height_band_unknown_key", valid("estimator:\n  height_band: {floor: 0}\n"), "estimator.height_band", "unknown key 'floor'", 11},
       {"init_window_tiny", valid("estimator:\n  init: {window_s: 0.1}\n"), "estimator.init.window_s", "[0.5, 600]",
        11},

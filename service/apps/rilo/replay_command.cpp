@@ -355,6 +355,16 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--floor-z", options->settings.floor_z_m, "Floor height in the anchors' frame (m)");
   cmd->add_option("--min-height", options->settings.min_height_m, "Lowest tag height above the floor (m)");
   cmd->add_option("--max-height", options->settings.max_height_m, "Highest tag height above the floor (m)");
+  cmd->add_option("--range-lever", options->settings.range_lever,
+                  "Two-way ranges speak to the height only by their vertical lever (true/false; default: the "
+                  "configuration's height_band.range_lever)");
+  cmd->add_option("--height-hold-sigma", options->settings.height_hold_sigma_m,
+                  "Each state's height held towards the carry height, m per sqrt(s) of data (0 = off; default: the "
+                  "configuration's height_band.hold_sigma_m)")
+      ->check(CLI::Range(0.0, 100.0));
+  cmd->add_option("--learn-carry-height", options->settings.learn_carry_height,
+                  "Learn the carry height from where ranges tell the height (true/false; default: the "
+                  "configuration's height_band.learn_carry_height)");
   cmd->add_option("--vertical-speed-sigma", options->settings.vertical_speed_sigma_m_s,
                   "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none; default: the configuration's vertical_speed_sigma_m_s, whose auto is 0.05 when TDoA rows are used, else 0.3)")->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--zero-velocity-sigma", options->settings.zero_velocity_sigma_m_s,

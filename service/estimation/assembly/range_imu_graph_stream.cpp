@@ -1,5 +1,6 @@
 #include "estimation/assembly/range_imu_graph_stream.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -51,6 +52,7 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
       ultrasonic_loss_(makeRangeLoss(params_.ultrasonic_loss, withSigma(params_.range_noise, params_.ultrasonic_sigma_m))),
       pim_(params_.imu, ImuBias(), PreintegratedImu::CovarianceMode::kCombined),
       noise_(p_w_anchors_, params_, options_.dynamic_covariance),
+      carry_height_(params_.height_band, options_.carry_height),
       anchor_in_graph_(p_w_anchors_.size(), false),
       standstill_(params_.standstill, options.initial_imu_capacity),
       imu_(options.initial_imu_capacity),
@@ -269,6 +271,7 @@ std::optional<GraphIncrement> RangeImuGraphStream::next(const StateEstimate& pre
     throw std::invalid_argument("RangeImuGraphStream::next: previous estimate is not finite");
   }
   noise_.notePostFit(previous.index, previous.T_w_b);  // no-op unless its measurements await it
+  carry_height_.notePostFit(previous.index, previous.t_ns, previous.T_w_b.transformFrom(params_.p_b_tag).z());
   if (!plan_.empty() && stateReady(plan_.front())) return emitState(previous);
   if (carry_ranges_ > 0 && carryClosed()) return emitCarriedRanges();
   return std::nullopt;
@@ -292,6 +295,7 @@ GraphIncrement RangeImuGraphStream::emitState(const StateEstimate& previous) {
   addRangeFactors(carry_ranges_, s.n_ranges, sym::X(i), inc);
   addAnchorPriors(inc);
   addMotionPriors(i, inc);
+  addCarryHold(i, s.t_ns - last_t_ns_, inc);
   const bool still = addStandstillPrior(i, last_t_ns_, s.t_ns, previous.v_w, inc);
 
   const PreintegratedImu::NavState nav = pim_.predict(previous.T_w_b, previous.v_w, previous.bias);
@@ -302,7 +306,10 @@ GraphIncrement RangeImuGraphStream::emitState(const StateEstimate& previous) {
   inc.key_times_ns = {{sym::X(i), s.t_ns}, {sym::V(i), s.t_ns}, {sym::B(i), s.t_ns}};
 
   // Commit (nothing above changed the stream).
-  for (std::size_t k = carry_ranges_; k < carry_ranges_ + s.n_ranges; ++k) noise_.notePrediction(i, ranges_[k], nav.T_w_b);
+  for (std::size_t k = carry_ranges_; k < carry_ranges_ + s.n_ranges; ++k) {
+    noise_.notePrediction(i, ranges_[k], nav.T_w_b);
+    noteHeightEvidence(i, ranges_[k]);
+  }
   commitAnchors(inc);
   ranges_.pop_front(carry_ranges_ + s.n_ranges);
   carry_ranges_ = 0;

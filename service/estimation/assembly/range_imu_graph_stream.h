@@ -54,6 +54,7 @@
 #include "estimation/graph/factor.h"
 #include "estimation/imu/preintegration.h"
 #include "estimation/imu/state_estimate.h"
+#include "estimation/measurements/carry_height.h"
 #include "estimation/measurements/growing_ring.h"
 #include "estimation/measurements/measurement.h"
 #include "estimation/measurements/range_model.h"
@@ -107,6 +108,11 @@ struct RangeImuStreamOptions {
   /// RangeImuGraphParams: it is how the stream builds factors over time, not
   /// what the graph is; LocalizerParams::stream carries it.
   DynamicCovarianceOptions dynamic_covariance;
+  /// Where HeightBand::hold_sigma_m holds each state: learnt from the
+  /// post-fit heights where ranges told the height (tracking: the Localizer
+  /// sets it from the band), or the band's middle (learn false: the
+  /// initializer's batch, whose states are dead-reckoned while it is built).
+  CarryHeightParams carry_height;
 };
 
 class RangeImuGraphStream {
@@ -167,6 +173,8 @@ class RangeImuGraphStream {
   std::size_t droppedRanges() const { return dropped_ranges_; }  ///< measurements before t0, dropped by start()
   /// States emitted with a zero-velocity prior (RangeImuGraphParams::zero_velocity_sigma_m_s).
   std::size_t standstillStates() const { return standstill_states_; }
+  /// Where new states' heights are held (tag height, m, world; HeightBand::hold_sigma_m).
+  double carryHeightM() const { return carry_height_.heightM(); }
   const RangeImuGraphParams& params() const { return params_; }
   /// The sigmas given to measurement factors (and the dynamic estimate, if on).
   const MeasurementNoise& measurementNoise() const { return noise_; }
@@ -192,6 +200,17 @@ class RangeImuGraphStream {
                           GraphIncrement& inc) const;
   /// Adds the factors of ranges_[first, first + n) on state key x, noting anchors new to the graph.
   void addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const;
+  /// The hold of state i's height towards the carry height (HeightBand::hold_sigma_m).
+  void addCarryHold(std::uint64_t i, std::int64_t interval_ns, GraphIncrement& inc) const;
+  /// State i's range m tells the carry height what it says about the height.
+  void noteHeightEvidence(std::uint64_t i, const Measurement& m);
+  /// The vertical weight of two-way range m (HeightBand::range_lever: 0
+  /// below s0 = the range sigma over the band's half-width, 1 from 2 s0,
+  /// smooth between; one sigma of excess the model does not remove fakes
+  /// more height than the band's half-width below s0) and, in *sine, its
+  /// vertical lever (the sine of the anchor's elevation seen from the band's
+  /// middle); 1 without the lever.
+  double verticalWeightOf(const Measurement& m, double* sine) const;
   /// The anchor key of a UWB anchor (adding its value if new to the graph).
   Key uwbAnchorKey(std::uint32_t id, GraphIncrement& inc) const;
   void addAnchorPriors(GraphIncrement& inc) const;
@@ -205,6 +224,7 @@ class RangeImuGraphStream {
   RobustLossPtr ultrasonic_loss_;
   PreintegratedImu pim_;  ///< scratch, reset per state
   MeasurementNoise noise_;
+  CarryHeight carry_height_;  ///< where each state's height is held (HeightBand::hold_sigma_m)
 
   bool started_ = false;
   bool finished_ = false;

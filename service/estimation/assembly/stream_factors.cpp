@@ -4,7 +4,11 @@
 // priors (height band, vertical speed, zero velocity at a standstill), and the
 // anchors' survey priors when anchors are variables. The rest of the stream
 // (planning states, preintegrating, emitting) is range_imu_graph_stream.cpp.
+#include <algorithm>
+#include <cmath>
+#include <memory>
 #include <optional>
+#include <utility>
 
 #include "estimation/assembly/range_imu_graph_stream.h"
 #include "estimation/factors/prior_factors.h"
@@ -13,24 +17,69 @@
 #include "estimation/factors/ultrasonic_factor.h"
 
 namespace rilo {
+namespace {
+
+/// A factor marked as a motion prior (Factor::markMotionPrior).
+template <class F, class... Args>
+FactorPtr motionPrior(Args&&... args) {
+  auto f = std::make_shared<F>(std::forward<Args>(args)...);
+  f->markMotionPrior();
+  return f;
+}
+
+}  // namespace
 
 void RangeImuGraphStream::addMotionPriors(std::uint64_t i, GraphIncrement& inc) const {
   const HeightBand& band = params_.height_band;
   if (band.enabled) {
-    inc.factors.emplace<HeightBandFactor>(sym::X(i), band.minZ() - params_.p_b_tag.z(), band.maxZ() - params_.p_b_tag.z(),
-                                          band.sigma_m);
+    inc.factors.add(motionPrior<HeightBandFactor>(sym::X(i), band.minZ() - params_.p_b_tag.z(),
+                                                  band.maxZ() - params_.p_b_tag.z(), band.sigma_m));
   }
   if (params_.vertical_speed_sigma_m_s > 0.0) {
     // Horizontal speed is free (1e4 m/s std-dev); only v_z is held near zero.
-    inc.factors.emplace<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(1e4, 1e4, params_.vertical_speed_sigma_m_s));
+    inc.factors.add(motionPrior<PriorVec3Factor>(sym::V(i), Vec3::Zero(),
+                                                 Vec3(1e4, 1e4, params_.vertical_speed_sigma_m_s)));
   }
+}
+
+void RangeImuGraphStream::addCarryHold(std::uint64_t i, std::int64_t interval_ns, GraphIncrement& inc) const {
+  const HeightBand& band = params_.height_band;
+  if (!band.enabled || !(band.hold_sigma_m > 0.0)) return;
+  const double interval_s = std::max(1e-3, 1e-9 * static_cast<double>(interval_ns));
+  const double z_m = carry_height_.heightM() - params_.p_b_tag.z();  // body height of an upright wearer
+  inc.factors.add(motionPrior<HeightBandFactor>(sym::X(i), z_m, z_m, band.hold_sigma_m / std::sqrt(interval_s)));
+}
+
+double RangeImuGraphStream::verticalWeightOf(const Measurement& m, double* sine) const {
+  *sine = 0.0;
+  const HeightBand& band = params_.height_band;
+  if (!band.range_lever || !band.enabled || m.kind != Measurement::Kind::kRange) return 1.0;
+  // From the measured range and the band's middle: a fact of the
+  // measurement, not of a prediction (a batch window's states are
+  // dead-reckoned while the stream runs).
+  const double dz_m = band.midZ() - p_w_anchors_[m.anchor].z();
+  *sine = dz_m / std::max({std::abs(dz_m), m.value_m, 1e-3});
+  const double s0 = params_.range_noise.sigma_m / (0.5 * (band.max_height_m - band.min_height_m));
+  const double u = std::clamp((std::abs(*sine) - s0) / s0, 0.0, 1.0);
+  return u * u * (3.0 - 2.0 * u);  // smoothstep from s0 to 2 s0
+}
+
+void RangeImuGraphStream::noteHeightEvidence(std::uint64_t i, const Measurement& m) {
+  if (!options_.carry_height.learn || m.kind != Measurement::Kind::kRange) return;
+  double sine = 0.0;
+  const double w = verticalWeightOf(m, &sine);
+  if (w == 0.0) return;
+  const double sigma_m = noise_.sigma(m);
+  if (range_model_.term(m, sigma_m).flagged_nlos) return;  // the NLOS component's weak pull is no height evidence
+  const double info = w * sine / sigma_m;
+  carry_height_.addEvidence(i, info * info);
 }
 
 bool RangeImuGraphStream::addStandstillPrior(std::uint64_t i, std::int64_t t_prev_ns, std::int64_t t_ns,
                                              const Vec3& v_w_prev, GraphIncrement& inc) const {
   if (params_.zero_velocity_sigma_m_s <= 0.0 || !standstill_.stillFor(t_prev_ns, t_ns, v_w_prev)) return false;
   const double sigma = standstillPriorSigma(params_.zero_velocity_sigma_m_s, t_ns - t_prev_ns);
-  inc.factors.emplace<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(Vec3::Constant(sigma)));
+  inc.factors.add(motionPrior<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(Vec3::Constant(sigma))));
   return true;
 }
 
@@ -51,13 +100,14 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
     switch (m.kind) {
       case Measurement::Kind::kRange: {
         const RangeTerm t = range_model_.term(m, sigma_m);
-        if (vars) {
-          inc.factors.emplace<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m,
-                                           params_.leverArm(m.tag), t.loss);
-        } else {
-          inc.factors.emplace<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, params_.leverArm(m.tag),
-                                           t.loss);
-        }
+        const Vec3& p_b_tag = params_.leverArm(m.tag);
+        auto f = vars ? std::make_shared<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m, p_b_tag,
+                                                      t.loss)
+                      : std::make_shared<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, p_b_tag, t.loss);
+        double sine = 0.0;
+        const double w = verticalWeightOf(m, &sine);
+        if (w < 1.0) f->setVerticalWeight(w, params_.height_band.midZ());
+        inc.factors.add(std::move(f));
         break;
       }
       case Measurement::Kind::kTdoa: {

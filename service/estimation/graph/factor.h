@@ -43,6 +43,13 @@ class Factor {
   /// whitened Jacobians H[k] = d r / d delta_k (dim() x dim(key k)).
   virtual void evaluate(const Values& x, Residual& r, Jacobians* H) const = 0;
 
+  /// A motion prior (height band and hold, vertical speed, zero velocity):
+  /// what a walker's body allows, not a measurement. D-iSAM2 damps the new
+  /// variables when new measurements disagree with the prediction; a motion
+  /// prior's pull does not count (d_isam2_step.cpp).
+  void markMotionPrior() { motion_prior_ = true; }
+  bool isMotionPrior() const { return motion_prior_; }
+
   const RobustLoss* loss() const { return loss_.get(); }
   const RobustLossPtr& lossPtr() const { return loss_; }
 
@@ -59,6 +66,7 @@ class Factor {
  private:
   std::vector<Key> keys_;
   RobustLossPtr loss_;
+  bool motion_prior_ = false;
 };
 
 using FactorPtr = std::shared_ptr<const Factor>;

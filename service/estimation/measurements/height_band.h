@@ -22,6 +22,20 @@ struct HeightBand {
   double min_height_m = 0.9;  ///< lowest tag height above the floor (m)
   double max_height_m = 1.9;  ///< highest tag height above the floor (m)
   double sigma_m = 0.1;       ///< softness of the band's edges (m)
+  // How the height is held inside the band (range_imu_graph_stream.h; issue
+  // 36: without them the far ranges' unremoved NLOS excess held the foreign
+  // offices' tag 0.5 m low). Both need the band enabled.
+  /// A two-way range speaks to the height only by its vertical lever
+  /// (RangeImuGraphStream::verticalWeightOf).
+  bool range_lever = true;
+  /// Each state's height is held towards the carry height with this sigma
+  /// per sqrt(s) of data (m; 0: off): the weight per second is that of a
+  /// sigma of hold_sigma_m.
+  double hold_sigma_m = 0.5;
+  /// The carry height is learnt while tracking (carry_height.h), else the
+  /// band's middle; evidence fades over carry_memory_s (s).
+  bool learn_carry_height = false;
+  double carry_memory_s = 120.0;
 
   static HeightBand off() {
     HeightBand b;
@@ -74,6 +88,10 @@ struct HeightBand {
     if (!(max_height_m > min_height_m)) throw std::invalid_argument(where + ".max_height_m must be > min_height_m");
     if (!(sigma_m > 0.0)) throw std::invalid_argument(where + ".sigma_m must be > 0");
     if (!std::isfinite(floor_z_m)) throw std::invalid_argument(where + ".floor_z_m must be finite");
+    if (!(hold_sigma_m >= 0.0) || std::isinf(hold_sigma_m)) {
+      throw std::invalid_argument(where + ".hold_sigma_m must be >= 0 and finite");
+    }
+    if (!(carry_memory_s > 0.0)) throw std::invalid_argument(where + ".carry_memory_s must be > 0");
   }
 };
 

@@ -331,6 +331,8 @@ void Localizer::guarded(F&& f) {
 void Localizer::startTracking() {
   RangeImuGraphParams graph = params_.graph;
   RangeImuStreamOptions stream = params_.stream;
+  stream.carry_height.learn = graph.height_band.learn_carry_height;
+  stream.carry_height.memory_s = graph.height_band.carry_memory_s;
   // The data the tracker starts on say which ranging is in use.
   const std::vector<Measurement>& buffered = initializer_.measurementBuffer();
   const bool tdoa = std::any_of(buffered.begin(), buffered.end(),

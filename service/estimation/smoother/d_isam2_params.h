@@ -15,8 +15,11 @@ struct DIsam2Params {
   /// exactly by its IMU factor, and the acceptance test (kDampedFactors)
   /// would only see the error that factor picks up when older states move.
   /// At 1 Hz ranging damping them rejected every IMU-only update and the
-  /// track diverged even on a clean walk. An update without new factors (an
-  /// extra iteration) always damps the re-eliminated top.
+  /// track diverged even on a clean walk. Motion priors (Factor::isMotionPrior:
+  /// the height band and hold, vertical speed, zero velocity) are not counted:
+  /// they pull an IMU-only state a little and would damp it all the same. An
+  /// update without new factors (an extra iteration) always damps the
+  /// re-eliminated top.
   double damping_min_new_error = 1e-9;
   double lambda_initial = 1e-5;
   double lambda_min = 1e-10;

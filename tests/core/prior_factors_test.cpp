@@ -292,6 +292,15 @@ TEST(HeightBandFactor, EqualBoundsAndInvalidArguments) {
   Values x;
   x.insert(X(0), Pose3(Mat3::Identity(), Vec3(0, 0, 2.0)));
   EXPECT_NEAR(eq.error(x), 0.5, 1e-12);
+  // A plain prior on z: its information stays at its own centre (the hold).
+  Values at_centre;
+  at_centre.insert(X(0), Pose3(Mat3::Identity(), Vec3(0, 0, 1.5)));
+  Residual r;
+  Jacobians H;
+  eq.evaluate(at_centre, r, &H);
+  EXPECT_EQ(r(0), 0.0);
+  EXPECT_DOUBLE_EQ(H[0](0, 5), 2.0);  // 1 / sigma
+  EXPECT_TRUE(testing::jacobiansMatch(eq, at_centre, 1e-6));
   const double nan = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(HeightBandFactor(X(0), 2.0, 1.0, 0.1), std::invalid_argument);
   EXPECT_THROW(HeightBandFactor(X(0), 1.0, 2.0, 0.0), std::invalid_argument);

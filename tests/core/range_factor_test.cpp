@@ -215,17 +215,17 @@ TEST(RangeFactor, InvalidArgumentsThrow) {
   }
 }
 
-TEST(RangeFactor, VerticalWeightScalesTheHeightTheRangeSees) {
+TEST(RangeFactor, VerticalWeightScalesTheSeparationTheRangeSees) {
   // Tag 1 m below the anchor, 4 m away horizontally; the weight pins the
-  // prediction's height to z_ref + w (z - z_ref).
+  // prediction's vertical separation to dz_ref + w (dz - dz_ref).
   const Vec3 p_w_anchor(4, 0, 2.5);
-  const double z_ref_m = 1.4;
+  const double dz_ref_m = 1.4 - 2.5;  // a reference height of 1.4 m
   Values x;
   x.insert(X(0), Pose3(Mat3::Identity(), Vec3(0, 0, 1.5)));
   RangeFactor f(X(0), p_w_anchor, 4.2, 0.1, Vec3::Zero());
   EXPECT_NEAR(f.predictedRange(x), std::hypot(4.0, 1.0), 1e-12);
-  f.setVerticalWeight(0.0, z_ref_m);
-  EXPECT_NEAR(f.predictedRange(x), std::hypot(4.0, 1.1), 1e-12);  // at z_ref whatever the state's height
+  f.setVerticalWeight(0.0, dz_ref_m);
+  EXPECT_NEAR(f.predictedRange(x), std::hypot(4.0, 1.1), 1e-12);  // at the reference whatever the state's height
   Values higher;
   higher.insert(X(0), Pose3(Mat3::Identity(), Vec3(0, 0, 2.0)));
   EXPECT_NEAR(f.predictedRange(higher), f.predictedRange(x), 1e-12);
@@ -234,9 +234,20 @@ TEST(RangeFactor, VerticalWeightScalesTheHeightTheRangeSees) {
   f.evaluate(x, r, &H);
   EXPECT_EQ(H[0](0, 5), 0.0);  // no height information at all
   EXPECT_NE(H[0](0, 3), 0.0);  // the horizontal stays
-  f.setVerticalWeight(0.5, z_ref_m);
-  EXPECT_NEAR(f.predictedRange(x), std::hypot(4.0, 2.5 - (1.4 + 0.5 * 0.1)), 1e-12);
+  f.setVerticalWeight(0.5, dz_ref_m);
+  EXPECT_NEAR(f.predictedRange(x), std::hypot(4.0, 1.1 - 0.5 * 0.1), 1e-12);
   EXPECT_DOUBLE_EQ(f.verticalWeight(), 0.5);
+
+  // An anchor variable's height is weighted the same: with w = 0 neither the
+  // tag's nor the anchor's height moves the prediction.
+  RangeFactor fv(X(0), L(3), 4.2, 0.1, Vec3::Zero());
+  fv.setVerticalWeight(0.0, dz_ref_m);
+  const double h0 = fv.predictedRange(poseAndAnchor(Pose3(Mat3::Identity(), Vec3(0, 0, 1.5)), p_w_anchor));
+  EXPECT_NEAR(fv.predictedRange(poseAndAnchor(Pose3(Mat3::Identity(), Vec3(0, 0, 1.5)), p_w_anchor + Vec3(0, 0, 0.7))),
+              h0, 1e-12);
+  fv.evaluate(poseAndAnchor(Pose3(Mat3::Identity(), Vec3(0, 0, 1.5)), p_w_anchor), r, &H);
+  EXPECT_EQ(H[1](0, 2), 0.0);
+  EXPECT_NE(H[1](0, 0), 0.0);
 }
 
 TEST(RangeFactor, JacobiansMatchWithAVerticalWeight) {
@@ -248,12 +259,12 @@ TEST(RangeFactor, JacobiansMatchWithAVerticalWeight) {
     const Vec3 p_w_anchor = randomVec(rng, 6.0);
     const double z = (T_w_b.transformFrom(p_b_tag) - p_w_anchor).norm() + randomVec(rng, 0.3).x();
     const double w = weight(rng);
-    const double z_ref = randomVec(rng, 2.0).z();
+    const double dz_ref = randomVec(rng, 2.0).z();
     RangeFactor fv(X(0), L(3), z, 0.1, p_b_tag);
-    fv.setVerticalWeight(w, z_ref);
+    fv.setVerticalWeight(w, dz_ref);
     EXPECT_TRUE(testing::jacobiansMatch(fv, poseAndAnchor(T_w_b, p_w_anchor), 1e-6)) << "sample " << i;
     RangeFactor fc(X(0), p_w_anchor, z, 0.1, p_b_tag);
-    fc.setVerticalWeight(w, z_ref);
+    fc.setVerticalWeight(w, dz_ref);
     Values x;
     x.insert(X(0), T_w_b);
     EXPECT_TRUE(testing::jacobiansMatch(fc, x, 1e-6)) << "sample " << i;

@@ -53,12 +53,13 @@ void RangeImuGraphStream::addCarryHold(std::uint64_t i, std::int64_t interval_ns
 double RangeImuGraphStream::verticalWeightOf(const Measurement& m, double* sine) const {
   *sine = 0.0;
   const HeightBand& band = params_.height_band;
-  if (!band.range_lever || !band.enabled || m.kind != Measurement::Kind::kRange) return 1.0;
+  if (!band.enabled || m.kind != Measurement::Kind::kRange) return 1.0;
   // From the measured range and the band's middle: a fact of the
   // measurement, not of a prediction (a batch window's states are
   // dead-reckoned while the stream runs).
   const double dz_m = band.midZ() - p_w_anchors_[m.anchor].z();
   *sine = dz_m / std::max({std::abs(dz_m), m.value_m, 1e-3});
+  if (!band.range_lever) return 1.0;
   const double s0 = params_.range_noise.sigma_m / (0.5 * (band.max_height_m - band.min_height_m));
   const double u = std::clamp((std::abs(*sine) - s0) / s0, 0.0, 1.0);
   return u * u * (3.0 - 2.0 * u);  // smoothstep from s0 to 2 s0
@@ -106,7 +107,7 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
                       : std::make_shared<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, p_b_tag, t.loss);
         double sine = 0.0;
         const double w = verticalWeightOf(m, &sine);
-        if (w < 1.0) f->setVerticalWeight(w, params_.height_band.midZ());
+        if (w < 1.0) f->setVerticalWeight(w, params_.height_band.midZ() - p_w_anchors_[m.anchor].z());
         inc.factors.add(std::move(f));
         break;
       }

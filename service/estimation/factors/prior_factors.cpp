@@ -179,7 +179,9 @@ void HeightBandFactor::evaluate(const Values& x, Residual& r, Jacobians* H) cons
   // dz/d[phi; rho] = [0, e_z^T R] (p' = p + R rho); zero inside the band.
   JacobianBlock& J_r_pose = (*H)[0];
   J_r_pose.setZero(1, 6);
-  if (excess_m != 0.0) J_r_pose.rightCols<3>() = inv_sigma_ * T_w_b.R.row(2);
+  // An equality band (the height hold) is a plain prior: its information
+  // stays in the linearization at its own centre too.
+  if (excess_m != 0.0 || z_min_m_ == z_max_m_) J_r_pose.rightCols<3>() = inv_sigma_ * T_w_b.R.row(2);
 }
 
 }  // namespace rilo

@@ -114,7 +114,8 @@ class PriorBiasFactor final : public Factor {
 ///   r = (z - z_min) / sigma  below the band (r < 0),
 /// so the cost grows quadratically with the distance to the band. r is
 /// continuous (not C1: its slope jumps at the edges, which Gauss-Newton
-/// tolerates). z_min == z_max gives a soft height equality.
+/// tolerates). z_min == z_max gives a soft height equality: a Gaussian prior
+/// on z, whose Jacobian is kept at its centre too (the stream's height hold).
 class HeightBandFactor final : public Factor {
  public:
   /// Throws std::invalid_argument on non-finite bounds, z_min_m > z_max_m or sigma_m <= 0.

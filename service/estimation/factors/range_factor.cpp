@@ -76,29 +76,29 @@ Vec3 RangeFactor::anchorPosition(const Values& x) const {
   return anchor_is_variable_ ? x.vec3(keys()[1]) : p_w_anchor_;
 }
 
-void RangeFactor::setVerticalWeight(double w, double z_ref_m) {
+void RangeFactor::setVerticalWeight(double w, double dz_ref_m) {
   if (!(w >= 0.0 && w <= 1.0)) {
     throw std::invalid_argument("RangeFactor: vertical weight must lie in [0, 1], got " + std::to_string(w));
   }
-  requireFinite(z_ref_m, "z_ref_m");
+  requireFinite(dz_ref_m, "dz_ref_m");
   vertical_weight_ = w;
-  z_ref_m_ = z_ref_m;
+  dz_ref_m_ = dz_ref_m;
 }
 
-Vec3 RangeFactor::tagPointForRange(const Pose3& T_w_b) const {
-  Vec3 p_w_tag = T_w_b.transformFrom(p_b_tag_);
-  if (vertical_weight_ != 1.0) p_w_tag.z() = z_ref_m_ + vertical_weight_ * (p_w_tag.z() - z_ref_m_);
-  return p_w_tag;
+Vec3 RangeFactor::separation(const Pose3& T_w_b, const Vec3& p_w_anchor) const {
+  Vec3 d_w = T_w_b.transformFrom(p_b_tag_) - p_w_anchor;
+  if (vertical_weight_ != 1.0) d_w.z() = dz_ref_m_ + vertical_weight_ * (d_w.z() - dz_ref_m_);
+  return d_w;
 }
 
 double RangeFactor::predictedRange(const Values& x) const {
-  return (tagPointForRange(x.pose(keys()[0])) - anchorPosition(x)).norm();
+  return separation(x.pose(keys()[0]), anchorPosition(x)).norm();
 }
 
 void RangeFactor::evaluate(const Values& x, Residual& r, Jacobians* H) const {
   const Pose3& T_w_b = x.pose(keys()[0]);
   const Vec3& p_w_anchor = anchor_is_variable_ ? x.vec3(keys()[1]) : p_w_anchor_;
-  const RangeAndDirection rd = rangeAndDirection(tagPointForRange(T_w_b) - p_w_anchor);
+  const RangeAndDirection rd = rangeAndDirection(separation(T_w_b, p_w_anchor));
 
   r.resize(1);
   r(0) = (range_m_ - rd.range_m) * inv_sigma_;
@@ -108,12 +108,13 @@ void RangeFactor::evaluate(const Values& x, Residual& r, Jacobians* H) const {
   JacobianBlock& J_r_pose = (*H)[0];
   J_r_pose.resize(1, 6);
   Vec3 g_w = -inv_sigma_ * rd.u_w;
-  g_w.z() *= vertical_weight_;  // d(z_ref + w (z - z_ref)) / dz = w
+  g_w.z() *= vertical_weight_;  // d(dz_ref + w (dz - dz_ref)) / d dz = w
   J_r_pose = tagPointGradientToPoseTangent(T_w_b.R, p_b_tag_, g_w);
   if (anchor_is_variable_) {
     JacobianBlock& J_r_anchor = (*H)[1];
     J_r_anchor.resize(1, 3);
     J_r_anchor = inv_sigma_ * rd.u_w.transpose();
+    J_r_anchor(0, 2) *= vertical_weight_;
   }
 }
 

@@ -5,8 +5,8 @@
 //   p_w_tag = R_w_b * p_b_tag + p_w_b
 //   h       = |p_w_tag - p_w_anchor|
 //   r       = (z - h) / sigma                       (whitened, 1-dim)
-// With a vertical weight w < 1 (setVerticalWeight) the tag's height in h is
-// z_ref + w (p_w_tag.z - z_ref): the range informs the height w^2 as much.
+// With a vertical weight w < 1 (setVerticalWeight) the vertical separation in
+// h is dz_ref + w (dz - dz_ref): the range informs the heights w^2 as much.
 //
 // Sign convention: r > 0 <=> the measured range is LONGER than predicted, the
 // side NLOS propagation produces (a blocked direct path only adds delay). The
@@ -65,12 +65,16 @@ class RangeFactor final : public Factor {
   /// Anchor position: the stored constant, or the anchor variable's value in x.
   Vec3 anchorPosition(const Values& x) const;
   /// Lets the range speak to the tag's height only with weight w in [0, 1]:
-  /// the prediction takes the tag's height as z_ref + w (z - z_ref), z_ref a
-  /// constant (m, world). 1 (the default): the plain model. Far anchors tell
-  /// almost nothing about the height and their unremoved NLOS excess a lot
-  /// (RangeImuGraphStream::verticalWeightOf chooses w). Throws
-  /// std::invalid_argument unless w is in [0, 1] and z_ref_m finite.
-  void setVerticalWeight(double w, double z_ref_m);
+  /// the prediction takes the tag's height above the anchor as
+  /// dz_ref + w (dz - dz_ref), dz = p_w_tag.z - p_w_anchor.z, dz_ref a
+  /// constant (m; the reference height less the surveyed anchor's). The
+  /// separation, not the tag's height alone, so that an anchor variable's
+  /// height cannot take over what the tag's no longer may. 1 (the default):
+  /// the plain model. Far anchors tell almost nothing about the height and
+  /// their unremoved NLOS excess a lot (RangeImuGraphStream::verticalWeightOf
+  /// chooses w). Throws std::invalid_argument unless w is in [0, 1] and
+  /// dz_ref_m finite.
+  void setVerticalWeight(double w, double dz_ref_m);
   double verticalWeight() const { return vertical_weight_; }
   double measuredRange() const { return range_m_; }  ///< z (m)
   double sigma() const { return sigma_m_; }           ///< range std-dev (m)
@@ -79,8 +83,9 @@ class RangeFactor final : public Factor {
   double predictedRange(const Values& x) const;
 
  private:
-  /// The tag antenna as the prediction sees it (height weighted, see setVerticalWeight).
-  Vec3 tagPointForRange(const Pose3& T_w_b) const;
+  /// Tag antenna minus anchor as the prediction sees it (the vertical
+  /// separation weighted, see setVerticalWeight).
+  Vec3 separation(const Pose3& T_w_b, const Vec3& p_w_anchor) const;
 
   double range_m_;        ///< measured range z (m)
   double sigma_m_;        ///< range standard deviation (m)
@@ -89,7 +94,7 @@ class RangeFactor final : public Factor {
   Vec3 p_w_anchor_;       ///< constant anchor position, world (m); unused if variable
   bool anchor_is_variable_;
   double vertical_weight_ = 1.0;  ///< w: share of the tag's height the prediction follows
-  double z_ref_m_ = 0.0;          ///< tag height (m, world) the prediction is pinned to for w < 1
+  double dz_ref_m_ = 0.0;         ///< vertical separation (m) the prediction is pinned to for w < 1
 };
 
 }  // namespace rilo

@@ -24,21 +24,26 @@ void CarryHeight::addEvidence(std::uint64_t index, double info) {
 
 void CarryHeight::notePostFit(std::uint64_t index, std::int64_t t_ns, double z_tag_m) {
   if (!params_.learn) return;
-  while (!pending_.empty() && pending_.front().first < index) pending_.pop_front();
-  if (pending_.empty() || pending_.front().first != index || !std::isfinite(z_tag_m)) return;
-  const double info = pending_.front().second;
-  pending_.pop_front();
+  // Fade first, on every post-fit: where no range tells the height the
+  // learnt part goes back to the middle over memory_s.
   if (have_time_ && t_ns > last_t_ns_) {
     const double fade = std::exp(-1e-9 * static_cast<double>(t_ns - last_t_ns_) / params_.memory_s);
     info_ *= fade;
     info_z_ *= fade;
   }
-  last_t_ns_ = std::max(last_t_ns_, t_ns);
+  last_t_ns_ = have_time_ ? std::max(last_t_ns_, t_ns) : t_ns;
   have_time_ = true;
-  // Heights outside the band are the band's to correct, not evidence.
-  const double z_m = std::clamp(z_tag_m, band_.minZ(), band_.maxZ());
-  info_ += info;
-  info_z_ += info * z_m;
+  while (!pending_.empty() && pending_.front().first < index) pending_.pop_front();
+  if (!pending_.empty() && pending_.front().first == index) {
+    const double info = pending_.front().second;
+    pending_.pop_front();
+    if (std::isfinite(z_tag_m)) {
+      // Heights outside the band are the band's to correct, not evidence.
+      const double z_m = std::clamp(z_tag_m, band_.minZ(), band_.maxZ());
+      info_ += info;
+      info_z_ += info * z_m;
+    }
+  }
   height_m_ = (prior_info_ * band_.midZ() + info_z_) / (prior_info_ + info_);
 }
 

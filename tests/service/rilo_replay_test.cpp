@@ -282,6 +282,45 @@ std::string summaryOf(const std::filesystem::path& out) {
   return buffer.str();
 }
 
+// The height model's flags (issue 36) are the configuration's keys: the same
+// trajectory from --range-lever / --height-hold-sigma as from a configuration
+// that sets estimator.height_band, another one than the shipped defaults';
+// a negative hold is refused.
+TEST(RiloReplay, HeightModelFlagsAreTheConfigurationsKeys) {
+  const std::string rec = (testing::sourceDir() / "tests" / "data" / "office-demo").string();
+  testing::TempDir dir("rilo-replay-height");
+  const std::string config = (dir / "rilod.yaml").string();
+  // The shipped file with the band's lever and hold turned off.
+  std::string text = testing::readFile(testing::sourceDir() / "config" / "rilod.yaml");
+  const std::string key = "    range_lever: true";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.replace(text.find(key), key.size(), "    range_lever: false");
+  const std::string hold = "    hold_sigma_m: 0.5";
+  ASSERT_NE(text.find(hold), std::string::npos);
+  text.replace(text.find(hold), hold.size(), "    hold_sigma_m: 0");
+  // Relative paths of the shipped file point into config/: make them absolute.
+  const std::string demo = "../tests/data/office-demo";
+  for (std::size_t at = text.find(demo); at != std::string::npos; at = text.find(demo)) text.replace(at, demo.size(), rec);
+  testing::writeFile(config, text);
+  const std::vector<std::string> common = {"--measurements", "range", "--range-hz", "4"};
+  auto run = [&](const std::string& name, std::vector<std::string> extra) {
+    const std::string out = (dir / name).string();
+    std::vector<std::string> args = {"replay", rec, "--out", out};
+    args.insert(args.end(), common.begin(), common.end());
+    args.insert(args.end(), extra.begin(), extra.end());
+    EXPECT_EQ(runRilo(args), 0) << name;
+    return testing::readFile(std::filesystem::path(out) / "online.tum");
+  };
+  const std::string by_flags = run("flags", {"--range-lever", "false", "--height-hold-sigma", "0"});
+  const std::string by_config = run("config", {"--config", config});
+  const std::string shipped = run("shipped", {});
+  EXPECT_FALSE(by_flags.empty());
+  EXPECT_TRUE(by_flags == by_config) << "the flags are not the configuration's keys";
+  EXPECT_FALSE(by_flags == shipped) << "the height model changed nothing on the demo";
+  EXPECT_NE(runRilo({"replay", rec, "--out", (dir / "bad").string(), "--height-hold-sigma", "-1"}), 0);
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad"));
+}
+
 TEST(RiloReplay, ConfigRunsTheServicesEstimatorAndOptionsOverrideIt) {
   const std::string rec = (testing::sourceDir() / "tests" / "data" / "office-demo").string();
   testing::TempDir dir("rilo-replay-config");

@@ -11,33 +11,29 @@ namespace {
 
 constexpr std::int64_t kSecond = 1'000'000'000;
 
-HeightBand band() {
+HeightBand band(double memory_s = 120.0) {
   HeightBand b;  // 0.9-1.9 m above a floor at 0
+  b.carry_memory_s = memory_s;
   return b;
 }
 
-CarryHeightParams learning(double memory_s = 120.0) {
-  CarryHeightParams p;
-  p.learn = true;
-  p.memory_s = memory_s;
-  return p;
-}
+constexpr bool kLearn = true;
 
 TEST(CarryHeight, StartsAtTheBandsMiddle) {
-  const CarryHeight h(band(), learning());
+  const CarryHeight h(band(), kLearn);
   EXPECT_DOUBLE_EQ(h.heightM(), 1.4);
   EXPECT_EQ(h.evidence(), 0.0);
 }
 
 TEST(CarryHeight, WithoutLearningStaysAtTheMiddle) {
-  CarryHeight h(band(), CarryHeightParams());
+  CarryHeight h(band(), false);
   h.addEvidence(1, 100.0);
   h.notePostFit(1, kSecond, 1.7);
   EXPECT_DOUBLE_EQ(h.heightM(), 1.4);
 }
 
 TEST(CarryHeight, MovesTowardsHeightsWeightedByTheirEvidence) {
-  CarryHeight h(band(), learning());
+  CarryHeight h(band(), kLearn);
   // Prior sigma a quarter of the band's 1 m width: information 16 / m^2.
   h.addEvidence(1, 16.0);
   h.notePostFit(1, kSecond, 1.7);
@@ -54,7 +50,7 @@ TEST(CarryHeight, MovesTowardsHeightsWeightedByTheirEvidence) {
 }
 
 TEST(CarryHeight, EvidenceOfOneStateAddsUpAndWaitsForItsPostFit) {
-  CarryHeight h(band(), learning());
+  CarryHeight h(band(), kLearn);
   h.addEvidence(5, 8.0);
   h.addEvidence(5, 8.0);
   h.notePostFit(4, kSecond, 1.8);  // an earlier state: no evidence of its own
@@ -65,7 +61,7 @@ TEST(CarryHeight, EvidenceOfOneStateAddsUpAndWaitsForItsPostFit) {
 }
 
 TEST(CarryHeight, StatesSkippedWithoutPostFitAreDropped) {
-  CarryHeight h(band(), learning());
+  CarryHeight h(band(), kLearn);
   h.addEvidence(1, 16.0);
   h.addEvidence(2, 16.0);
   h.notePostFit(2, kSecond, 1.8);  // state 1's evidence has no height: dropped
@@ -75,14 +71,14 @@ TEST(CarryHeight, StatesSkippedWithoutPostFitAreDropped) {
 }
 
 TEST(CarryHeight, HeightsOutsideTheBandCountAtItsEdge) {
-  CarryHeight h(band(), learning());
+  CarryHeight h(band(), kLearn);
   h.addEvidence(1, 16.0);
   h.notePostFit(1, kSecond, 5.0);
   EXPECT_NEAR(h.heightM(), 0.5 * (1.4 + 1.9), 1e-12);
 }
 
 TEST(CarryHeight, OldEvidenceFadesBackToTheMiddle) {
-  CarryHeight h(band(), learning(10.0));
+  CarryHeight h(band(10.0), kLearn);
   h.addEvidence(1, 1600.0);
   h.notePostFit(1, kSecond, 1.8);
   EXPECT_NEAR(h.heightM(), 1.8, 0.01);
@@ -94,7 +90,7 @@ TEST(CarryHeight, OldEvidenceFadesBackToTheMiddle) {
 }
 
 TEST(CarryHeight, BadEvidenceIsIgnored) {
-  CarryHeight h(band(), learning());
+  CarryHeight h(band(), kLearn);
   h.addEvidence(1, -3.0);
   h.addEvidence(1, std::nan(""));
   h.notePostFit(1, kSecond, 1.8);
@@ -104,8 +100,8 @@ TEST(CarryHeight, BadEvidenceIsIgnored) {
 }
 
 TEST(CarryHeight, NonPositiveMemoryThrows) {
-  EXPECT_THROW(CarryHeight(band(), learning(0.0)), std::invalid_argument);
-  EXPECT_THROW(CarryHeight(band(), learning(-1.0)), std::invalid_argument);
+  EXPECT_THROW(CarryHeight(band(0.0), kLearn), std::invalid_argument);
+  EXPECT_THROW(CarryHeight(band(-1.0), kLearn), std::invalid_argument);
 }
 
 }  // namespace

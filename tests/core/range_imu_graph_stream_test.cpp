@@ -819,7 +819,7 @@ TEST(RangeImuGraphStream, CarryHeightLearntWhereRangesTellTheHeight) {
   ASSERT_GT(std::abs(truth_z - 1.4), 0.05);
   for (const bool learn : {false, true}) {
     RangeImuStreamOptions options;
-    options.carry_height.learn = learn;
+    options.learn_carry_height = learn;
     double carry_m = 0.0, hold_z_m = 0.0;
     feedStream(s, s.ranges, gp, options, Feed(), [&](const GraphIncrement& inc, const RangeImuGraphStream& stream) {
       carry_m = stream.carryHeightM();

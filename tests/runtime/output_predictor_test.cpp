@@ -165,7 +165,7 @@ TEST(OutputPredictor, CovarianceGrowsWithTimeSinceSmoothedState) {
 }
 
 // The published body rate is one gyro sample less the bias (issue 39: its
-// covariance was a placeholder identity): per axis, the sample's white noise
+// covariance used to be the identity): per axis, the sample's white noise
 // density^2 / dt plus the bias variance, no correlation with the velocity.
 TEST(OutputPredictor, BodyRateCovarianceIsTheGyroSamplesNoiseAndTheBiasUncertainty) {
   OutputPredictorParams params;

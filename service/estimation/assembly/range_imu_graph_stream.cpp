@@ -52,7 +52,7 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
       ultrasonic_loss_(makeRangeLoss(params_.ultrasonic_loss, withSigma(params_.range_noise, params_.ultrasonic_sigma_m))),
       pim_(params_.imu, ImuBias(), PreintegratedImu::CovarianceMode::kCombined),
       noise_(p_w_anchors_, params_, options_.dynamic_covariance),
-      carry_height_(params_.height_band, options_.carry_height),
+      carry_height_(params_.height_band, options_.learn_carry_height),
       anchor_in_graph_(p_w_anchors_.size(), false),
       standstill_(params_.standstill, options.initial_imu_capacity),
       imu_(options.initial_imu_capacity),
@@ -271,7 +271,9 @@ std::optional<GraphIncrement> RangeImuGraphStream::next(const StateEstimate& pre
     throw std::invalid_argument("RangeImuGraphStream::next: previous estimate is not finite");
   }
   noise_.notePostFit(previous.index, previous.T_w_b);  // no-op unless its measurements await it
-  carry_height_.notePostFit(previous.index, previous.t_ns, previous.T_w_b.transformFrom(params_.p_b_tag).z());
+  if (options_.learn_carry_height) {
+    carry_height_.notePostFit(previous.index, previous.t_ns, previous.T_w_b.transformFrom(params_.p_b_tag).z());
+  }
   if (!plan_.empty() && stateReady(plan_.front())) return emitState(previous);
   if (carry_ranges_ > 0 && carryClosed()) return emitCarriedRanges();
   return std::nullopt;

@@ -110,9 +110,10 @@ struct RangeImuStreamOptions {
   DynamicCovarianceOptions dynamic_covariance;
   /// Where HeightBand::hold_sigma_m holds each state: learnt from the
   /// post-fit heights where ranges told the height (tracking: the Localizer
-  /// sets it from the band), or the band's middle (learn false: the
-  /// initializer's batch, whose states are dead-reckoned while it is built).
-  CarryHeightParams carry_height;
+  /// sets it from HeightBand::learn_carry_height), or the band's middle
+  /// (false: the initializer's batch, whose states are dead-reckoned while it
+  /// is built).
+  bool learn_carry_height = false;
 };
 
 class RangeImuGraphStream {

@@ -66,7 +66,7 @@ double RangeImuGraphStream::verticalWeightOf(const Measurement& m, double* sine)
 }
 
 void RangeImuGraphStream::noteHeightEvidence(std::uint64_t i, const Measurement& m) {
-  if (!options_.carry_height.learn || m.kind != Measurement::Kind::kRange) return;
+  if (!options_.learn_carry_height || m.kind != Measurement::Kind::kRange) return;
   double sine = 0.0;
   const double w = verticalWeightOf(m, &sine);
   if (w == 0.0) return;

@@ -6,15 +6,14 @@
 
 namespace rilo {
 
-CarryHeight::CarryHeight(const HeightBand& band, CarryHeightParams params)
-    : band_(band), params_(params), height_m_(band.midZ()) {
-  if (!(params_.memory_s > 0.0)) throw std::invalid_argument("CarryHeightParams.memory_s must be positive");
+CarryHeight::CarryHeight(const HeightBand& band, bool learn) : band_(band), learn_(learn), height_m_(band.midZ()) {
+  if (!(band.carry_memory_s > 0.0)) throw std::invalid_argument("HeightBand.carry_memory_s must be positive");
   const double sigma_m = 0.25 * (band.max_height_m - band.min_height_m);
   prior_info_ = sigma_m > 0.0 ? 1.0 / (sigma_m * sigma_m) : 1.0;
 }
 
 void CarryHeight::addEvidence(std::uint64_t index, double info) {
-  if (!params_.learn || !(info > 0.0) || !std::isfinite(info)) return;
+  if (!learn_ || !(info > 0.0) || !std::isfinite(info)) return;
   if (!pending_.empty() && pending_.back().first == index) {
     pending_.back().second += info;
   } else {
@@ -23,11 +22,11 @@ void CarryHeight::addEvidence(std::uint64_t index, double info) {
 }
 
 void CarryHeight::notePostFit(std::uint64_t index, std::int64_t t_ns, double z_tag_m) {
-  if (!params_.learn) return;
+  if (!learn_) return;
   // Fade first, on every post-fit: where no range tells the height the
   // learnt part goes back to the middle over memory_s.
   if (have_time_ && t_ns > last_t_ns_) {
-    const double fade = std::exp(-1e-9 * static_cast<double>(t_ns - last_t_ns_) / params_.memory_s);
+    const double fade = std::exp(-1e-9 * static_cast<double>(t_ns - last_t_ns_) / band_.carry_memory_s);
     info_ *= fade;
     info_z_ *= fade;
   }

@@ -11,7 +11,8 @@
 // the height: the state's weighted vertical information (sum over its ranges
 // of (w s / sigma)^2, s the sine of elevation, w the range's vertical
 // weight) is the weight of its post-fit height, forgotten over `memory_s`
-// so that a posture held for minutes is learnt. Bounded to the band.
+// (HeightBand::carry_memory_s) so that a posture held for minutes is
+// learnt. Bounded to the band.
 // Single-threaded; no allocation once its ring has grown to the states
 // awaiting their post-fit (a few).
 #include <cstdint>
@@ -22,16 +23,13 @@
 
 namespace rilo {
 
-struct CarryHeightParams {
-  bool learn = false;         ///< false: the band's middle, always
-  double memory_s = 120.0;    ///< evidence older than this fades (e-folding time, s)
-};
-
 class CarryHeight {
  public:
   /// Starts at band.midZ() with the information of a sigma of a quarter of
-  /// the band's width (its middle half holds the height at 1 sigma).
-  CarryHeight(const HeightBand& band, CarryHeightParams params);
+  /// the band's width (its middle half holds the height at 1 sigma); learns
+  /// only with `learn` (else the band's middle, always). Throws
+  /// std::invalid_argument unless band.carry_memory_s > 0.
+  CarryHeight(const HeightBand& band, bool learn);
 
   /// Height evidence of state `index` (the sum above; ignored when < 0 or not finite).
   void addEvidence(std::uint64_t index, double info);
@@ -45,7 +43,7 @@ class CarryHeight {
 
  private:
   HeightBand band_;
-  CarryHeightParams params_;
+  bool learn_;
   double prior_info_;        ///< 1/m^2
   double info_ = 0.0;        ///< sum of weights, faded
   double info_z_ = 0.0;      ///< sum of weight x height, faded

@@ -331,8 +331,7 @@ void Localizer::guarded(F&& f) {
 void Localizer::startTracking() {
   RangeImuGraphParams graph = params_.graph;
   RangeImuStreamOptions stream = params_.stream;
-  stream.carry_height.learn = graph.height_band.learn_carry_height;
-  stream.carry_height.memory_s = graph.height_band.carry_memory_s;
+  stream.learn_carry_height = graph.height_band.learn_carry_height;
   // The data the tracker starts on say which ranging is in use.
   const std::vector<Measurement>& buffered = initializer_.measurementBuffer();
   const bool tdoa = std::any_of(buffered.begin(), buffered.end(),

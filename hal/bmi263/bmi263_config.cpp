@@ -64,4 +64,13 @@ const char* toString(InterruptMode mode) {
   return mode == InterruptMode::kDataReady ? "data-ready" : "FIFO watermark";
 }
 
+const char* toString(GyroCrossAxis mode) {
+  switch (mode) {
+    case GyroCrossAxis::kAuto: return "auto";
+    case GyroCrossAxis::kOn: return "on";
+    case GyroCrossAxis::kOff: return "off";
+  }
+  return "?";
+}
+
 }  // namespace rilo::bmi263

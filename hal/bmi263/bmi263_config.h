@@ -20,10 +20,27 @@ enum class InterruptMode {
   kFifoWatermark,  ///< INT1 when the FIFO holds fifo_watermark_frames; read frames + sensortime frame
 };
 
+inline constexpr std::uint8_t kChipIdBmi270 = 0x24;
+inline constexpr std::uint8_t kChipIdBmi260 = 0x27;
+
+enum class GyroCrossAxis : std::uint8_t { kAuto, kOn, kOff };
+const char* toString(GyroCrossAxis mode);
+
 struct Bmi263Config {
-  /// CHIP_ID values accepted (BMI270 0x24, BMI260 0x27; the BMI263's own id is
-  /// UNVERIFIED: add it here once read from a part).
-  std::vector<std::uint8_t> accepted_chip_ids{0x24, 0x27};
+  /// CHIP_ID values accepted. 0x24: BMI270 (Bosch BMI270_SensorAPI
+  /// bmi270.h BMI270_CHIP_ID; Linux bmi270_core.c, Zephyr bmi270.h). 0x27:
+  /// BMI260 (Linux bmi270_core.c BMI260_CHIP_ID_VAL, chrome-ec
+  /// accelgyro_bmi260.h). The BMI263's own id is in no public Bosch, Linux or
+  /// Zephyr source; one Android context-hub driver names BMI263_CHIP_ID with
+  /// a comment "0xA0" (UNVERIFIED, not accepted): add the id read from a part
+  /// here (config key imu.bmi263.accepted_chip_ids).
+  std::vector<std::uint8_t> accepted_chip_ids{kChipIdBmi270, kChipIdBmi260};
+  /// Gyro cross-axis correction (Bosch's BMI2 API: x -= GYR_CAS * z / 512,
+  /// the factor read from the part after its configuration is loaded).
+  /// kAuto: on for the parts whose API applies it (the BMI270's id), off
+  /// otherwise (the BMI263 is not known to have the factor at the same
+  /// place: its feature pages differ from the BMI270's).
+  GyroCrossAxis gyro_cross_axis = GyroCrossAxis::kAuto;
   /// Bosch's configuration blob for this part, read at every bring-up. Never
   /// embedded in the source. Required.
   std::string config_blob_path;

@@ -226,6 +226,35 @@ bool Bmi263Driver::configureMeasurement(BringUpResult& result) {
   return true;
 }
 
+std::int8_t decodeGyrCas(std::uint8_t raw) noexcept {
+  const int v = raw & 0x7F;
+  return static_cast<std::int8_t>((v & 0x40) != 0 ? v - 128 : v);
+}
+
+void correctGyroCrossAxis(std::array<std::int16_t, 3>& gyro, std::int8_t cas) noexcept {
+  const std::int32_t x = gyro[0] - static_cast<std::int16_t>(static_cast<std::int32_t>(cas) * gyro[2] / 512);
+  gyro[0] = static_cast<std::int16_t>(std::clamp<std::int32_t>(x, -32768, 32767));
+}
+
+bool Bmi263Driver::readCrossAxisFactor(BringUpResult& result) {
+  // After the configuration blob: the factor lives in the feature memory it
+  // sets up (page 0, offset 0x0C, as bmi2_get_gyro_cross_sense reads it).
+  cross_axis_ = false;
+  gyro_cas_ = 0;
+  const bool wanted = config_.gyro_cross_axis == GyroCrossAxis::kOn ||
+                      (config_.gyro_cross_axis == GyroCrossAxis::kAuto && result.chip_id == kChipIdBmi270);
+  if (!wanted) return true;
+  std::uint8_t raw = 0;
+  if (writeByte(reg::kFeatPage, 0x00) || read(reg::kGyrCas, std::span<std::uint8_t>(&raw, 1))) {
+    return fail(result, "reading the gyro cross-axis factor (FEAT_PAGE 0, GYR_CAS 0x3C): " + lastBusError());
+  }
+  gyro_cas_ = decodeGyrCas(raw);
+  cross_axis_ = true;
+  result.gyro_cross_axis = true;
+  result.gyro_cas = gyro_cas_;
+  return true;
+}
+
 BringUpResult Bmi263Driver::bringUp() {
   BringUpResult result;
   if (!loadBlob(result)) return result;
@@ -277,6 +306,7 @@ BringUpResult Bmi263Driver::bringUp() {
     return result;
   }
   if (!waitInitOk(result)) return result;
+  if (!readCrossAxisFactor(result)) return result;
   if (!configureMeasurement(result)) return result;
   result.ok = true;
   return result;

@@ -30,7 +30,15 @@ struct BringUpResult {
   std::string error;                 ///< clear text naming the device, file, register values
   std::uint8_t chip_id = 0;
   std::uint8_t internal_status = 0;  ///< last INTERNAL_STATUS read
+  bool gyro_cross_axis = false;      ///< the cross-axis correction is applied to every sample
+  std::int8_t gyro_cas = 0;          ///< its factor (GYR_CAS, -64..63; x -= cas * z / 512)
 };
+
+/// Bosch's gyro cross-axis correction on raw counts: x -= cas * z / 512
+/// (integer division, saturated to int16), as the BMI2 API applies it.
+void correctGyroCrossAxis(std::array<std::int16_t, 3>& gyro, std::int8_t cas) noexcept;
+/// GYR_CAS as read (bits 6:0, two's complement over 7 bits).
+std::int8_t decodeGyrCas(std::uint8_t raw) noexcept;
 
 /// One data-ready burst (15 bytes from ACC_DATA_X).
 struct RawImuData {
@@ -71,6 +79,9 @@ class Bmi263Driver {
   // Conversions for the configured ranges.
   double accelScale() const noexcept { return accel_m_s2_per_lsb_; }  ///< m/s^2 per LSB
   double gyroScale() const noexcept { return gyro_rad_s_per_lsb_; }   ///< rad/s per LSB
+  /// The cross-axis factor of the last bring-up, if the correction applies.
+  bool gyroCrossAxis() const noexcept { return cross_axis_; }
+  std::int8_t gyroCas() const noexcept { return gyro_cas_; }
   const hal::I2cDevice& device() const noexcept { return i2c_; }
   const Bmi263Config& config() const noexcept { return config_; }
 
@@ -79,6 +90,7 @@ class Bmi263Driver {
   bool uploadBlob(BringUpResult& result);
   bool waitInitOk(BringUpResult& result);
   bool configureMeasurement(BringUpResult& result);
+  bool readCrossAxisFactor(BringUpResult& result);
   bool fail(BringUpResult& result, const std::string& what);
   std::error_code access(bool is_write, std::uint8_t reg, std::span<std::uint8_t> in,
                          std::span<const std::uint8_t> out) noexcept;
@@ -89,6 +101,8 @@ class Bmi263Driver {
   std::vector<std::uint8_t> blob_;
   double accel_m_s2_per_lsb_ = 0.0;
   double gyro_rad_s_per_lsb_ = 0.0;
+  bool cross_axis_ = false;
+  std::int8_t gyro_cas_ = 0;
 
   std::atomic<std::uint64_t> retries_{0};
   std::atomic<std::uint64_t> failures_{0};

@@ -21,6 +21,8 @@ inline constexpr std::uint8_t kInternalStatus = 0x21;  ///< message in bits 3:0
 inline constexpr std::uint8_t kTemperature0 = 0x22;    ///< int16 LE, T = raw/512 + 23 degC
 inline constexpr std::uint8_t kFifoLength0 = 0x24;     ///< 14-bit byte count, 0x24/0x25
 inline constexpr std::uint8_t kFifoData = 0x26;        ///< read port (no auto-increment)
+inline constexpr std::uint8_t kFeatPage = 0x2F;       ///< feature page shown at 0x30..0x3F
+inline constexpr std::uint8_t kGyrCas = 0x3C;         ///< page 0 offset 0x0C: GYR_CAS, 7-bit signed (BMI270)
 inline constexpr std::uint8_t kAccConf = 0x40;
 inline constexpr std::uint8_t kAccRange = 0x41;
 inline constexpr std::uint8_t kGyrConf = 0x42;

@@ -297,7 +297,9 @@ void Bmi263Source::emit(std::int64_t tick, const std::array<std::int16_t, 3>& ac
   const double accel_scale = driver_.accelScale();
   const double gyro_scale = driver_.gyroScale();
   sample.accel_m_s2 = Eigen::Vector3d(accel[0], accel[1], accel[2]) * accel_scale;
-  sample.gyro_rad_s = Eigen::Vector3d(gyro[0], gyro[1], gyro[2]) * gyro_scale;
+  std::array<std::int16_t, 3> g = gyro;
+  if (driver_.gyroCrossAxis()) correctGyroCrossAxis(g, driver_.gyroCas());
+  sample.gyro_rad_s = Eigen::Vector3d(g[0], g[1], g[2]) * gyro_scale;
   counters_.samples.fetch_add(1, std::memory_order_relaxed);
   sink_->push(Sample(sample));
 }

@@ -33,6 +33,22 @@ int preambleLengthCode(std::uint16_t preamble_length) noexcept {
   }
 }
 
+int pacCode(std::uint8_t pac_symbols) noexcept {
+  switch (pac_symbols) {
+    case 8: return 0;
+    case 16: return 1;
+    case 32: return 2;
+    case 4: return 3;
+    default: return -1;
+  }
+}
+
+std::uint16_t sfdTimeoutSymbols(const Dw3000Config& c) noexcept {
+  if (c.sfd_timeout_symbols != 0) return c.sfd_timeout_symbols;
+  const int sfd_symbols = c.sfd_type == 2 ? 16 : 8;
+  return static_cast<std::uint16_t>(c.preamble_length + 1 + sfd_symbols - c.pac_symbols);
+}
+
 double shrDurationUs(const Dw3000Config& c) noexcept {
   // Preamble symbol: 1017.6 ns at 64 MHz PRF (codes 9-24), 993.6 ns at 16 MHz.
   const double symbol_us = c.preamble_code >= 9 ? 1.01763 : 0.99359;
@@ -56,6 +72,9 @@ void validateConfig(const Dw3000Config& c) {
   require(preambleLengthCode(c.preamble_length) >= 0, "preamble_length",
           "must be one of 32, 64, 72, 128, 256, 512, 1024, 1536, 2048, 4096");
   require(c.sfd_type <= 3, "sfd_type", "must be in 0..3");
+  require(pacCode(c.pac_symbols) >= 0, "pac_symbols", "must be one of 4, 8, 16, 32");
+  require(c.tx_pg_delay <= 0x3F, "tx_pg_delay", "must fit TX_CTRL_HI's 6-bit PG_DELAY (0..0x3F)");
+  require(c.pgf_timeout_ns > 0, "pgf_timeout_ns", "must be > 0");
   require(c.tag_address != kBroadcastAddress, "tag_address", "must not be the broadcast address 0xFFFF");
   require(!c.anchors.empty(), "anchors", "must list at least one anchor");
   std::set<std::uint16_t> addresses;

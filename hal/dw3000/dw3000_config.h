@@ -27,9 +27,9 @@ struct AnchorConfig {
   std::uint16_t short_address = 0;  ///< 802.15.4 short address of its responder
 };
 
-/// A register write applied at bring-up after the channel configuration, in
-/// order: the hook for board/OTP trims (LDO, bias, PLL, DGC LUT, TX power)
-/// found during hardware bring-up. Empty by default (UNVERIFIED values).
+/// A register write applied at bring-up after the vendor's start-up steps,
+/// in order: a site's override of what bring_up.cpp writes (the trims
+/// themselves come from the chip's OTP). Empty by default.
 struct RegisterWrite {
   RegAddr addr{};
   std::uint32_t value = 0;
@@ -43,6 +43,12 @@ struct Dw3000Config {
   std::uint16_t preamble_length = 128;   ///< symbols: 32, 64, 72, 128, 256, 512, 1024, 1536, 2048, 4096
   DataRate data_rate = DataRate::k6M8;
   std::uint8_t sfd_type = 1;             ///< CHAN_CTRL SFD_TYPE 0..3 (1 = Decawave 8-symbol, UNVERIFIED choice)
+  /// Preamble acquisition chunk (symbols: 4, 8, 16, 32; DTUNE0). The API's
+  /// guidance: 8 for 128-symbol preambles, 16-32 for longer ones.
+  std::uint8_t pac_symbols = 8;
+  /// SFD detection timeout (symbols; DTUNE0). 0: preamble length + 1 +
+  /// SFD length - PAC, the API examples' formula (129 at 128 symbols, PAC 8).
+  std::uint16_t sfd_timeout_symbols = 0;
 
   // Addressing: our short address and the anchors' (their responders must
   // run the protocol of docs/uwb-protocol.md with the same PAN id).
@@ -55,6 +61,13 @@ struct Dw3000Config {
   // TX_ANTD and CIA_CONF; the chip applies them to TX_TIME / RX_TIME.
   std::uint16_t tx_antenna_delay = 16385;
   std::uint16_t rx_antenna_delay = 16385;
+
+  // Transmitter (dwt_configuretxrf): pulse-generator delay (TX_CTRL_HI bits
+  // 5:0) and TX_POWER (four 8-bit settings: CP, SHR, PHR, data). Defaults are
+  // the API examples' for channel 5; UNVERIFIED against the regulatory mask
+  // of a given board and antenna.
+  std::uint8_t tx_pg_delay = 0x34;
+  std::uint32_t tx_power = 0xFDFDFDFD;
   ClockOffsetSource clock_offset_source = ClockOffsetSource::kCiaDiag0;
 
   // Exchange timing. The responder sends its response `reply_delay_us` after
@@ -76,8 +89,14 @@ struct Dw3000Config {
   // Bring-up
   std::int64_t reset_low_ns = 1'000'000;      ///< RSTn held low
   std::int64_t boot_timeout_ns = 10'000'000;  ///< for SPIRDY and RCINIT after release (~2 ms typical)
-  std::int64_t pll_lock_timeout_ns = 2'000'000;
+  std::int64_t pll_lock_timeout_ns = 2'000'000;  ///< AINIT2IDLE -> CP_LOCK (the API waits up to ~1 ms on channel 9)
+  std::int64_t pgf_timeout_ns = 1'000'000;       ///< PGF calibration start -> RX_CAL_STS (the API: 3 x 20 us)
   std::int64_t poll_interval_ns = 100'000;    ///< status polling during bring-up
+  /// Read every start-up step's registers back and fail the bring-up on a
+  /// difference (bring_up.h). The read-backs are proven on the emulator only:
+  /// false lets a board whose chip reads some register back differently come
+  /// up while that is investigated (the PLL lock and PGF checks stay).
+  bool startup_audit = true;
   std::vector<RegisterWrite> extra_init_writes;
 
   // Plausible range window: anything outside is discarded and counted.
@@ -109,5 +128,9 @@ double payloadAirtimeUs(const Dw3000Config& config, std::size_t bytes_with_fcs) 
 
 /// TX_FCTRL TXPSR code of a preamble length (Qorvo driver codes), or -1.
 int preambleLengthCode(std::uint16_t preamble_length) noexcept;
+/// DTUNE0 PRE_PAC_SYM code of a PAC size (8 -> 0, 16 -> 1, 32 -> 2, 4 -> 3), or -1.
+int pacCode(std::uint8_t pac_symbols) noexcept;
+/// The SFD timeout written to DTUNE0 (symbols), sfd_timeout_symbols or its default.
+std::uint16_t sfdTimeoutSymbols(const Dw3000Config& config) noexcept;
 
 }  // namespace rilo::dw3000

@@ -142,7 +142,7 @@ std::error_code Dw3000Device::write32(RegAddr addr, std::uint32_t value) noexcep
 }
 
 // ---------------------------------------------------------------------------
-// Bring-up
+// Bring-up helpers (the steps are in bring_up.cpp)
 
 void Dw3000Device::fail(Dw3000Error::Kind kind, const std::string& what) const {
   throw Dw3000Error(kind, "dw3000 " + spi_.path() + ": " + what);
@@ -152,27 +152,6 @@ void Dw3000Device::check(std::error_code e, const char* step) const {
   if (!e) return;
   const auto kind = e == Dw3000Errc::kReadCrcMismatch ? Dw3000Error::Kind::kSpiCrc : Dw3000Error::Kind::kSpi;
   fail(kind, std::string("SPI failed while ") + step + ": " + e.message());
-}
-
-void Dw3000Device::resetChip() {
-  if (reset_ != nullptr) {
-    if (const std::error_code e = reset_->set(false)) {
-      fail(Dw3000Error::Kind::kSpi, "cannot drive reset line " + reset_->path() + " low: " + e.message());
-    }
-    clock_.sleepForNs(config_.reset_low_ns);
-    if (const std::error_code e = reset_->set(true)) {
-      fail(Dw3000Error::Kind::kSpi, "cannot release reset line " + reset_->path() + ": " + e.message());
-    }
-    return;
-  }
-  // Soft reset through SOFT_RST (UNVERIFIED: Qorvo's driver also forces the
-  // system clock to the RC oscillator first).
-  const std::uint8_t assert_reset = 0x00;
-  const std::uint8_t release = 0xFF;
-  check(write(reg::kSoftRst, {&assert_reset, 1}), "asserting SOFT_RST");
-  crc_enabled_ = false;  // the reset turned the chip's SPI CRC off
-  clock_.sleepForNs(config_.reset_low_ns);
-  check(write(reg::kSoftRst, {&release, 1}), "releasing SOFT_RST");
 }
 
 std::uint32_t Dw3000Device::waitStatus(std::uint32_t bits, std::int64_t timeout_ns, const char* step) {
@@ -201,128 +180,6 @@ std::error_code Dw3000Device::drainEdges() noexcept {
     if (w != hal::WaitResult::kEdge) break;
   }
   return {};
-}
-
-void Dw3000Device::bringUp() {
-  dev_id_ = 0;
-  if (const std::error_code e = spi_.setSpeedHz(config_.spi_slow_hz)) {
-    fail(Dw3000Error::Kind::kSpi, "cannot set the slow SPI clock (" + std::to_string(config_.spi_slow_hz) +
-                                      " Hz): " + e.message());
-  }
-  resetChip();  // a soft reset still speaks the CRC mode of the last bring-up
-  crc_enabled_ = false;
-
-  // IDLE_RC: SPIRDY and RCINIT both set.
-  const std::uint32_t ready = status::kSpiRdy | status::kRcInit;
-  const std::uint32_t boot_status = waitStatus(ready, config_.boot_timeout_ns, "waiting for SPIRDY/RCINIT");
-  if ((boot_status & ready) != ready) {
-    fail(Dw3000Error::Kind::kBootTimeout,
-         "no SPIRDY/RCINIT within " + msText(config_.boot_timeout_ns) + " after reset (SYS_STATUS reads " +
-             hex32(boot_status) + "): check power, the reset line and the SPI wiring (mode 0)");
-  }
-
-  check(read32(reg::kDevId, dev_id_), "reading DEV_ID");
-  if (dev_id_ != kDevIdDw3110 && dev_id_ != kDevIdDw3120) {
-    fail(Dw3000Error::Kind::kWrongDevId, "DEV_ID reads " + hex32(dev_id_) + ", expected " + hex32(kDevIdDw3110) +
-                                             " (DW3110) or " + hex32(kDevIdDw3120) +
-                                             " (DW3120): wrong device, wiring or SPI mode");
-  }
-  check(clearAllStatus(), "clearing SYS_STATUS");
-
-  if (config_.spi_crc) {
-    // This write itself carries no CRC; everything after it does.
-    check(writeMasked(reg::kSysCfg, AccessMode::kMask8, 0xFF, sys_cfg::kSpiCrc), "enabling SPI CRC");
-    crc_enabled_ = true;
-    std::uint32_t sys_cfg = 0;
-    check(read32(reg::kSysCfg, sys_cfg), "reading SYS_CFG back");
-    if ((sys_cfg & sys_cfg::kSpiCrc) == 0) {
-      fail(Dw3000Error::Kind::kSpiCrc, "SYS_CFG reads " + hex32(sys_cfg) + " after enabling SPI CRC");
-    }
-  }
-
-  // Channel, preamble, SFD; frame wait timeout enable; TX frame control.
-  const std::uint32_t chan_ctrl = (config_.channel == UwbChannel::k9 ? 1u : 0u) |
-                                  (static_cast<std::uint32_t>(config_.sfd_type) << 1) |
-                                  (static_cast<std::uint32_t>(config_.preamble_code) << 3) |
-                                  (static_cast<std::uint32_t>(config_.preamble_code) << 8);
-  check(write32(reg::kChanCtrl, chan_ctrl), "writing CHAN_CTRL");
-  check(writeMasked(reg::kSysCfg, AccessMode::kMask32, ~sys_cfg::kPhr6M8, sys_cfg::kRxWtoe), "writing SYS_CFG");
-  const std::uint32_t tx_fctrl = (static_cast<std::uint32_t>(preambleLengthCode(config_.preamble_length))
-                                  << tx_fctrl::kPsrShift) |
-                                 (config_.data_rate == DataRate::k6M8 ? tx_fctrl::kBr6M8 : 0u) | tx_fctrl::kRanging;
-  check(write32(reg::kTxFctrl, tx_fctrl), "writing TX_FCTRL");
-  check(write32(reg::kPanAdr, (static_cast<std::uint32_t>(config_.pan_id) << 16) | config_.tag_address),
-        "writing PAN_ADR");
-  for (const RegisterWrite& w : config_.extra_init_writes) {
-    std::array<std::uint8_t, 4> bytes{};
-    putLe(w.value, bytes.data(), w.length);
-    check(write(w.addr, {bytes.data(), w.length}), "applying extra_init_writes");
-  }
-  // The DGC is only on if extra_init_writes turned it on (its LUT is not
-  // loaded by this driver): its decision then scales the RX power estimates.
-  std::uint32_t dgc_cfg = 0;
-  check(read32(reg::kDgcCfg, dgc_cfg), "reading DGC_CFG");
-  dgc_enabled_ = (dgc_cfg & 1u) != 0;
-
-  const std::uint32_t pll_status = waitStatus(status::kCpLock, config_.pll_lock_timeout_ns, "waiting for CP_LOCK");
-  if ((pll_status & status::kCpLock) == 0) {
-    fail(Dw3000Error::Kind::kPllLock,
-         "PLL did not lock: CP_LOCK not set within " + msText(config_.pll_lock_timeout_ns) +
-             " after configuring channel " + std::to_string(static_cast<int>(config_.channel)) +
-             " (SYS_STATUS reads " + hex32(pll_status) + ")");
-  }
-
-  // Antenna delays, RX-after-TX delay and frame wait timeout.
-  const std::array<std::uint8_t, 2> tx_antd{static_cast<std::uint8_t>(config_.tx_antenna_delay & 0xFFu),
-                                            static_cast<std::uint8_t>(config_.tx_antenna_delay >> 8)};
-  check(write(reg::kTxAntd, tx_antd), "writing TX_ANTD");
-  check(writeMasked(reg::kCiaConf, AccessMode::kMask16, 0x0000, config_.rx_antenna_delay), "writing CIA_CONF");
-  check(writeMasked(reg::kAckResp, AccessMode::kMask32, ~0xFFFFFu,
-                    uwbMicrosecondsFromUs(config_.rx_after_tx_delay_us)),
-        "writing ACK_RESP (W4R_TIM)");
-  check(writeMasked(reg::kRxFwto, AccessMode::kMask32, ~0xFFFFFu, uwbMicrosecondsFromUs(config_.rx_timeout_us)),
-        "writing RX_FWTO");
-
-  // Interrupts: clear everything, then unmask only what ends an exchange.
-  check(clearAllStatus(), "clearing SYS_STATUS");
-  irq_mask_ = kExchangeEnd | (crc_enabled_ ? status::kSpiCrcE : 0u);
-  check(write32(reg::kSysEnable, irq_mask_), "writing SYS_ENABLE");
-  const std::array<std::uint8_t, 2> zero{0, 0};
-  check(write(reg::kSysEnableHi, zero), "writing SYS_ENABLE (high)");
-
-  if (crc_enabled_) {
-    std::uint32_t st = 0;
-    check(read32(reg::kSysStatus, st), "reading SYS_STATUS");
-    if ((st & status::kSpiCrcE) != 0) {
-      fail(Dw3000Error::Kind::kSpiCrc,
-           "SPI CRC error reported during configuration (SYS_STATUS " + hex32(st) + "): check SPI signal integrity");
-    }
-  }
-  bool high = false;
-  if (const std::error_code e = irq_.readLevel(high)) {
-    fail(Dw3000Error::Kind::kIrqStuck, "cannot read IRQ line " + irq_.path() + ": " + e.message());
-  }
-  if (high) {
-    fail(Dw3000Error::Kind::kIrqStuck, "IRQ line " + irq_.path() +
-                                           " is high with SYS_STATUS cleared: check the IRQ wiring and polarity "
-                                           "(active high expected)");
-  }
-
-  // Fast SPI, proven by reading DEV_ID again.
-  if (const std::error_code e = spi_.setSpeedHz(config_.spi_fast_hz)) {
-    fail(Dw3000Error::Kind::kFastSpi, "cannot set the fast SPI clock (" + std::to_string(config_.spi_fast_hz) +
-                                          " Hz): " + e.message());
-  }
-  std::uint32_t fast_id = 0;
-  const std::error_code e = read32(reg::kDevId, fast_id);
-  if (e || fast_id != dev_id_) {
-    fail(Dw3000Error::Kind::kFastSpi,
-         "DEV_ID reads " + hex32(fast_id) + (e ? " (" + e.message() + ")" : std::string()) + " at spi_fast_hz = " +
-             std::to_string(config_.spi_fast_hz) + " Hz (" + hex32(dev_id_) + " at the slow clock): lower spi_fast_hz");
-  }
-  if (const std::error_code drain_error = drainEdges()) {
-    fail(Dw3000Error::Kind::kIrqStuck, "cannot read IRQ line " + irq_.path() + ": " + drain_error.message());
-  }
 }
 
 // ---------------------------------------------------------------------------
@@ -425,7 +282,8 @@ void Dw3000Device::readRxPower(ExchangeResult& r) noexcept {
       return;
     }
   }
-  r.rx_power = rxPowerFromDiagnostics(decodeRxDiagnostics(block, dgc_dbg), prf64_);
+  r.diagnostics = decodeRxDiagnostics(block, dgc_dbg);
+  r.rx_power = rxPowerFromDiagnostics(r.diagnostics, prf64_);
 }
 
 ExchangeResult Dw3000Device::range(const AnchorConfig& anchor) noexcept {

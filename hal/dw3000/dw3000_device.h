@@ -3,10 +3,12 @@
 // (hal::SpiDevice, hal::InterruptLine, an optional reset hal::OutputLine,
 // hal::Clock so virtual time works in tests).
 //
-// bringUp(): reset pulse, slow SPI, SPIRDY + RCINIT, DEV_ID, SPI CRC, channel
-// configuration, CP_LOCK, antenna delays, RX-after-TX delay and RX timeout,
-// interrupt mask, fast SPI (DEV_ID re-read to prove the fast clock works).
-// Throws Dw3000Error with a message naming the device and what was seen.
+// bringUp(): the vendor's start-up as named steps (bring_up.h): reset, IDLE_RC,
+// DEV_ID, SPI CRC, OTP trims, frame format, OPS table, receiver tuning, RF
+// and PLL, PLL lock, DGC, PGF calibration, TX power, CIA diagnostics, then
+// ours (antenna delays and exchange timing, interrupts, fast SPI), and an
+// audit that reads every configuration step back. Throws Dw3000Error with a
+// message naming the device, the step and what was seen.
 //
 // range(): one poll/response exchange (TX_W4R: the chip opens its receiver
 // itself, so Linux latency never enters the ranging timing), never throws,
@@ -27,6 +29,7 @@
 #include "hal/bus/clock.h"
 #include "hal/bus/gpio_line.h"
 #include "hal/bus/spi_device.h"
+#include "hal/dw3000/bring_up.h"
 #include "hal/dw3000/dw3000_config.h"
 #include "hal/dw3000/rx_power.h"
 #include "hal/dw3000/spi_framing.h"
@@ -46,7 +49,17 @@ std::error_code make_error_code(Dw3000Errc e) noexcept;
 /// A bring-up failure: what() names the device path and what was read.
 class Dw3000Error : public std::runtime_error {
  public:
-  enum class Kind { kSpi, kBootTimeout, kWrongDevId, kPllLock, kSpiCrc, kIrqStuck, kFastSpi };
+  enum class Kind {
+    kSpi,
+    kBootTimeout,
+    kWrongDevId,
+    kPllLock,
+    kSpiCrc,
+    kIrqStuck,
+    kFastSpi,
+    kCalibration,    ///< the PGF calibration did not finish or reported failure
+    kConfiguration,  ///< a step's registers read back other than written (or the step was left out)
+  };
   Dw3000Error(Kind kind, const std::string& message) : std::runtime_error(message), kind_(kind) {}
   Kind kind() const noexcept { return kind_; }
 
@@ -92,6 +105,8 @@ struct ExchangeResult {
   std::error_code error;         ///< SPI / IRQ back-end error
   /// RX level and first-path power of the response (kOk only; NaN if unread).
   RxPower rx_power;
+  /// The CIA diagnostics they come from (zero if unread).
+  RxDiagnostics diagnostics;
   /// The diagnostics read of a good exchange failed: the range stands, rx_power is NaN.
   std::error_code diagnostics_error;
 };
@@ -99,13 +114,21 @@ struct ExchangeResult {
 class Dw3000Device {
  public:
   /// Buses are borrowed and must outlive the device; `reset` may be null (a
-  /// soft reset through SOFT_RST is used then, UNVERIFIED sequence).
+  /// soft reset of the vendor API is used then: bring_up.cpp).
   /// Throws std::invalid_argument for a bad configuration.
   Dw3000Device(const Dw3000Config& config, hal::SpiDevice& spi, hal::InterruptLine& irq, hal::OutputLine* reset,
                hal::Clock& clock);
 
   void bringUp();
   ExchangeResult range(const AnchorConfig& anchor) noexcept;
+
+  /// Leave these start-up steps out of the next bring-ups (the audit still
+  /// checks them): how the tests prove each step is needed, and a way to
+  /// experiment on a board. kIdleRc, kDevId and the audit cannot be left out.
+  void leaveOut(BringUpSteps steps) noexcept { left_out_ = steps; }
+  /// What the last bring-up read and applied (OTP trims, PLL lock time, DGC,
+  /// PGF calibration); filled as far as it got when bringUp() threw.
+  const BringUpReport& bringUpReport() const noexcept { return report_; }
 
   std::uint32_t devId() const noexcept { return dev_id_; }
   std::uint32_t irqMask() const noexcept { return irq_mask_; }
@@ -130,7 +153,35 @@ class Dw3000Device {
 
   [[noreturn]] void fail(Dw3000Error::Kind kind, const std::string& what) const;
   void check(std::error_code e, const char* step) const;
+  // Start-up (bring_up.cpp).
+  void runStep(BringUpStep step);
   void resetChip();
+  void softReset();
+  void readOtpWords();
+  void applyOtpTrims();
+  void applyXtalTrim();
+  void applyFrameFormat();
+  void applyOpsTable();
+  void applyRxTuning();
+  void applyRfPll();
+  void lockPll();
+  void applyDgc();
+  void calibratePgf();
+  void applyTxRf();
+  void applyCiaDiagnostics();
+  void applySiteWrites();
+  void applyExchangeTiming();
+  void applyInterrupts();
+  void raiseSpiClock();
+  /// Empty if the step's registers hold what it writes, else what differs.
+  std::string auditStep(BringUpStep step);
+  /// "; step 'x' (ref) did not take: ..." for the first configuration step
+  /// before `before` whose registers differ, or "".
+  std::string firstStepNotInEffect(BringUpStep before);
+  std::uint32_t otpRead(std::uint16_t address, const char* what);
+  std::uint32_t exchangeInterrupts() const noexcept;
+  std::uint32_t readReg32(RegAddr addr, const char* what);
+  std::uint8_t readReg8(RegAddr addr, const char* what);
   std::uint32_t waitStatus(std::uint32_t bits, std::int64_t timeout_ns, const char* step);
   std::error_code clearAllStatus() noexcept;
   std::error_code drainEdges() noexcept;
@@ -151,6 +202,8 @@ class Dw3000Device {
   std::uint32_t irq_mask_ = 0;
   std::uint8_t sequence_ = 0;
   std::int64_t exchange_timeout_ns_ = 0;
+  BringUpSteps left_out_ = 0;
+  BringUpReport report_;
 };
 
 }  // namespace rilo::dw3000

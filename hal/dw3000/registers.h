@@ -46,7 +46,70 @@ inline constexpr RegAddr kSoftRst{0x11, 0x00};
 inline constexpr RegAddr kRxBuffer0{0x12, 0x00};
 inline constexpr RegAddr kRxBuffer1{0x13, 0x00};
 inline constexpr RegAddr kTxBuffer{0x14, 0x00};
+
+// Start-up registers (Qorvo's C0 API v04.00.00, deca_regs.h; bring_up.cpp
+// names the API function each write follows).
+inline constexpr RegAddr kTxFctrlHi{0x00, 0x28};   ///< FINE_PLEN bits 15:8 (byte 0x29)
+inline constexpr RegAddr kTxPower{0x01, 0x0C};     ///< 4 x 8-bit power settings
+inline constexpr RegAddr kRdbDiagMode{0x01, 0x28}; ///< RDB_DMODE bits 2:0
+inline constexpr RegAddr kStsCfg0{0x02, 0x00};     ///< CPS_LEN bits 7:0 (STS length - 1)
+inline constexpr RegAddr kDgcCfg0{0x03, 0x1C};
+inline constexpr RegAddr kDgcCfg1{0x03, 0x20};
+inline constexpr RegAddr kDgcLut0{0x03, 0x38};     ///< DGC_LUT_0..6 at 0x38..0x50, 4 bytes apart
+inline constexpr RegAddr kRxCalCfg{0x04, 0x0C};    ///< CAL_MODE 1:0, CAL_EN b4, COMP_DLY 19:16
+inline constexpr RegAddr kRxCalResI{0x04, 0x14};
+inline constexpr RegAddr kRxCalResQ{0x04, 0x1C};
+inline constexpr RegAddr kRxCalSts{0x04, 0x20};    ///< 1 when the PGF calibration is done
+inline constexpr RegAddr kDtune0{0x06, 0x00};      ///< PRE_PAC_SYM 1:0; SFD timeout 31:16 (bytes 0x02..0x03)
+inline constexpr RegAddr kDtune0SfdTimeout{0x06, 0x02};
+inline constexpr RegAddr kDtune3{0x06, 0x0C};      ///< preamble detection threshold
+inline constexpr RegAddr kRxCtrlHi{0x07, 0x10};
+inline constexpr RegAddr kTxCtrlLo{0x07, 0x18};
+inline constexpr RegAddr kTxCtrlHi{0x07, 0x1C};    ///< TX_PG_DELAY bits 5:0
+inline constexpr RegAddr kLdoTuneLo{0x07, 0x40};   ///< loaded from OTP by the LDO kick
+inline constexpr RegAddr kLdoTuneHi{0x07, 0x44};
+inline constexpr RegAddr kLdoCtrl{0x07, 0x48};
+inline constexpr RegAddr kLdoRload{0x07, 0x50};
+inline constexpr RegAddr kPllCfg{0x09, 0x00};      ///< 16 bits
+inline constexpr RegAddr kPllCal{0x09, 0x08};
+inline constexpr RegAddr kAonDigCfg{0x0A, 0x00};
+inline constexpr RegAddr kAonCtrl{0x0A, 0x04};     ///< ARRAY_SAVE b1
+inline constexpr RegAddr kAnaCfg{0x0A, 0x14};
+inline constexpr RegAddr kOtpAddr{0x0B, 0x04};     ///< bits 10:0
+inline constexpr RegAddr kOtpCfg{0x0B, 0x08};
+inline constexpr RegAddr kOtpRdata{0x0B, 0x10};
+inline constexpr RegAddr kClkCtrl{0x11, 0x04};     ///< SYS_CLK_SEL bits 1:0
+inline constexpr RegAddr kSeqCtrl{0x11, 0x08};     ///< AINIT2IDLE b8
+inline constexpr RegAddr kBiasCtrl{0x11, 0x1F};    ///< BIAS bits 4:0
 }  // namespace reg
+
+/// OTP words read at start-up (word addresses; dwt_initialise).
+namespace otp {
+inline constexpr std::uint16_t kLdoTuneLo = 0x04;
+inline constexpr std::uint16_t kLdoTuneHi = 0x05;
+inline constexpr std::uint16_t kPartId = 0x06;
+inline constexpr std::uint16_t kLotId = 0x07;
+inline constexpr std::uint16_t kBiasTune = 0x0A;  ///< bias trim in bits 20:16
+inline constexpr std::uint16_t kXtalTrim = 0x1E;  ///< bits 6:0; 0 = not programmed
+inline constexpr std::uint16_t kRevision = 0x1F;
+inline constexpr std::uint16_t kDgcTune = 0x20;   ///< equals kDgcCfg0Value when the DGC table is in OTP
+/// XTAL trim the API writes when OTP holds none (mid-range).
+inline constexpr std::uint8_t kDefaultXtalTrim = 0x2E;
+}  // namespace otp
+
+/// OTP_CFG bits (deca_regs.h).
+namespace otp_cfg {
+inline constexpr std::uint32_t kManualEnable = 1u << 0;
+inline constexpr std::uint32_t kRead = 1u << 1;
+inline constexpr std::uint32_t kDgcKick = 1u << 6;
+inline constexpr std::uint32_t kLdoKick = 1u << 7;
+inline constexpr std::uint32_t kBiasKick = 1u << 8;
+inline constexpr std::uint32_t kOpsKick = 1u << 10;
+inline constexpr std::uint32_t kOpsIdMask = 0x3u << 11;
+inline constexpr std::uint32_t kOpsLong = 0x0u << 11;   ///< preambles of 256 symbols and more
+inline constexpr std::uint32_t kOpsShort = 0x2u << 11;  ///< shorter preambles
+inline constexpr std::uint32_t kDgcSelCh9 = 1u << 13;
+}  // namespace otp_cfg
 
 /// DEV_ID values of the parts we accept.
 inline constexpr std::uint32_t kDevIdDw3110 = 0xDECA0302;
@@ -102,6 +165,35 @@ inline constexpr std::uint32_t kAllRxTimeouts = kRxFto | kRxPto;
 inline constexpr std::uint32_t kAllTxRxEvents = kTxFrs | kRxPrd | kRxSfdd | kCiaDone | kRxPhd | kRxFr | kRxFcg |
                                                 kAllRxErrors | kAllRxTimeouts;
 }  // namespace status
+
+/// Values of the vendor's start-up (deca_vals.h of the C0 API v04.00.00).
+namespace startup {
+inline constexpr std::uint32_t kDtune3Default = 0xAF5F584C;  ///< PD_THRESH_DEFAULT (STS off)
+inline constexpr std::uint16_t kPllCfgCh5 = 0x1F3C;
+inline constexpr std::uint16_t kPllCfgCh9 = 0x0F3C;
+inline constexpr std::uint32_t kTxCtrlHiCh5 = 0x1C071134;
+inline constexpr std::uint32_t kTxCtrlHiCh9 = 0x1C010034;
+inline constexpr std::uint32_t kRxCtrlHiCh9 = 0x08B5A833;  ///< channel 5 keeps the reset value
+inline constexpr std::uint8_t kLdoRloadByte1 = 0x14;
+inline constexpr std::uint8_t kTxCtrlLoByte2 = 0x0E;
+inline constexpr std::uint8_t kPllCalByte0 = 0x81;          ///< RF_PLL_CFG_LD: longer lock delay
+inline constexpr std::uint16_t kAutoClocks = 0x0200;        ///< CLK_CTRL low half, DWT_AUTO_CLKS
+inline constexpr std::uint8_t kForceSysClkFosc = 0x03;      ///< CLK_CTRL SYS_CLK_SEL = FOSC
+inline constexpr std::uint32_t kAinit2Idle = 1u << 8;       ///< SEQ_CTRL
+inline constexpr std::uint32_t kDgcCfg0Value = 0x10000240;
+inline constexpr std::uint32_t kDgcCfg1Value = 0x1B6DA489;
+inline constexpr std::uint32_t kDgcThr64 = 0x32;            ///< DGC_CFG bits 14:9
+inline constexpr std::uint32_t kDgcThr64Mask = 0x3Fu << 9;
+inline constexpr std::uint32_t kDgcRxTuneEn = 1u << 0;
+inline constexpr std::uint32_t kDgcLutCh5[7] = {0x1C0FD, 0x1C43E, 0x1C6BE, 0x1C77E, 0x1CF36, 0x1CFB5, 0x1CFF5};
+inline constexpr std::uint32_t kDgcLutCh9[7] = {0x2A8FE, 0x2AC36, 0x2A5FE, 0x2AF3E, 0x2AF7D, 0x2AFB5, 0x2AFB5};
+inline constexpr std::uint32_t kLdoCtrlForPgf = 0x0105;     ///< VDDIF2 | VDDMS3 | VDDMS1
+inline constexpr std::uint32_t kRxCalCfgPgf = 0x00020001;   ///< COMP_DLY 2, CAL_MODE 1
+inline constexpr std::uint32_t kRxCalEnable = 1u << 4;
+inline constexpr std::uint32_t kRxCalFailed = 0x1FFFFFFF;   ///< ERR_RX_CAL_FAIL in RX_CAL_RESI / RESQ
+inline constexpr std::uint32_t kCiaMinDiag = 1u << 20;      ///< CIA_CONF: minimal diagnostics (IP_DIAG not logged)
+inline constexpr std::uint8_t kStsCfg0Len64 = 0x07;         ///< 64-symbol STS - 1 (written with the STS off too)
+}  // namespace startup
 
 /// Fast commands (`0x81 | cmd << 1`).
 namespace fast_cmd {

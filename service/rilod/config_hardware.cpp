@@ -118,10 +118,11 @@ dw3000::RegisterWrite readRegisterWrite(const ConfigField& field) {
 dw3000::Dw3000Config readDw3000(const ConfigField& field, const std::vector<Anchor>* surveyed) {
   using namespace dw3000;
   const ConfigMap m = field.map(
-      {"channel", "preamble_code", "preamble_length", "data_rate", "sfd_type", "pan_id", "tag_address", "tag_id",
-       "anchors", "tx_antenna_delay", "rx_antenna_delay", "clock_offset_source", "reply_delay_us",
-       "rx_after_tx_delay_us", "rx_timeout_us", "irq_wait_margin_ns", "spi_slow_hz", "spi_fast_hz", "spi_crc",
-       "reset_low_ns", "boot_timeout_ns", "pll_lock_timeout_ns", "poll_interval_ns", "extra_init_writes",
+      {"channel", "preamble_code", "preamble_length", "data_rate", "sfd_type", "pac_symbols", "sfd_timeout_symbols",
+       "pan_id", "tag_address", "tag_id", "anchors", "tx_antenna_delay", "rx_antenna_delay", "tx_pg_delay",
+       "tx_power", "clock_offset_source", "reply_delay_us", "rx_after_tx_delay_us", "rx_timeout_us",
+       "irq_wait_margin_ns", "spi_slow_hz", "spi_fast_hz", "spi_crc", "reset_low_ns", "boot_timeout_ns",
+       "pll_lock_timeout_ns", "pgf_timeout_ns", "poll_interval_ns", "startup_audit", "extra_init_writes",
        "min_range_m", "max_range_m", "scheduler", "device_backoff_initial_ns", "device_backoff_max_ns",
        "device_faults_before_reinit", "startup_attempts", "max_reinit_failures"});
   Dw3000Config c;
@@ -134,6 +135,8 @@ dw3000::Dw3000Config readDw3000(const ConfigField& field, const std::vector<Anch
     return f.choice<DataRate>({{"850k", DataRate::k850k}, {"6m8", DataRate::k6M8}});
   });
   m.read("sfd_type", c.sfd_type, [](const ConfigField& f) { return f.integerAs<std::uint8_t>(0, 3); });
+  m.read("pac_symbols", c.pac_symbols, [](const ConfigField& f) { return f.integerAs<std::uint8_t>(); });
+  m.read("sfd_timeout_symbols", c.sfd_timeout_symbols, [](const ConfigField& f) { return f.integerAs<std::uint16_t>(); });
   m.read("pan_id", c.pan_id, [](const ConfigField& f) { return f.integerAs<std::uint16_t>(); });
   m.read("tag_address", c.tag_address, [](const ConfigField& f) { return f.integerAs<std::uint16_t>(); });
   m.read("tag_id", c.tag_id, [](const ConfigField& f) { return f.integerAs<std::uint32_t>(); });
@@ -142,6 +145,8 @@ dw3000::Dw3000Config readDw3000(const ConfigField& field, const std::vector<Anch
   for (const ConfigField& item : responders) c.anchors.push_back(readResponder(item));
   m.read("tx_antenna_delay", c.tx_antenna_delay, [](const ConfigField& f) { return f.integerAs<std::uint16_t>(); });
   m.read("rx_antenna_delay", c.rx_antenna_delay, [](const ConfigField& f) { return f.integerAs<std::uint16_t>(); });
+  m.read("tx_pg_delay", c.tx_pg_delay, [](const ConfigField& f) { return f.integerAs<std::uint8_t>(0, 0x3F); });
+  m.read("tx_power", c.tx_power, [](const ConfigField& f) { return f.integerAs<std::uint32_t>(); });
   m.read("clock_offset_source", c.clock_offset_source, [](const ConfigField& f) {
     return f.choice<ClockOffsetSource>({{"cia_diag0", ClockOffsetSource::kCiaDiag0},
                                         {"carrier_integrator", ClockOffsetSource::kCarrierIntegrator},
@@ -158,6 +163,8 @@ dw3000::Dw3000Config readDw3000(const ConfigField& field, const std::vector<Anch
   m.read("reset_low_ns", c.reset_low_ns, nanoseconds);
   m.read("boot_timeout_ns", c.boot_timeout_ns, nanoseconds);
   m.read("pll_lock_timeout_ns", c.pll_lock_timeout_ns, nanoseconds);
+  m.read("pgf_timeout_ns", c.pgf_timeout_ns, nanoseconds);
+  m.read("startup_audit", c.startup_audit, flag);
   m.read("poll_interval_ns", c.poll_interval_ns, nanoseconds);
   if (auto f = m.get("extra_init_writes")) {
     for (const ConfigField& item : f->sequence()) c.extra_init_writes.push_back(readRegisterWrite(item));
@@ -222,7 +229,7 @@ bmi263::Bmi263Config readBmi263(const ConfigField& field) {
        "init_timeout_ns", "sensor_startup_ns", "bring_up_attempts", "irq_timeout_ns",
        "max_consecutive_irq_timeouts", "max_consecutive_read_failures", "max_consecutive_irq_errors",
        "irq_error_backoff_ns", "temperature_period_ns", "sample_time_offset_ns", "pairing_tolerance_ns",
-       "time_fit"});
+       "time_fit", "gyro_cross_axis"});
   Bmi263Config c;
   if (auto f = m.get("accepted_chip_ids")) {
     c.accepted_chip_ids.clear();
@@ -233,6 +240,9 @@ bmi263::Bmi263Config readBmi263(const ConfigField& field) {
   m.read("blob_burst_bytes", c.blob_burst_bytes, sizeValue);
   m.read("odr_hz", c.odr, [](const ConfigField& f) {
     return f.choice<Odr>({{"800", Odr::k800Hz}, {"1600", Odr::k1600Hz}});
+  });
+  m.read("gyro_cross_axis", c.gyro_cross_axis, [](const ConfigField& f) {
+    return f.choice<GyroCrossAxis>({{"auto", GyroCrossAxis::kAuto}, {"on", GyroCrossAxis::kOn}, {"off", GyroCrossAxis::kOff}});
   });
   m.read("accel_range_g", c.accel_range, [](const ConfigField& f) {
     return f.choice<AccelRange>(

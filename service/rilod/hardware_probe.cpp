@@ -92,8 +92,10 @@ void readUwbStatus(dw3000::Dw3000Device& device, UwbProbe& out) {
 bool bringUpUwb(dw3000::Dw3000Device& device, UwbProbe& out, const char* what) {
   try {
     device.bringUp();
+    out.startup = device.bringUpReport();
     return true;
   } catch (const std::exception& e) {
+    out.startup = device.bringUpReport();
     out.error = std::string("DWM3000 ") + what + " failed on " + out.device + ": " + e.what();
     return false;
   }
@@ -123,6 +125,9 @@ void measureUwb(dw3000::Dw3000Device& device, const dw3000::Dw3000Config& config
         if (r.diagnostics_error) ++out.device_faults["RX diagnostics read failed (range kept)"];
         if (std::isfinite(r.rx_power.rssi_dbm)) anchor.rssi_dbm.add(r.rx_power.rssi_dbm);
         if (std::isfinite(r.rx_power.fp_power_dbm)) anchor.fp_power_dbm.add(r.rx_power.fp_power_dbm);
+        if (out.first_frames.size() < 3 && !r.diagnostics_error) {
+          out.first_frames.push_back({anchor.id, r.range_m, r.diagnostics, r.rx_power.rssi_dbm, r.rx_power.fp_power_dbm});
+        }
       } else if (dw3000::isDeviceFault(r.status)) {
         ++out.device_faults[dw3000::toString(r.status)];
         ++device_faults_in_row;
@@ -290,6 +295,8 @@ void probeImu(const ImuHardwareConfig& config, const ImuProbeTarget& target, dou
     const bmi263::BringUpResult r = driver.bringUp();
     out.chip_id = r.chip_id;
     out.internal_status = r.internal_status;
+    out.gyro_cross_axis = r.gyro_cross_axis;
+    out.gyro_cas = r.gyro_cas;
     if (!r.ok) {
       out.error = "BMI263 bring-up failed on " + out.device + ": " + r.error;
       return;
@@ -384,7 +391,15 @@ std::string jsonBool(bool b) { return b ? "true" : "false"; }
 std::string jsonError(const std::string& e) { return e.empty() ? std::string("null") : jsonText(e); }
 
 std::string jsonVec(const std::array<double, 3>& v) {
-  return "[" + jsonNumber(v[0], 6) + ", " + jsonNumber(v[1], 6) + ", " + jsonNumber(v[2], 6) + "]";
+  // Appended piecewise: GCC 12's -Wrestrict misreads the inlined chain of
+  // operator+ on a one-character literal here.
+  std::string out("[");
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (i > 0) out.append(", ");
+    out.append(jsonNumber(v[i], 6));
+  }
+  out.push_back(']');
+  return out;
 }
 
 }  // namespace
@@ -471,6 +486,19 @@ std::string probeReportText(const ProbeReport& report) {
     t += format("  antenna delays: TX %u (read back %u), RX %u (read back %u) device units\n",
                 static_cast<unsigned>(u.tx_antenna_delay), static_cast<unsigned>(u.tx_antenna_delay_read),
                 static_cast<unsigned>(u.rx_antenna_delay), static_cast<unsigned>(u.rx_antenna_delay_read));
+    t += "  start-up: " + dw3000::describe(u.startup) + "\n";
+    t += format("  OTP: part id %s, lot id %s, revision %s\n", hex(u.startup.otp_part_id, 8).c_str(),
+                hex(u.startup.otp_lot_id, 8).c_str(), hex(u.startup.otp_revision, 2).c_str());
+    for (const FrameDiagnostics& f : u.first_frames) {
+      t += format("  first frames: anchor %u at %.3f m: C %u, F1/F2/F3 %u/%u/%u, N %u, DGC %u -> RX level %s dBm, "
+                  "first path %s dBm\n",
+                  static_cast<unsigned>(f.anchor_id), f.range_m, static_cast<unsigned>(f.raw.cir_power),
+                  static_cast<unsigned>(f.raw.fp_ampl1), static_cast<unsigned>(f.raw.fp_ampl2),
+                  static_cast<unsigned>(f.raw.fp_ampl3), static_cast<unsigned>(f.raw.accumulation_count),
+                  static_cast<unsigned>(f.raw.dgc_decision),
+                  std::isfinite(f.rssi_dbm) ? format("%.1f", f.rssi_dbm).c_str() : "-",
+                  std::isfinite(f.fp_power_dbm) ? format("%.1f", f.fp_power_dbm).c_str() : "-");
+    }
     t += format("  ranging %.1f s, each anchor in turn:\n", u.seconds);
     t += format("  %6s %7s %6s %6s %5s %10s %9s %9s %9s %9s  %s\n", "anchor", "address", "polls", "ranges", "ok%",
                 "mean (m)", "std (cm)", "RSSI dBm", "FP dBm", "offs ppm", "errors");
@@ -497,6 +525,8 @@ std::string probeReportText(const ProbeReport& report) {
                 bmi263::internal_status::name(m.internal_status));
     t += format("  configured: %.0f Hz, +-%.0f g, +-%.0f dps, %s interrupt\n", m.odr_hz, m.accel_range_g,
                 m.gyro_range_dps, m.interrupt_mode.c_str());
+    t += m.gyro_cross_axis ? format("  gyro cross-axis correction: GYR_CAS %d (x -= %d z / 512)\n", m.gyro_cas, m.gyro_cas)
+                           : std::string("  gyro cross-axis correction: off\n");
     if (m.samples > 0) {
       t += format("  %llu samples in %.2f s: %.1f Hz from the host timestamps (largest gap %.2f ms), %llu missed\n",
                   static_cast<unsigned long long>(m.samples), m.seconds, m.rate_hz, m.max_gap_ms,
@@ -551,6 +581,29 @@ std::string probeReportJson(const ProbeReport& report) {
        ", \"sys_state\": " + jsonText(hex(u.sys_state, 8)) + ", \"irq_mask\": " + jsonText(hex(u.irq_mask, 8)) +
        ", \"clock_offset_source\": " + jsonText(u.clock_offset_source) +
        ", \"reply_delay_us\": " + jsonNumber(u.reply_delay_us) + ",\n";
+  const dw3000::BringUpReport& b = u.startup;
+  j += "    \"startup\": {\"otp_ldo_tune_lo\": " + jsonText(hex(b.otp_ldo_tune_lo, 8)) +
+       ", \"otp_ldo_tune_hi\": " + jsonText(hex(b.otp_ldo_tune_hi, 8)) +
+       ", \"otp_bias_tune\": " + jsonText(hex(b.otp_bias_tune, 2)) +
+       ", \"ldo_bias_from_otp\": " + jsonBool(b.ldo_bias_from_otp) + ", \"xtal_trim\": " + jsonText(hex(b.xtal_trim, 2)) +
+       ", \"xtal_trim_from_otp\": " + jsonBool(b.xtal_trim_from_otp) +
+       ", \"otp_part_id\": " + jsonText(hex(b.otp_part_id, 8)) + ", \"otp_lot_id\": " + jsonText(hex(b.otp_lot_id, 8)) +
+       ", \"otp_revision\": " + jsonText(hex(b.otp_revision, 2)) +
+       ", \"pll_lock_us\": " + (b.pll_lock_ns >= 0 ? jsonNumber(static_cast<double>(b.pll_lock_ns) * 1e-3, 1) : "null") +
+       ", \"dgc_on\": " + jsonBool(b.dgc_on) + ", \"dgc_from_otp\": " + jsonBool(b.dgc_from_otp) +
+       ", \"pgf_done\": " + jsonBool(b.pgf_done) + ", \"pgf_result_i\": " + jsonText(hex(b.pgf_result_i, 8)) +
+       ", \"pgf_result_q\": " + jsonText(hex(b.pgf_result_q, 8)) + "},\n";
+  j += "    \"first_frames\": [";
+  for (std::size_t i = 0; i < u.first_frames.size(); ++i) {
+    const FrameDiagnostics& f = u.first_frames[i];
+    j += (i > 0 ? ", " : "") + std::string("{\"anchor\": ") + std::to_string(f.anchor_id) +
+         ", \"range_m\": " + jsonNumber(f.range_m, 4) + ", \"cir_power\": " + std::to_string(f.raw.cir_power) +
+         ", \"fp_ampl\": [" + std::to_string(f.raw.fp_ampl1) + ", " + std::to_string(f.raw.fp_ampl2) + ", " +
+         std::to_string(f.raw.fp_ampl3) + "], \"accumulation_count\": " + std::to_string(f.raw.accumulation_count) +
+         ", \"dgc_decision\": " + std::to_string(f.raw.dgc_decision) + ", \"rssi_dbm\": " + jsonNumber(f.rssi_dbm, 2) +
+         ", \"fp_power_dbm\": " + jsonNumber(f.fp_power_dbm, 2) + "}";
+  }
+  j += "],\n";
   j += "    \"seconds\": " + jsonNumber(u.seconds, 3) + ",\n";
   j += "    \"anchors\": [";
   for (std::size_t i = 0; i < u.anchors.size(); ++i) {
@@ -581,7 +634,8 @@ std::string probeReportJson(const ProbeReport& report) {
        (m.opened ? jsonText(bmi263::internal_status::name(m.internal_status)) : "null") + ",\n";
   j += "    \"odr_hz\": " + jsonNumber(m.odr_hz) + ", \"accel_range_g\": " + jsonNumber(m.accel_range_g) +
        ", \"gyro_range_dps\": " + jsonNumber(m.gyro_range_dps) + ", \"interrupt_mode\": " + jsonText(m.interrupt_mode) +
-       ",\n";
+       ", \"gyro_cross_axis\": " + jsonBool(m.gyro_cross_axis) +
+       ", \"gyro_cas\": " + (m.gyro_cross_axis ? std::to_string(m.gyro_cas) : std::string("null")) + ",\n";
   const bool have = m.samples > 0;
   j += "    \"samples\": " + std::to_string(m.samples) + ", \"seconds\": " + jsonNumber(m.seconds, 4) +
        ", \"rate_hz\": " + (have ? jsonNumber(m.rate_hz, 3) : "null") +

@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "hal/dw3000/bring_up.h"
+#include "hal/dw3000/rx_power.h"
 #include "rilod/config.h"
 #include "rilod/hardware_sources.h"
 
@@ -52,6 +54,15 @@ struct AnchorProbe {
   double successRate() const noexcept;
 };
 
+/// A good exchange's CIA diagnostics, as read (the first few of a probe).
+struct FrameDiagnostics {
+  std::uint32_t anchor_id = 0;
+  double range_m = 0.0;
+  dw3000::RxDiagnostics raw;
+  double rssi_dbm = std::numeric_limits<double>::quiet_NaN();
+  double fp_power_dbm = std::numeric_limits<double>::quiet_NaN();
+};
+
 struct UwbProbe {
   bool opened = false;  ///< buses available
   bool up = false;      ///< bring-up succeeded
@@ -73,7 +84,11 @@ struct UwbProbe {
   std::uint32_t irq_mask = 0;
   std::string clock_offset_source;
   double reply_delay_us = 0.0;
+  /// The start-up's OTP trims and their source, PLL lock time, DGC and PGF
+  /// calibration (also after a failed bring-up, as far as it got).
+  dw3000::BringUpReport startup;
   // Measurement
+  std::vector<FrameDiagnostics> first_frames;  ///< the first three good exchanges
   double seconds = 0.0;  ///< measured time (s)
   std::vector<AnchorProbe> anchors;
   std::map<std::string, std::uint64_t> device_faults;  ///< SPI / IRQ / TX faults by kind
@@ -92,6 +107,8 @@ struct ImuProbe {
   double accel_range_g = 0.0;
   double gyro_range_dps = 0.0;
   std::string interrupt_mode;
+  bool gyro_cross_axis = false;  ///< Bosch's cross-axis correction applied
+  int gyro_cas = 0;              ///< its factor (GYR_CAS)
   // Measurement (host timestamps from the sensortime fit)
   double seconds = 0.0;  ///< first to last sample (s)
   std::uint64_t samples = 0;

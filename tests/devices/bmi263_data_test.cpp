@@ -2,8 +2,10 @@
 // range setting, saturation, temperature.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <numbers>
+#include <string>
 
 #include "bmi263_test_util.h"
 
@@ -90,6 +92,78 @@ TEST(Bmi263Data, SaturatesAtTheRangeLimit) {
   EXPECT_NEAR(s.accel_m_s2.y(), -2.0 * kStandardGravity, 1e-9);
   EXPECT_NEAR(s.gyro_rad_s.x(), 32767.0 / 262.144 * std::numbers::pi / 180.0, 1e-9);
   EXPECT_NEAR(s.gyro_rad_s.y(), -125.0 * std::numbers::pi / 180.0, 1e-9);
+}
+
+// Gyro cross-axis sensitivity (Bosch's BMI2 API: x -= GYR_CAS * z / 512): a
+// part with the factor reads z into x; the driver reads the factor from the
+// part after its configuration and takes it out of every sample, in both
+// interrupt modes. Off, the coupling stays.
+TEST(Bmi263Data, TheCrossAxisFactorIsReadFromThePartAndTakenOut) {
+  auto spin_about_z = [](std::int64_t) {
+    emu::ImuTruth truth;
+    truth.accel_m_s2 = Eigen::Vector3d(0.0, 0.0, kStandardGravity);
+    truth.gyro_rad_s = Eigen::Vector3d(0.05, -0.02, 3.0);
+    return truth;
+  };
+  const double lsb_rad_s = (std::numbers::pi / 180.0) / gyroLsbPerDps(GyroRange::k2000dps);
+  for (const InterruptMode mode : {InterruptMode::kDataReady, InterruptMode::kFifoWatermark}) {
+    for (const GyroCrossAxis setting : {GyroCrossAxis::kAuto, GyroCrossAxis::kOff}) {
+      SCOPED_TRACE(std::string(toString(mode)) + " " + toString(setting));
+      emu::Bmi263EmulatorConfig part;
+      part.gyro_cas = -37;  // x reads 37/512 of z too little: -0.217 rad/s at 3 rad/s
+      Rig rig(part, spin_about_z);
+      rig.config.interrupt_mode = mode;
+      rig.config.gyro_cross_axis = setting;
+      RecordingSink sink;
+      rig.runFor(300'000'000, sink);
+      ASSERT_FALSE(sink.samples.empty()) << sink.allFaults();
+      const bool corrected = setting == GyroCrossAxis::kAuto;  // the emulator is a BMI270 by id
+      const double expected_x = corrected ? 0.05 : 0.05 - 37.0 / 512.0 * 3.0;
+      for (const ImuSample& s : sink.samples) {
+        // Two LSB: the part's rounding plus the correction's integer division.
+        ASSERT_NEAR(s.gyro_rad_s.x(), expected_x, 2.0 * lsb_rad_s);
+        ASSERT_NEAR(s.gyro_rad_s.z(), 3.0, 0.5 * lsb_rad_s * (1.0 + 1e-9));
+      }
+    }
+  }
+}
+
+TEST(Bmi263Data, TheCrossAxisCorrectionFollowsBoschsArithmetic) {
+  EXPECT_EQ(decodeGyrCas(0x00), 0);
+  EXPECT_EQ(decodeGyrCas(0x3F), 63);
+  EXPECT_EQ(decodeGyrCas(0x40), -64);
+  EXPECT_EQ(decodeGyrCas(0x7F), -1);
+  EXPECT_EQ(decodeGyrCas(0xDB), -37);  // bit 7 is not part of the field
+  std::array<std::int16_t, 3> g{1000, -5, 20000};
+  correctGyroCrossAxis(g, 10);  // 10 * 20000 / 512 = 390.6 -> 390 (truncated)
+  EXPECT_EQ(g[0], 610);
+  EXPECT_EQ(g[1], -5);
+  EXPECT_EQ(g[2], 20000);
+  g = {-1000, 0, -20001};
+  correctGyroCrossAxis(g, 10);  // -390.6 -> -390: truncated towards zero, as C's division
+  EXPECT_EQ(g[0], -610);
+  g = {32700, 0, -32768};
+  correctGyroCrossAxis(g, 63);  // +4032: saturates
+  EXPECT_EQ(g[0], 32767);
+}
+
+TEST(Bmi263Data, OnlyTheBmi270sIdGetsTheCorrectionByDefault) {
+  emu::Bmi263EmulatorConfig part;
+  part.chip_id = kChipIdBmi260;
+  part.gyro_cas = 20;
+  Rig rig(part);
+  rig.config.accepted_chip_ids = {kChipIdBmi260};
+  Bmi263Driver driver(*rig.emulator, rig.clock, rig.config);
+  const BringUpResult automatic = driver.bringUp();
+  ASSERT_TRUE(automatic.ok) << automatic.error;
+  EXPECT_FALSE(automatic.gyro_cross_axis);
+  EXPECT_FALSE(driver.gyroCrossAxis());
+  rig.config.gyro_cross_axis = GyroCrossAxis::kOn;  // a part known to carry the factor there
+  const BringUpResult forced = driver.bringUp();
+  ASSERT_TRUE(forced.ok) << forced.error;
+  EXPECT_TRUE(forced.gyro_cross_axis);
+  EXPECT_EQ(forced.gyro_cas, 20);
+  EXPECT_EQ(driver.gyroCas(), 20);
 }
 
 TEST(Bmi263Data, TemperatureIsReadOccasionally) {

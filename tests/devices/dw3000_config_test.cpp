@@ -96,6 +96,34 @@ TEST(Dw3000Config, ErrorsNameTheParameter) {
   c = valid();
   c.device_faults_before_reinit = 0;
   EXPECT_NE(errorOf(c).find("device_faults_before_reinit"), std::string::npos);
+
+  c = valid();
+  c.pac_symbols = 12;
+  EXPECT_NE(errorOf(c).find("pac_symbols"), std::string::npos);
+
+  c = valid();
+  c.tx_pg_delay = 0x40;
+  EXPECT_NE(errorOf(c).find("tx_pg_delay"), std::string::npos);
+
+  c = valid();
+  c.pgf_timeout_ns = 0;
+  EXPECT_NE(errorOf(c).find("pgf_timeout_ns"), std::string::npos);
+}
+
+TEST(Dw3000Config, PacCodesAndTheSfdTimeoutFollowTheApi) {
+  EXPECT_EQ(pacCode(8), 0);
+  EXPECT_EQ(pacCode(16), 1);
+  EXPECT_EQ(pacCode(32), 2);
+  EXPECT_EQ(pacCode(4), 3);
+  EXPECT_EQ(pacCode(5), -1);
+  Dw3000Config c = valid();
+  EXPECT_EQ(sfdTimeoutSymbols(c), 129);  // 128 + 1 + 8 - 8, the API examples' (129 + 8 - 8)
+  c.preamble_length = 1024;
+  c.pac_symbols = 32;
+  c.sfd_type = 2;  // 16-symbol SFD
+  EXPECT_EQ(sfdTimeoutSymbols(c), 1024 + 1 + 16 - 32);
+  c.sfd_timeout_symbols = 500;
+  EXPECT_EQ(sfdTimeoutSymbols(c), 500);
 }
 
 TEST(Dw3000Config, AirTimeEstimates) {

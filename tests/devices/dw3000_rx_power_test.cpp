@@ -104,23 +104,26 @@ TEST(DecodeRxDiagnostics, MasksEveryFieldAtItsOffset) {
 // --- through the driver and the emulated channel ---------------------------
 
 /// |error| bound of the RX level from C's rounding to an integer.
-double rssiRoundingDb(double rx_level_dbm, std::uint32_t n, int dgc_decision) {
-  const double c = std::pow(10.0, (rx_level_dbm + 121.7 - 6.0 * dgc_decision) / 10.0) *
+double rssiRoundingDb(double rx_level_dbm, std::uint32_t n, int dgc_decision, bool prf64 = true) {
+  const double c = std::pow(10.0, (rx_level_dbm + rxPowerConstantDb(prf64) - 6.0 * dgc_decision) / 10.0) *
                    static_cast<double>(n) * static_cast<double>(n) / 2097152.0;
   return 10.0 * std::log10((c + 0.5) / c) + 1e-9;
 }
 
-class Dw3000RxPowerDgc : public ::testing::TestWithParam<bool> {};  // DGC on?
+// The start-up turns the DGC on at 64 MHz PRF (its table and threshold) and
+// off at 16 MHz (dwt_configure); its decision then enters the RX level.
+class Dw3000RxPowerDgc : public ::testing::TestWithParam<bool> {};  // 64 MHz PRF: DGC on?
 
 TEST_P(Dw3000RxPowerDgc, EveryGoodExchangeCarriesTheChannelsLevels) {
   const bool dgc = GetParam();
   Rig rig;
-  if (dgc) rig.config.extra_init_writes.push_back(RegisterWrite{reg::kDgcCfg, 0x1, 4});  // RX_TUNE_EN
+  rig.config.preamble_code = dgc ? 9 : 3;  // 64 / 16 MHz PRF on channel 5
   rig.addAnchor(1, 0x0001, 3.0);
   rig.addAnchor(2, 0x0002, 12.0);
   rig.chip.responder(0).nlos_gap_db = [](std::int64_t) { return 1.5; };  // line of sight
   rig.chip.responder(1).nlos_gap_db = [](std::int64_t) { return 9.0; };  // direct path blocked
   rig.chip.responder(1).rx_level_at_1m_dbm = -60.0;
+  rig.chip.responder(0).dgc_decision = 2;  // served only while the DGC is on
   rig.chip.responder(1).dgc_decision = 1;
   Dw3000Device device(rig.config, rig.chip, rig.irq, rig.reset_line, rig.clock);
   device.bringUp();
@@ -135,7 +138,8 @@ TEST_P(Dw3000RxPowerDgc, EveryGoodExchangeCarriesTheChannelsLevels) {
       const emu::Dw3000ExchangeTruth& truth = rig.chip.lastExchange();
       ASSERT_TRUE(truth.valid);
       EXPECT_EQ(truth.dgc_decision, dgc ? (anchor.id == 1 ? 2 : 1) : 0);
-      EXPECT_NEAR(r.rx_power.rssi_dbm, truth.rx_level_dbm, rssiRoundingDb(truth.rx_level_dbm, n, truth.dgc_decision));
+      EXPECT_NEAR(r.rx_power.rssi_dbm, truth.rx_level_dbm,
+                  rssiRoundingDb(truth.rx_level_dbm, n, truth.dgc_decision, dgc));
       EXPECT_NEAR(r.rx_power.fp_power_dbm, truth.fp_power_dbm, 0.01);
       EXPECT_EQ(rig.chip.status() & device.irqMask(), 0u);
       rig.clock.sleepForNs(1'000'000);
@@ -143,14 +147,14 @@ TEST_P(Dw3000RxPowerDgc, EveryGoodExchangeCarriesTheChannelsLevels) {
   }
   // The levels follow the channel: 20 log10 over distance, the NLOS gap.
   const double near_dbm = -63.0 - 20.0 * std::log10(3.0);
-  const double near_tol_db = rssiRoundingDb(near_dbm, n, dgc ? 2 : 0) + 0.01;
+  const double near_tol_db = rssiRoundingDb(near_dbm, n, dgc ? 2 : 0, dgc) + 0.01;
   const ExchangeResult near = device.range(rig.config.anchors[0]);
   EXPECT_NEAR(near.rx_power.rssi_dbm, near_dbm, near_tol_db);
   EXPECT_NEAR(near.rx_power.rssi_dbm - near.rx_power.fp_power_dbm, 1.5, near_tol_db);
   rig.clock.sleepForNs(1'000'000);
   const double far_dbm = -60.0 - 20.0 * std::log10(12.0);
   const ExchangeResult far = device.range(rig.config.anchors[1]);
-  EXPECT_NEAR(far.rx_power.rssi_dbm, far_dbm, rssiRoundingDb(far_dbm, n, dgc ? 1 : 0) + 0.01);
+  EXPECT_NEAR(far.rx_power.rssi_dbm, far_dbm, rssiRoundingDb(far_dbm, n, dgc ? 1 : 0, dgc) + 0.01);
   EXPECT_GT(far.rx_power.rssi_dbm - far.rx_power.fp_power_dbm, 6.0);  // APS006: likely NLOS
 }
 
@@ -200,8 +204,7 @@ TEST(Dw3000RxPower, AFailedDiagnosticsReadKeepsTheRangeWithoutPowers) {
 
 TEST(Dw3000RxPower, TheSourcePushesTheRangeWithNanPowersAndCountsTheFailure) {
   Rig rig;
-  rig.config.spi_crc = true;  // every read followed by its SPI_RD_CRC check
-  rig.config.extra_init_writes.push_back(RegisterWrite{reg::kDgcCfg, 0x1, 4});
+  rig.config.spi_crc = true;  // every read followed by its SPI_RD_CRC check (the DGC is on: 64 MHz PRF)
   rig.addAnchor(1, 0x0001, 4.0);
   Dw3000Source source(rig.config, rig.chip, rig.irq, rig.reset_line, rig.clock);
   CollectingSink sink;

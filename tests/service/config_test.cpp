@@ -383,12 +383,19 @@ TEST_F(ConfigTest, HardwareSectionMapsOntoDriverConfigs) {
       "        data_rate: 6m8\n"
       "        preamble_length: 64\n"
       "        clock_offset_source: carrier_integrator\n"
+      "        pac_symbols: 16\n"
+      "        sfd_timeout_symbols: 70\n"
+      "        tx_pg_delay: 0x34\n"
+      "        tx_power: 0xFEFEFEFE\n"
+      "        pgf_timeout_ns: 500000\n"
+      "        startup_audit: false\n"
       "        extra_init_writes: [{file: 0x11, offset: 0x08, value: 0x1234, length: 2}]\n"
       "        scheduler: {max_active: 3, range_rate_hz: 5}\n",
       "        odr_hz: 1600\n"
       "        accel_range_g: 4\n"
       "        gyro_range_dps: 500\n"
       "        interrupt_mode: fifo_watermark\n"
+      "        gyro_cross_axis: off\n"
       "        sample_time_offset_ns: -20000\n"
       "        time_fit: {window: 1024}\n",
       "      address: 0x69\n"));
@@ -406,6 +413,12 @@ TEST_F(ConfigTest, HardwareSectionMapsOntoDriverConfigs) {
   ASSERT_EQ(uwb.dw3000.anchors.size(), 3u);
   EXPECT_EQ(uwb.dw3000.anchors[1].id, 1u);
   EXPECT_EQ(uwb.dw3000.anchors[1].short_address, 0x0002);
+  EXPECT_EQ(uwb.dw3000.pac_symbols, 16);
+  EXPECT_EQ(uwb.dw3000.sfd_timeout_symbols, 70);
+  EXPECT_EQ(uwb.dw3000.tx_pg_delay, 0x34);
+  EXPECT_EQ(uwb.dw3000.tx_power, 0xFEFEFEFEu);
+  EXPECT_EQ(uwb.dw3000.pgf_timeout_ns, 500000);
+  EXPECT_FALSE(uwb.dw3000.startup_audit);
   ASSERT_EQ(uwb.dw3000.extra_init_writes.size(), 1u);
   EXPECT_EQ(uwb.dw3000.extra_init_writes[0].addr.file, 0x11);
   EXPECT_EQ(uwb.dw3000.extra_init_writes[0].value, 0x1234u);
@@ -418,6 +431,7 @@ TEST_F(ConfigTest, HardwareSectionMapsOntoDriverConfigs) {
   EXPECT_EQ(imu.irq.line, 23u);
   EXPECT_EQ(imu.bmi263.config_blob_path, (dir_ / "blob.bin").string());
   EXPECT_EQ(imu.bmi263.odr, bmi263::Odr::k1600Hz);
+  EXPECT_EQ(imu.bmi263.gyro_cross_axis, bmi263::GyroCrossAxis::kOff);
   EXPECT_EQ(imu.bmi263.accel_range, bmi263::AccelRange::k4g);
   EXPECT_EQ(imu.bmi263.gyro_range, bmi263::GyroRange::k500dps);
   EXPECT_EQ(imu.bmi263.interrupt_mode, bmi263::InterruptMode::kFifoWatermark);

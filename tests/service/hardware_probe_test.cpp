@@ -74,6 +74,28 @@ TEST_F(HardwareProbeTest, ReportsBringUpRangesAndTheImuAtRest) {
   EXPECT_EQ(u.reinitializations, 0u);
   EXPECT_TRUE(u.device_faults.empty());
   EXPECT_NEAR(u.seconds, 3.0, 0.1);
+  // The start-up: the chip's OTP trims applied, the PLL locked, the DGC
+  // table loaded, the PGF calibrated.
+  const emu::Dw3000Otp otp;
+  EXPECT_TRUE(u.startup.ldo_bias_from_otp);
+  EXPECT_EQ(u.startup.otp_ldo_tune_lo, otp.ldo_tune_lo);
+  EXPECT_TRUE(u.startup.xtal_trim_from_otp);
+  EXPECT_EQ(u.startup.xtal_trim, otp.xtal_trim);
+  EXPECT_EQ(u.startup.otp_part_id, otp.part_id);
+  EXPECT_GT(u.startup.pll_lock_ns, 0);
+  EXPECT_TRUE(u.startup.dgc_on);
+  EXPECT_TRUE(u.startup.pgf_done);
+  // The first good frames' raw diagnostics, in the order ranged.
+  ASSERT_EQ(u.first_frames.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const FrameDiagnostics& f = u.first_frames[i];
+    EXPECT_EQ(f.anchor_id, i);
+    EXPECT_NEAR(f.range_m, truth_.responders[i].distance_m, 0.01);
+    EXPECT_GT(f.raw.cir_power, 0u);
+    EXPECT_GT(f.raw.fp_ampl1, 0u);
+    EXPECT_EQ(f.raw.accumulation_count, emu::Dw3000EmulatorParams{}.preamble_accumulation_count);
+    EXPECT_TRUE(std::isfinite(f.rssi_dbm));
+  }
 
   // Ranges: each anchor polled at 10 Hz for 3 s, answering ones within 1 cm.
   ASSERT_EQ(u.anchors.size(), 4u);
@@ -144,7 +166,14 @@ TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
   EXPECT_NE(text.find("TX 16390 (read back 16390), RX 16380 (read back 16380)"), std::string::npos) << text;
   EXPECT_NE(text.find("BMI263 on emu:bmi263@0x68: up"), std::string::npos) << text;
   EXPECT_NE(text.find("chip id 0x24, INTERNAL_STATUS 0x01 (init_ok)"), std::string::npos) << text;
+  EXPECT_NE(text.find("gyro cross-axis correction: GYR_CAS 0 (x -= 0 z / 512)"), std::string::npos) << text;
   EXPECT_NE(text.find("RX timeout"), std::string::npos) << text;  // anchor 3
+  EXPECT_NE(text.find("start-up: LDO trims 0x2A6B4C38/0x00A75C14 and bias 0x13 from OTP; XTAL trim 0x1B from OTP; "
+                      "PLL lock "),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("DGC on (driver's table); PGF calibration done"), std::string::npos) << text;
+  EXPECT_NE(text.find("first frames: anchor 0 at 2.50"), std::string::npos) << text;
   EXPECT_NE(text.find("probe: OK"), std::string::npos) << text;
 
   const std::string json = probeReportJson(report);
@@ -152,6 +181,7 @@ TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
   EXPECT_NE(json.find("\"dev_id\": \"0xDECA0302\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"chip_id\": \"0x24\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"internal_status_name\": \"init_ok\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"gyro_cross_axis\": true, \"gyro_cas\": 0"), std::string::npos) << json;
   // RX level / first-path power from the diagnostics; null for the silent anchor.
   const emu::Dw3000ResponderModel channel;
   EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_rssi_dbm"}),
@@ -168,6 +198,10 @@ TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
   EXPECT_NEAR(jsonNumberAt(json, {"imu", "rate_hz"}), 800.0, 1.0);
   EXPECT_NEAR(jsonNumberAt(json, {"imu", "mean_accel_norm_m_s2"}), kGravity, 0.01);
   EXPECT_NEAR(jsonNumberAt(json, {"imu", "odr_hz"}), 800.0, 1e-9);
+  EXPECT_NE(json.find("\"xtal_trim\": \"0x1B\", \"xtal_trim_from_otp\": true"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"pgf_done\": true"), std::string::npos) << json;
+  EXPECT_GT(jsonNumberAt(json, {"uwb", "startup", "pll_lock_us"}), 0.0);
+  EXPECT_NE(json.find("\"first_frames\": [{\"anchor\": 0, \"range_m\": 2.50"), std::string::npos) << json;
 }
 
 TEST_F(HardwareProbeTest, AFailedDiagnosticsReadKeepsTheRangeAndIsListed) {

@@ -196,6 +196,9 @@ std::uint8_t Bmi263Emulator::readByte(std::uint8_t reg, std::uint32_t sensortime
     case b::reg::kFifoLength0: return static_cast<std::uint8_t>(fifoBytes() & 0xFF);
     case b::reg::kFifoLength0 + 1: return static_cast<std::uint8_t>((fifoBytes() >> 8) & 0x3F);
     case b::reg::kFifoData: return b::fifo::kHeaderEmpty;
+    case b::reg::kGyrCas:
+      if (regs_[b::reg::kFeatPage] == 0) return static_cast<std::uint8_t>(config_.gyro_cas & 0x7F);
+      break;
     default: break;
   }
   if (reg >= b::reg::kAccDataX && reg < b::reg::kAccDataX + 12) return data_[reg - b::reg::kAccDataX];
@@ -396,6 +399,7 @@ void Bmi263Emulator::produceSample() {
   const int gyro_code = std::min(regs_[b::reg::kGyrRange] & 0x07, 4);
   const double gyro_lsb_per_rad_s = 32768.0 / (2000.0 / static_cast<double>(1 << gyro_code)) *
                                     (180.0 / std::numbers::pi);
+  truth.gyro_rad_s[0] += static_cast<double>(config_.gyro_cas) / 512.0 * truth.gyro_rad_s[2];  // cross-axis
   std::array<std::int16_t, 6> raw{};  // acc xyz, gyr xyz
   for (std::size_t axis = 0; axis < 3; ++axis) {
     raw[axis] = quantize(truth.accel_m_s2[static_cast<Eigen::Index>(axis)], accel_lsb_per_m_s2);

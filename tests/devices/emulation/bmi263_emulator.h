@@ -65,6 +65,10 @@ struct Bmi263EmulatorConfig {
   double accel_noise_m_s2 = 0.0;             ///< white noise per sample (std dev)
   double gyro_noise_rad_s = 0.0;
   double temperature_degc = 31.5;
+  /// The part's gyro cross-axis sensitivity: its x output reads
+  /// x + gyro_cas / 512 * z; the factor is served as GYR_CAS (feature page
+  /// 0, register 0x3C, 7-bit two's complement) as on a BMI270.
+  std::int8_t gyro_cas = 0;
   std::uint64_t seed = 1;
 };
 

@@ -35,7 +35,70 @@ constexpr std::size_t kIpDiag1 = 0x2C;         // C, bits 16:0
 constexpr std::size_t kIpDiag2 = 0x30;         // F1..F3 at 0x30/0x34/0x38, bits 21:0, 2 fractional bits
 constexpr std::size_t kIpDiag12 = 0x58;        // N, bits 11:0
 constexpr std::uint8_t kFileCiaConf = 0x0E;
+constexpr std::uint32_t kCiaConfMinDiag = 1u << 20;
 constexpr std::uint8_t kFileRst = 0x11;
+// Start-up registers (Qorvo's C0 API deca_regs.h / deca_vals.h), written
+// down again here rather than taken from the driver's registers.h.
+constexpr std::uint8_t kFileRxCal = 0x04;
+constexpr std::size_t kRxCalCfg = 0x0C;        // CAL_MODE 1:0, CAL_EN b4
+constexpr std::size_t kRxCalResI = 0x14;
+constexpr std::size_t kRxCalResQ = 0x1C;
+constexpr std::size_t kRxCalSts = 0x20;
+constexpr std::size_t kDtune0 = 0x00;          // in file 0x06: PAC 1:0, SFD timeout 31:16
+constexpr std::size_t kDtune3 = 0x0C;
+constexpr std::uint8_t kFileRfTx = 0x07;
+constexpr std::size_t kRxCtrlHi = 0x10;
+constexpr std::size_t kTxCtrlHi = 0x1C;
+constexpr std::size_t kLdoTuneLo = 0x40;
+constexpr std::size_t kLdoTuneHi = 0x44;
+constexpr std::size_t kLdoCtrl = 0x48;
+constexpr std::uint8_t kFilePll = 0x09;        // PLL_CFG at 0x00 (16 bits)
+constexpr std::uint8_t kFileOtp = 0x0B;
+constexpr std::size_t kOtpAddr = 0x04;
+constexpr std::size_t kOtpCfg = 0x08;
+constexpr std::size_t kOtpRdata = 0x10;
+constexpr std::size_t kClkCtrl = 0x04;         // in file 0x11
+constexpr std::size_t kSeqCtrl = 0x08;         // in file 0x11, AINIT2IDLE b8
+constexpr std::size_t kBiasCtrl = 0x1F;        // in file 0x11, bits 4:0
+constexpr std::size_t kDgcCfg0 = 0x1C;
+constexpr std::size_t kDgcCfg1 = 0x20;
+constexpr std::size_t kDgcLut0 = 0x38;
+
+constexpr std::uint32_t kPllCfgCh5 = 0x1F3C;
+constexpr std::uint32_t kPllCfgCh9 = 0x0F3C;
+constexpr std::uint32_t kTxCtrlHiCh5 = 0x1C071134;
+constexpr std::uint32_t kTxCtrlHiCh9 = 0x1C010034;
+constexpr std::uint32_t kRxCtrlHiCh9 = 0x08B5A833;
+constexpr std::uint32_t kDgcCfg0Value = 0x10000240;
+constexpr std::uint32_t kDgcCfg1Value = 0x1B6DA489;
+constexpr std::array<std::uint32_t, 7> kDgcLutCh5{0x1C0FD, 0x1C43E, 0x1C6BE, 0x1C77E, 0x1CF36, 0x1CFB5, 0x1CFF5};
+constexpr std::array<std::uint32_t, 7> kDgcLutCh9{0x2A8FE, 0x2AC36, 0x2A5FE, 0x2AF3E, 0x2AF7D, 0x2AFB5, 0x2AFB5};
+constexpr std::uint32_t kRxCalFailed = 0x1FFFFFFF;
+constexpr std::uint32_t kOtpManual = 1u << 0;
+constexpr std::uint32_t kOtpRead = 1u << 1;
+constexpr std::uint32_t kOtpDgcKick = 1u << 6;
+constexpr std::uint32_t kOtpLdoKick = 1u << 7;
+constexpr std::uint32_t kOtpBiasKick = 1u << 8;
+constexpr std::uint32_t kOtpOpsKick = 1u << 10;
+constexpr std::uint32_t kOtpOpsId = 0x3u << 11;
+constexpr std::uint32_t kOtpDgcSel = 1u << 13;
+
+/// Preamble length (symbols) of a TX_FCTRL TXPSR code (FINE_PLEN aside).
+int preambleSymbols(std::uint32_t txpsr) {
+  switch (txpsr) {
+    case 0x04: return 32;
+    case 0x01: return 64;
+    case 0x07: return 72;
+    case 0x05: return 128;
+    case 0x09: return 256;
+    case 0x0D: return 512;
+    case 0x02: return 1024;
+    case 0x06: return 1536;
+    case 0x0A: return 2048;
+    case 0x03: return 4096;
+    default: return 0;
+  }
+}
 constexpr std::uint8_t kFileRxBuf = 0x12;
 constexpr std::uint8_t kFileTxBuf = 0x14;
 
@@ -119,6 +182,7 @@ Dw3000Emulator::Dw3000Emulator(VirtualClock& clock, EmulatedInterruptLine& irq, 
       if (high) {
         startBoot();
       } else {
+        hung_ = false;  // only the reset line brings a hung chip back
         enterReset();
       }
     });
@@ -136,7 +200,6 @@ std::size_t Dw3000Emulator::addResponder(Dw3000ResponderModel model) {
 // State
 
 void Dw3000Emulator::enterReset() {
-  soft_reset_held_ = false;
   ++generation_;
   ++exchange_;
   ++counters_.resets;
@@ -145,6 +208,16 @@ void Dw3000Emulator::enterReset() {
   stuck_active_ = false;
   stuck_armed_ = false;
   for (auto& file : files_) std::fill(file.begin(), file.end(), 0);
+  // Reset values the start-up relies on (see the header).
+  put(kFileCiaConf, 0x00, kCiaConfMinDiag, 4);
+  put(kFileDgc, kDgcCfg, 0x1, 4);
+  put(kFileRxCal, kRxCalResI, kRxCalFailed, 4);
+  put(kFileRxCal, kRxCalResQ, kRxCalFailed, 4);
+  put(kFileRst, kClkCtrl, 0x0200, 2);
+  otp_manual_ = false;
+  ldo_kicked_ = false;
+  ops_kicked_ = false;
+  ops_set_ = 0;
   updateIrq();
 }
 
@@ -152,7 +225,7 @@ void Dw3000Emulator::startBoot() {
   if (state_ != State::kReset) return;
   state_ = State::kInitRc;
   const std::uint64_t generation = generation_;
-  if (never_boots_) return;
+  if (never_boots_ || hung_) return;
   clock_.schedule(clock_.nowNs() + params_.boot_ns, [this, generation] {
     if (generation != generation_) return;
     state_ = State::kIdleRc;
@@ -166,6 +239,15 @@ void Dw3000Emulator::startBoot() {
 void Dw3000Emulator::relockPll() {
   if (state_ != State::kIdleRc && state_ != State::kIdlePll) return;
   state_ = State::kIdleRc;
+  // dwt_setdwstate(DWT_DW_IDLE): the PLL calibrates for the channel
+  // PLL_CFG was set up for, and only with the clocks on auto.
+  const int channel = (reg32(kFileGen2, kChanCtrl) & 1u) != 0 ? 9 : 5;
+  const std::uint32_t pll_cfg = reg32(kFilePll, 0x00) & 0xFFFFu;
+  const bool clocks_auto = (reg32(kFileRst, kClkCtrl) & 0x3u) == 0;
+  if (pll_cfg != (channel == 9 ? kPllCfgCh9 : kPllCfgCh5) || !clocks_auto) {
+    ++counters_.pll_refusals;
+    return;
+  }
   if (pll_failure_count_ > 0) {
     --pll_failure_count_;
     return;  // never locks
@@ -251,10 +333,12 @@ std::uint8_t Dw3000Emulator::readByte(std::uint8_t file, std::size_t offset) con
 }
 
 void Dw3000Emulator::applyWrite(std::uint8_t file, std::size_t offset, std::span<const std::uint8_t> data) {
-  bool chan_ctrl_written = false;
   bool status_written = false;
   bool soft_reset = false;
-  bool soft_release = false;
+  bool ainit2idle = false;
+  bool otp_cfg_written = false;
+  bool rx_cal_cfg_written = false;
+  const std::uint32_t otp_cfg_before = reg32(kFileOtp, kOtpCfg);
   std::uint64_t clear_bits = 0;
   for (std::size_t i = 0; i < data.size(); ++i) {
     const std::size_t at = offset + i;
@@ -265,11 +349,14 @@ void Dw3000Emulator::applyWrite(std::uint8_t file, std::size_t offset, std::span
       status_written = true;
       continue;
     }
-    if (file == kFileRst && at == 0) {
-      soft_reset = data[i] == 0x00;
-      soft_release = data[i] == 0xFF;
+    if (file == kFileRst && at == 0) soft_reset = data[i] == 0x00;  // DWT_RESET_ALL
+    if (file == kFileRst && at == kSeqCtrl + 1 && (data[i] & 0x01u) != 0) ainit2idle = true;
+    if (file == kFileOtp && at >= kOtpCfg && at < kOtpCfg + 4) otp_cfg_written = true;
+    if (file == kFileRxCal && at >= kRxCalCfg && at < kRxCalCfg + 4) rx_cal_cfg_written = true;
+    if (file == kFileRxCal && at == kRxCalSts) {  // write 1 to clear
+      files_[file][at] = static_cast<std::uint8_t>(files_[file][at] & ~data[i]);
+      continue;
     }
-    if (file == kFileGen2 && at >= kChanCtrl && at < kChanCtrl + 4) chan_ctrl_written = true;
     files_[file][at] = data[i];
   }
   if (status_written) {
@@ -277,13 +364,112 @@ void Dw3000Emulator::applyWrite(std::uint8_t file, std::size_t offset, std::span
     clearStatusBits(clear_bits);
   }
   if (file == kGen) crc_active_ = (reg32(kGen, kSysCfg) & kSysCfgSpiCrc) != 0;
-  if (chan_ctrl_written) relockPll();
-  if (soft_reset) {
-    enterReset();
-    soft_reset_held_ = true;
-  }
-  if (soft_release) startBoot();
+  if (otp_cfg_written) onOtpCfgWrite(otp_cfg_before);
+  if (rx_cal_cfg_written) onRxCalCfgWrite();
+  if (ainit2idle && state_ == State::kIdleRc) relockPll();
+  if (soft_reset) onSoftReset();
   updateIrq();
+}
+
+void Dw3000Emulator::onSoftReset() {
+  // The reset switches the PLL off: a system clock still on the PLL (not
+  // forced to FOSC first, as dwt_softreset does) leaves the chip hung.
+  const bool on_pll = state_ == State::kIdlePll && (reg32(kFileRst, kClkCtrl) & 0x3u) != 0x3u;
+  if (on_pll) {
+    ++counters_.soft_reset_hangs;
+    hung_ = true;
+  }
+  enterReset();
+  startBoot();  // boots by itself (no second write), unless hung
+}
+
+void Dw3000Emulator::onOtpCfgWrite(std::uint32_t before) {
+  const std::uint32_t cfg = reg32(kFileOtp, kOtpCfg);
+  const Dw3000Otp& otp = params_.otp;
+  if ((cfg & kOtpRead) != 0 && (before & kOtpManual) != 0) {
+    // _dwt_otpread: manual mode first, then the address, then the strobe.
+    std::uint32_t word = 0;
+    switch (reg32(kFileOtp, kOtpAddr) & 0x7FFu) {
+      case 0x04: word = otp.ldo_tune_lo; break;
+      case 0x05: word = otp.ldo_tune_hi; break;
+      case 0x06: word = otp.part_id; break;
+      case 0x07: word = otp.lot_id; break;
+      case 0x0A: word = otp.bias_tune_word; break;
+      case 0x1E: word = otp.xtal_trim; break;
+      case 0x1F: word = otp.revision; break;
+      case 0x20: word = otp.dgc_table ? kDgcCfg0Value : 0u; break;
+      default: break;
+    }
+    put(kFileOtp, kOtpRdata, word, 4);
+    ++counters_.otp_reads;
+  }
+  if ((cfg & kOtpLdoKick) != 0) {
+    put(kFileRfTx, kLdoTuneLo, otp.ldo_tune_lo, 4);
+    put(kFileRfTx, kLdoTuneHi, otp.ldo_tune_hi, 4);
+    ldo_kicked_ = true;
+  }
+  if ((cfg & kOtpOpsKick) != 0) {
+    ops_kicked_ = true;
+    ops_set_ = cfg & kOtpOpsId;
+  }
+  if ((cfg & kOtpDgcKick) != 0 && otp.dgc_table) {
+    const auto& lut = (cfg & kOtpDgcSel) != 0 ? kDgcLutCh9 : kDgcLutCh5;
+    for (std::size_t i = 0; i < lut.size(); ++i) put(kFileDgc, kDgcLut0 + 4 * i, lut[i], 4);
+    put(kFileDgc, kDgcCfg0, kDgcCfg0Value, 4);
+    put(kFileDgc, kDgcCfg1, kDgcCfg1Value, 4);
+  }
+  // The kicks clear themselves.
+  put(kFileOtp, kOtpCfg, cfg & ~(kOtpDgcKick | kOtpLdoKick | kOtpBiasKick | kOtpOpsKick), 4);
+}
+
+void Dw3000Emulator::onRxCalCfgWrite() {
+  const std::uint32_t cfg = reg32(kFileRxCal, kRxCalCfg);
+  if ((cfg & 0x10u) == 0 || (cfg & 0x3u) != 1) return;  // CAL_EN in PGF mode starts one
+  // The PGF calibration needs the receiver's LDOs (VDDIF2, VDDMS3, VDDMS1) on.
+  const bool ldos_on = (reg32(kFileRfTx, kLdoCtrl) & 0x0105u) == 0x0105u;
+  const std::uint64_t generation = generation_;
+  ++counters_.pgf_calibrations;
+  clock_.schedule(clock_.nowNs() + params_.pgf_cal_ns, [this, generation, ldos_on] {
+    if (generation != generation_) return;
+    put(kFileRxCal, kRxCalResI, ldos_on ? params_.pgf_result_i : kRxCalFailed, 4);
+    put(kFileRxCal, kRxCalResQ, ldos_on ? params_.pgf_result_q : kRxCalFailed, 4);
+    files_[kFileRxCal][kRxCalSts] = 1;
+  });
+}
+
+const char* Dw3000Emulator::receiverNotReady() const {
+  const Dw3000Otp& otp = params_.otp;
+  const std::uint32_t bias = (otp.bias_tune_word >> 16) & 0x1Fu;
+  if (otp.ldo_tune_lo != 0 && otp.ldo_tune_hi != 0 && bias != 0) {
+    if (!ldo_kicked_ || (files_[kFileRst][kBiasCtrl] & 0x1Fu) != bias) return "LDO and bias trims";
+  }
+  const int symbols = preambleSymbols((reg32(kGen, kTxFctrl) >> 12) & 0xFu);
+  if (!ops_kicked_ || ops_set_ != (symbols >= 256 ? 0x0u : (0x2u << 11))) return "OPS table";
+  const std::uint32_t dtune3 = reg32(kFileDrx, kDtune3);
+  if ((dtune3 != 0xAF5F584Cu && dtune3 != 0xAF5F35CCu) || (reg32(kFileDrx, kDtune0) >> 16) == 0) {
+    return "receiver tuning";
+  }
+  const bool ch9 = (reg32(kFileGen2, kChanCtrl) & 1u) != 0;
+  if ((reg32(kFileRfTx, kTxCtrlHi) & ~0xFFu) != ((ch9 ? kTxCtrlHiCh9 : kTxCtrlHiCh5) & ~0xFFu) ||
+      (ch9 && reg32(kFileRfTx, kRxCtrlHi) != kRxCtrlHiCh9)) {
+    return "RF configuration";
+  }
+  const std::uint32_t dgc = reg32(kFileDgc, kDgcCfg);
+  const bool prf64 = ((reg32(kFileGen2, kChanCtrl) >> 8) & 0x1Fu) >= 9;
+  if (prf64) {
+    const auto& lut = ch9 ? kDgcLutCh9 : kDgcLutCh5;
+    if ((dgc & 1u) == 0 || ((dgc >> 9) & 0x3Fu) != 0x32u || reg32(kFileDgc, kDgcCfg0) != kDgcCfg0Value ||
+        reg32(kFileDgc, kDgcLut0) != lut[0]) {
+      return "DGC";
+    }
+  } else if ((dgc & 1u) != 0) {
+    return "DGC";
+  }
+  if (reg32(kFileRxCal, kRxCalResI) == kRxCalFailed || reg32(kFileRxCal, kRxCalResQ) == kRxCalFailed ||
+      (reg32(kFileRxCal, kRxCalCfg) & 0x3u) != 0) {
+    return "PGF calibration";
+  }
+  return nullptr;
 }
 
 // ---------------------------------------------------------------------------
@@ -368,12 +554,8 @@ void Dw3000Emulator::processFrame(std::span<const std::uint8_t> tx, std::span<st
     return;
   }
 
-  // Held in reset or still in INIT_RC: the SPI does not answer (reads 0),
-  // except SOFT_RST while a soft reset holds the chip.
-  if (state_ == State::kReset || state_ == State::kInitRc) {
-    const bool soft_release = soft_reset_held_ && write && file == kFileRst && (b0 & 0x01u) == 0;
-    if (!soft_release) return;
-  }
+  // Held in reset or still in INIT_RC: the SPI does not answer (reads 0).
+  if (state_ == State::kReset || state_ == State::kInitRc) return;
 
   if (!write) {
     if (mode != 0) {
@@ -514,6 +696,11 @@ void Dw3000Emulator::startExchange() {
     timeOut();
     return;
   }
+  if (receiverNotReady() != nullptr) {  // the start-up left the receiver unable to take the response
+    ++counters_.rx_unconfigured;
+    timeOut();
+    return;
+  }
   const Dw3000ResponderModel& r = *responder;
   const double d1 = r.distance_m(static_cast<std::int64_t>(t_departure));
   const double t_arrival_r = t_departure + d1 / kLightMps * 1e9;
@@ -601,11 +788,12 @@ void Dw3000Emulator::startExchange() {
   truth.fp_power_dbm = truth.rx_level_dbm - r.nlos_gap_db(static_cast<std::int64_t>(t_arrival));
   const bool dgc_on = (reg32(kFileDgc, kDgcCfg) & 1u) != 0;
   truth.dgc_decision = dgc_on ? static_cast<std::uint8_t>(std::min<int>(r.dgc_decision, 7)) : 0;
-  const CiaDiagnostics diag = diagnosticsFor(truth.rx_level_dbm, truth.fp_power_dbm,
+  const bool min_diag = (reg32(kFileCiaConf, 0x00) & kCiaConfMinDiag) != 0;  // IP_DIAG not logged
+  const CiaDiagnostics diag = min_diag ? CiaDiagnostics{} : diagnosticsFor(truth.rx_level_dbm, truth.fp_power_dbm,
                                              params_.preamble_accumulation_count & 0xFFFu, truth.dgc_decision,
                                              rx_code >= 9);
   clock_.schedule(static_cast<std::int64_t>(std::ceil(t_frame_end)),
-                  [this, alive, frame, rx_time, cia_raw, carrier_raw, error_bits, truth, diag]() mutable {
+                  [this, alive, frame, rx_time, cia_raw, carrier_raw, error_bits, truth, diag, min_diag]() mutable {
                     if (!alive()) return;
                     if (error_bits != 0) {
                       setStatusBits(kRxPrd | kRxSfdd | error_bits);
@@ -618,10 +806,14 @@ void Dw3000Emulator::startExchange() {
                     put(kFileDrx, kDrxDiag3, carrier_raw, 4);
                     // Reserved bits set above every field, and the diagnostics
                     // between F3 and N filled, so unmasked or misaligned reads fail.
-                    put(kFileCia, kIpDiag1, diag.c | (0xA5u << 24), 4);
-                    for (std::size_t i = 0; i < 3; ++i) put(kFileCia, kIpDiag2 + 4 * i, diag.f[i] | (0x2Du << 24), 4);
-                    for (std::size_t at = kIpDiag2 + 12; at < kIpDiag12; ++at) files_[kFileCia][at] = 0x5A;
-                    put(kFileCia, kIpDiag12, (params_.preamble_accumulation_count & 0xFFFu) | (0x3Cu << 16), 4);
+                    if (min_diag) {
+                      for (std::size_t at = kIpDiag1; at < kIpDiag12 + 4; ++at) files_[kFileCia][at] = 0;
+                    } else {
+                      put(kFileCia, kIpDiag1, diag.c | (0xA5u << 24), 4);
+                      for (std::size_t i = 0; i < 3; ++i) put(kFileCia, kIpDiag2 + 4 * i, diag.f[i] | (0x2Du << 24), 4);
+                      for (std::size_t at = kIpDiag2 + 12; at < kIpDiag12; ++at) files_[kFileCia][at] = 0x5A;
+                      put(kFileCia, kIpDiag12, (params_.preamble_accumulation_count & 0xFFFu) | (0x3Cu << 16), 4);
+                    }
                     put(kFileDgc, kDgcDbg, (std::uint32_t{truth.dgc_decision} << 28) | 0x8123'4567u, 4);
                     truth.rx_good_ns = clock_.nowNs();
                     truth_ = truth;

@@ -9,10 +9,25 @@
 //  - register files with read-only registers, SYS_STATUS write-1-to-clear,
 //    IRQ level = any enabled status bit set, driven onto an
 //    EmulatedInterruptLine;
-//  - reset through an EmulatedOutputLine (or SOFT_RST): INIT_RC for
-//    `boot_ns`, then SPIRDY + RCINIT (IDLE_RC); CHAN_CTRL written -> CP_LOCK
-//    after `pll_lock_ns` (IDLE_PLL); SPI clock limits per state (7 MHz until
-//    IDLE_RC) counted as violations;
+//  - reset through an EmulatedOutputLine, or SOFT_RST written 0x00 once (as
+//    Qorvo's dwt_softreset): INIT_RC for `boot_ns`, then SPIRDY + RCINIT
+//    (IDLE_RC). A soft reset while the system clock runs on the PLL (not
+//    forced to FOSC first) hangs the chip until a hard reset. SPI clock
+//    limits per state (7 MHz until IDLE_RC) counted as violations;
+//  - OTP memory (Dw3000Otp) read through OTP_ADDR / OTP_CFG / OTP_RDATA; the
+//    OTP_CFG kicks load the LDO trims (LDO_TUNE_LO/HI), the OPS table and the
+//    DGC table (when OTP holds one) and clear themselves;
+//  - the start-up's preconditions (the vendor's order, bring_up.h):
+//    CP_LOCK only after SEQ_CTRL AINIT2IDLE is set with the clocks on auto
+//    and PLL_CFG holding the channel's value (`pll_lock_ns` later, IDLE_PLL);
+//    no response received (the receiver times out) unless the LDO/bias
+//    trims, the OPS table for the preamble length, DTUNE0/DTUNE3, the RF
+//    settings of the channel, the DGC set-up of the PRF and a good PGF
+//    calibration (which needs the receiver LDOs on) are all in place; the
+//    CIA diagnostics read zero while CIA_CONF MINDIAG is set (its reset
+//    value). Register reset values the vendor's code implies but does not
+//    state are ours: MINDIAG and DGC_CFG RX_TUNE_EN set, RX_CAL_RESI/RESQ at
+//    the failure value 0x1FFFFFFF until a calibration, CLK_CTRL 0x0200;
 //  - a 40-bit device clock running `clock_ppm` off the VirtualClock (wraps);
 //  - TX_W4R: poll RMARKER, TXFRS, the receiver opening W4R_TIM after the
 //    poll, RX_FWTO; the addressed responder receives the poll at the true
@@ -66,9 +81,23 @@ struct Dw3000ResponderModel {
   /// RX level minus first-path power (dB) at virtual time t_ns: small in line
   /// of sight, above ~6 dB when the direct path is blocked (APS006).
   std::function<double(std::int64_t t_ns)> nlos_gap_db = [](std::int64_t) { return 2.0; };
-  /// DGC_DECISION (0..7) reported while the driver has the DGC on: the chip
+  /// DGC_DECISION (0..7) reported while the DGC is on (64 MHz PRF): the chip
   /// lowered its gain by 6 dB per step, the registers read that much less.
-  std::uint8_t dgc_decision = 2;
+  /// 0: full gain, as for the weak signals of most links.
+  std::uint8_t dgc_decision = 0;
+};
+
+/// The chip's OTP words that the start-up reads (made-up values: real parts
+/// differ; 0 = not programmed).
+struct Dw3000Otp {
+  std::uint32_t ldo_tune_lo = 0x2A6B4C38;   ///< word 0x04
+  std::uint32_t ldo_tune_hi = 0x00A75C14;   ///< word 0x05
+  std::uint32_t part_id = 0x1C0A2B17;       ///< word 0x06
+  std::uint32_t lot_id = 0x0004F3E1;        ///< word 0x07
+  std::uint32_t bias_tune_word = 0x0013'0000;  ///< word 0x0A: bias trim 0x13 in bits 20:16
+  std::uint32_t xtal_trim = 0x1B;           ///< word 0x1E (bits 6:0)
+  std::uint32_t revision = 0x02;            ///< word 0x1F
+  bool dgc_table = false;                   ///< word 0x20 holds 0x10000240: the DGC table is in OTP
 };
 
 struct Dw3000EmulatorParams {
@@ -87,6 +116,10 @@ struct Dw3000EmulatorParams {
   std::uint32_t max_slow_spi_hz = 7'000'000;  ///< until IDLE_RC
   std::uint32_t max_spi_hz = 20'000'000;      ///< afterwards (UNVERIFIED on hardware)
   std::uint32_t preamble_accumulation_count = 119;  ///< IP_DIAG_12 (N) of every response
+  Dw3000Otp otp;
+  std::int64_t pgf_cal_ns = 15'000;         ///< PGF calibration start -> RX_CAL_STS (the API polls 3 x 20 us)
+  std::uint32_t pgf_result_i = 0x0001'2C4A; ///< RX_CAL_RESI / RESQ of a good calibration
+  std::uint32_t pgf_result_q = 0x0001'2B97;
 };
 
 /// How an injected stuck IRQ is released.
@@ -109,6 +142,11 @@ struct Dw3000EmulatorCounters {
   std::uint64_t boots = 0;
   std::uint64_t pll_locks = 0;
   std::uint64_t unsupported = 0;        ///< malformed frames or unknown fast commands
+  std::uint64_t otp_reads = 0;
+  std::uint64_t pll_refusals = 0;       ///< AINIT2IDLE set without the PLL configuration or auto clocks
+  std::uint64_t soft_reset_hangs = 0;   ///< SOFT_RST with the system clock on the PLL
+  std::uint64_t pgf_calibrations = 0;
+  std::uint64_t rx_unconfigured = 0;    ///< responses the receiver could not take (start-up incomplete)
 };
 
 /// Ground truth of the last exchange delivered to the driver.
@@ -178,6 +216,9 @@ class Dw3000Emulator final : public hal::SpiDevice {
   std::uint32_t peek32(std::uint8_t file, std::uint8_t offset) const;
   /// Our device time now (40 bit).
   std::uint64_t deviceTimeNow() const;
+  /// The first start-up item the receiver still lacks ("OPS table"), or
+  /// nullptr when it can receive.
+  const char* receiverNotReady() const;
 
  private:
   void enterReset();
@@ -188,6 +229,9 @@ class Dw3000Emulator final : public hal::SpiDevice {
   void fastCommand(std::uint8_t command);
   void startExchange();
   void relockPll();
+  void onOtpCfgWrite(std::uint32_t before);
+  void onRxCalCfgWrite();
+  void onSoftReset();
   void setStatusBits(std::uint64_t bits);
   void clearStatusBits(std::uint64_t bits);
   void updateIrq();
@@ -228,7 +272,11 @@ class Dw3000Emulator final : public hal::SpiDevice {
   int read_fail_count_ = 0;
   std::error_code read_fail_error_;
   bool never_boots_ = false;
-  bool soft_reset_held_ = false;
+  bool hung_ = false;          // a soft reset with the clock on the PLL: only a hard reset helps
+  bool otp_manual_ = false;    // OTP_CFG manual mode set by the previous write
+  bool ldo_kicked_ = false;
+  bool ops_kicked_ = false;
+  std::uint32_t ops_set_ = 0;  // OTP_CFG OPS_ID of the last kick
   std::size_t corrupt_index_ = 0;
   std::uint8_t corrupt_mask_ = 0;
   int corrupt_count_ = 0;

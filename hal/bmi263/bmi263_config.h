@@ -37,10 +37,11 @@ struct Bmi263Config {
   std::vector<std::uint8_t> accepted_chip_ids{kChipIdBmi270, kChipIdBmi260};
   /// Gyro cross-axis correction (Bosch's BMI2 API: x -= GYR_CAS * z / 512,
   /// the factor read from the part after its configuration is loaded).
-  /// kAuto: on for the parts whose API applies it (the BMI270's id), off
-  /// otherwise (the BMI263 is not known to have the factor at the same
-  /// place: its feature pages differ from the BMI270's).
-  GyroCrossAxis gyro_cross_axis = GyroCrossAxis::kAuto;
+  /// kAuto: on for the BMI270's id, whose API applies it; kOn: always; kOff
+  /// (the default): the BMI263 is not known to carry the factor at the
+  /// BMI270's place (its feature pages differ), and its id is unknown, so a
+  /// BMI263 reading 0x24 would get a wrong correction under kAuto.
+  GyroCrossAxis gyro_cross_axis = GyroCrossAxis::kOff;
   /// Bosch's configuration blob for this part, read at every bring-up. Never
   /// embedded in the source. Required.
   std::string config_blob_path;

@@ -149,20 +149,32 @@ std::uint32_t Dw3000Device::otpRead(std::uint16_t address, const char* what) {
 
 void Dw3000Device::bringUp() {
   dev_id_ = 0;
+  irq_mask_ = 0;
+  dgc_enabled_ = false;
   report_ = {};
   report_.left_out = left_out_;
   if (const std::error_code e = spi_.setSpeedHz(config_.spi_slow_hz)) {
     fail(Dw3000Error::Kind::kSpi, "cannot set the slow SPI clock (" + std::to_string(config_.spi_slow_hz) +
                                       " Hz): " + e.message());
   }
-  for (int i = 0; i < static_cast<int>(BringUpStep::kCount); ++i) runStep(static_cast<BringUpStep>(i));
-
   // The audit: every configuration step must show in the registers, whether
   // it was left out, or its writes were lost (SPI), or a later step undid it.
-  if (config_.startup_audit) {
-    const std::string not_in_effect = firstStepNotInEffect(BringUpStep::kCount);
+  // The vendor's steps are audited before the site's writes, which may
+  // override any of them on purpose; ours after everything.
+  const auto audit = [&](BringUpStep from, BringUpStep to) {
+    const std::string not_in_effect = firstStepNotInEffect(from, to);
     if (!not_in_effect.empty()) fail(Dw3000Error::Kind::kConfiguration, "bring-up incomplete" + not_in_effect);
+  };
+  for (int i = 0; i < static_cast<int>(BringUpStep::kCount); ++i) {
+    const auto step = static_cast<BringUpStep>(i);
+    if (step == BringUpStep::kSiteWrites) audit(BringUpStep::kReset, BringUpStep::kSiteWrites);
+    runStep(step);
   }
+  audit(BringUpStep::kSiteWrites, BringUpStep::kCount);
+  // The DGC decision enters the RX power estimate when RX_TUNE_EN is on
+  // (read after every step, the site's writes included).
+  dgc_enabled_ = (readReg32(reg::kDgcCfg, "reading DGC_CFG") & startup::kDgcRxTuneEn) != 0;
+  report_.dgc_on = dgc_enabled_;
   if (const std::error_code drain_error = drainEdges()) {
     fail(Dw3000Error::Kind::kIrqStuck, "cannot read IRQ line " + irq_.path() + ": " + drain_error.message());
   }
@@ -170,16 +182,34 @@ void Dw3000Device::bringUp() {
 
 void Dw3000Device::runStep(BringUpStep step) {
   const bool mandatory = step == BringUpStep::kIdleRc || step == BringUpStep::kDevId;
-  if (step == BringUpStep::kLdoBiasTrims) readOtpWords();  // not a step: how the driver learns the part
-  if (!mandatory && (left_out_ & stepBit(step)) != 0) return;
+  const bool left_out = !mandatory && (left_out_ & stepBit(step)) != 0;
+  if (step == BringUpStep::kLdoBiasTrims) {
+    // dwt_initialise's OTP reads, in its order around the LDO/bias kick (the
+    // reads after it leave OTP_CFG's kick bits cleared); always read: they
+    // are how the driver learns the part, and later steps use them.
+    readOtpTrimWords();
+    if (!left_out) applyOtpTrims();
+    readOtpOtherWords();
+    return;
+  }
+  if (left_out) return;
   switch (step) {
     case BringUpStep::kReset:
       resetChip();
       crc_enabled_ = false;  // every reset turns the chip's SPI CRC off
       break;
     case BringUpStep::kIdleRc: {
-      const std::uint32_t ready = status::kSpiRdy | status::kRcInit;
-      const std::uint32_t boot_status = waitStatus(ready, config_.boot_timeout_ns, "waiting for SPIRDY/RCINIT");
+      // RCINIT alone, as dwt_checkidlerc tests it (SPIRDY comes with it).
+      const std::uint32_t ready = status::kRcInit;
+      std::uint32_t boot_status = waitStatus(ready, config_.boot_timeout_ns, "waiting for SPIRDY/RCINIT");
+      if ((boot_status & ready) != ready && reset_ == nullptr && (left_out_ & stepBit(BringUpStep::kReset)) == 0) {
+        // A soft reset speaks the SPI CRC mode the chip is in, which another
+        // process (or a crash) may have left on: its writes were dropped.
+        // Once more in the other mode.
+        crc_enabled_ = !soft_reset_crc_;
+        softReset();
+        boot_status = waitStatus(ready, config_.boot_timeout_ns, "waiting for SPIRDY/RCINIT");
+      }
       if ((boot_status & ready) != ready) {
         fail(Dw3000Error::Kind::kBootTimeout,
              "no SPIRDY/RCINIT within " + msText(config_.boot_timeout_ns) + " after reset (SYS_STATUS reads " +
@@ -210,7 +240,7 @@ void Dw3000Device::runStep(BringUpStep step) {
         }
       }
       break;
-    case BringUpStep::kLdoBiasTrims: applyOtpTrims(); break;
+    case BringUpStep::kLdoBiasTrims: break;  // above
     case BringUpStep::kXtalTrim: applyXtalTrim(); break;
     case BringUpStep::kFrameFormat: applyFrameFormat(); break;
     case BringUpStep::kOpsTable: applyOpsTable(); break;
@@ -261,6 +291,7 @@ void Dw3000Device::softReset() {
   // The system clock must not be the PLL: the reset switches the PLL off.
   check(writeMasked(reg::kClkCtrl, AccessMode::kMask8, 0xFF, startup::kForceSysClkFosc),
         "soft reset: forcing the FOSC clock (CLK_CTRL)");
+  soft_reset_crc_ = crc_enabled_;
   write8(reg::kSoftRst, 0x00, "soft reset: SOFT_RST (reset all)");
   crc_enabled_ = false;
   clock_.sleepForNs(config_.reset_low_ns);
@@ -268,24 +299,28 @@ void Dw3000Device::softReset() {
 
 // --- dwt_initialise: OTP trims -------------------------------------------------
 
-void Dw3000Device::readOtpWords() {
-  // Everything the start-up needs from OTP, read once before any step that
-  // uses it (dwt_initialise's reads; the DGC word too, as the API does):
-  // reading OTP rewrites OTP_CFG, which later steps use to select tables.
+void Dw3000Device::readOtpTrimWords() {
   report_.otp_ldo_tune_lo = otpRead(otp::kLdoTuneLo, "reading OTP LDO_TUNE_LO");
   report_.otp_ldo_tune_hi = otpRead(otp::kLdoTuneHi, "reading OTP LDO_TUNE_HI");
   report_.otp_bias_tune = static_cast<std::uint8_t>((otpRead(otp::kBiasTune, "reading OTP BIAS_TUNE") >> 16) & 0x1Fu);
+  // The API applies the LDO and bias trims only when all three words are
+  // programmed.
+  report_.ldo_bias_from_otp =
+      report_.otp_ldo_tune_lo != 0 && report_.otp_ldo_tune_hi != 0 && report_.otp_bias_tune != 0;
+}
+
+void Dw3000Device::readOtpOtherWords() {
+  // The DGC word (dwt_initialise reads it too: the table is kicked later),
+  // the ids (ours, for the report; DWT_DW_INIT reads none), the revision and
+  // the crystal trim. All before any step selects a table in OTP_CFG, which
+  // every OTP read rewrites.
+  report_.dgc_from_otp = prf64_ && otpRead(otp::kDgcTune, "reading OTP DGC") == startup::kDgcCfg0Value;
   report_.otp_part_id = otpRead(otp::kPartId, "reading OTP PART_ID");
   report_.otp_lot_id = otpRead(otp::kLotId, "reading OTP LOT_ID");
   report_.otp_revision = static_cast<std::uint8_t>(otpRead(otp::kRevision, "reading OTP revision") & 0xFFu);
   const auto trim = static_cast<std::uint8_t>(otpRead(otp::kXtalTrim, "reading OTP XTAL trim") & 0x7Fu);
   report_.xtal_trim_from_otp = trim != 0;
   report_.xtal_trim = trim != 0 ? trim : otp::kDefaultXtalTrim;
-  report_.dgc_from_otp = prf64_ && otpRead(otp::kDgcTune, "reading OTP DGC") == startup::kDgcCfg0Value;
-  // The API applies the LDO and bias trims only when all three words are
-  // programmed.
-  report_.ldo_bias_from_otp =
-      report_.otp_ldo_tune_lo != 0 && report_.otp_ldo_tune_hi != 0 && report_.otp_bias_tune != 0;
 }
 
 void Dw3000Device::applyOtpTrims() {
@@ -372,7 +407,7 @@ void Dw3000Device::lockPll() {
     fail(Dw3000Error::Kind::kPllLock,
          "PLL did not lock: CP_LOCK not set within " + msText(config_.pll_lock_timeout_ns) +
              " after AINIT2IDLE on channel " + std::to_string(static_cast<int>(config_.channel)) +
-             " (SYS_STATUS reads " + hex32(pll_status) + ")" + firstStepNotInEffect(BringUpStep::kPllLock));
+             " (SYS_STATUS reads " + hex32(pll_status) + ")" + firstStepNotInEffect(BringUpStep::kReset, BringUpStep::kPllLock));
   }
   report_.pll_lock_ns = clock_.nowNs() - start_ns;
 }
@@ -394,8 +429,11 @@ void Dw3000Device::applyDgc() {
       check(write32(reg::kDgcCfg0, startup::kDgcCfg0Value), "writing DGC_CFG0");
       check(write32(reg::kDgcCfg1, startup::kDgcCfg1Value), "writing DGC_CFG1");
     }
-    check(writeMasked(reg::kDgcCfg, AccessMode::kMask16, ~startup::kDgcThr64Mask & 0xFFFFu, startup::kDgcThr64 << 9),
-          "writing DGC_CFG (THR_64)");
+    // THR_64 as the API; RX_TUNE_EN too, which the API leaves at its reset
+    // value: the audit and the RX power's DGC term then do not rest on it.
+    check(writeMasked(reg::kDgcCfg, AccessMode::kMask16, ~startup::kDgcThr64Mask & 0xFFFFu,
+                      (startup::kDgcThr64 << 9) | startup::kDgcRxTuneEn),
+          "writing DGC_CFG (THR_64, RX_TUNE_EN)");
   } else {
     check(writeMasked(reg::kDgcCfg, AccessMode::kMask8, ~startup::kDgcRxTuneEn & 0xFFu, 0), "clearing DGC_CFG RX_TUNE_EN");
   }
@@ -430,7 +468,7 @@ void Dw3000Device::calibratePgf() {
                                                                   msText(config_.pgf_timeout_ns)) +
              " (RX_CAL_RESI " + hex32(report_.pgf_result_i) + ", RX_CAL_RESQ " + hex32(report_.pgf_result_q) +
              "): the receiver would be badly degraded; reset and try again" +
-             firstStepNotInEffect(BringUpStep::kPgfCalibration));
+             firstStepNotInEffect(BringUpStep::kReset, BringUpStep::kPgfCalibration));
   }
 }
 
@@ -466,9 +504,6 @@ void Dw3000Device::applyExchangeTiming() {
         "writing ACK_RESP (W4R_TIM)");
   check(writeMasked(reg::kRxFwto, AccessMode::kMask32, ~0xFFFFFu, uwbMicrosecondsFromUs(config_.rx_timeout_us)),
         "writing RX_FWTO");
-  // The DGC decision enters the RX power estimate when RX_TUNE_EN is on.
-  dgc_enabled_ = (readReg32(reg::kDgcCfg, "reading DGC_CFG") & startup::kDgcRxTuneEn) != 0;
-  report_.dgc_on = dgc_enabled_;
 }
 
 void Dw3000Device::applyInterrupts() {
@@ -513,16 +548,21 @@ void Dw3000Device::raiseSpiClock() {
 // ---------------------------------------------------------------------------
 // The audit
 
-std::string Dw3000Device::firstStepNotInEffect(BringUpStep before) {
+std::string Dw3000Device::firstStepNotInEffect(BringUpStep from, BringUpStep to) {
   if (!config_.startup_audit) return {};
-  for (int i = 0; i < static_cast<int>(before); ++i) {
-    const auto step = static_cast<BringUpStep>(i);
-    const std::string what = auditStep(step);
-    if (!what.empty()) {
-      const bool left_out = (left_out_ & stepBit(step)) != 0;
-      return std::string("; step '") + stepName(step) + "' (" + stepReference(step) + ") " +
-             (left_out ? "was left out" : "did not take") + ": " + what;
+  try {
+    for (int i = static_cast<int>(from); i < static_cast<int>(to); ++i) {
+      const auto step = static_cast<BringUpStep>(i);
+      const std::string what = auditStep(step);
+      if (!what.empty()) {
+        const bool left_out = (left_out_ & stepBit(step)) != 0;
+        return std::string("; step '") + stepName(step) + "' (" + stepReference(step) + ") " +
+               (left_out ? "was left out" : "did not take") + ": " + what;
+      }
     }
+  } catch (const Dw3000Error& e) {
+    // A failed read must not hide the failure that asked for the audit.
+    return std::string("; the audit could not read the registers (") + e.what() + ")";
   }
   return {};
 }
@@ -620,6 +660,14 @@ std::string Dw3000Device::auditStep(BringUpStep step) {
       if ((cfg & startup::kDgcRxTuneEn) == 0) return "DGC_CFG reads " + hex32(cfg) + " without RX_TUNE_EN";
       const std::uint32_t thr = (cfg & startup::kDgcThr64Mask) >> 9;
       if (thr != startup::kDgcThr64) return mismatch("DGC_CFG THR_64", thr, startup::kDgcThr64, hexU8);
+      if (report_.dgc_from_otp) {
+        // The part's own table, whatever its values: the kick selected the channel's.
+        const std::uint32_t sel = readReg32(reg::kOtpCfg, "reading OTP_CFG") & otp_cfg::kDgcSelCh9;
+        const std::uint32_t want = config_.channel == UwbChannel::k9 ? otp_cfg::kDgcSelCh9 : 0u;
+        if (sel != want) return mismatch("OTP_CFG DGC_SEL", sel, want, hexU16);
+        const std::uint32_t lut0 = readReg32(reg::kDgcLut0, "reading DGC_LUT_0");
+        return lut0 != 0 ? std::string() : "DGC_LUT_0 reads 0 after the DGC kick (no table loaded from OTP)";
+      }
       const std::uint32_t cfg0 = readReg32(reg::kDgcCfg0, "reading DGC_CFG0");
       if (cfg0 != startup::kDgcCfg0Value) return mismatch("DGC_CFG0", cfg0, startup::kDgcCfg0Value, hexU32);
       const std::uint32_t lut0 = readReg32(reg::kDgcLut0, "reading DGC_LUT_0");

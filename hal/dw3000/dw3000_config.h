@@ -89,7 +89,9 @@ struct Dw3000Config {
   // Bring-up
   std::int64_t reset_low_ns = 1'000'000;      ///< RSTn held low
   std::int64_t boot_timeout_ns = 10'000'000;  ///< for SPIRDY and RCINIT after release (~2 ms typical)
-  std::int64_t pll_lock_timeout_ns = 2'000'000;  ///< AINIT2IDLE -> CP_LOCK (the API waits up to ~1 ms on channel 9)
+  /// AINIT2IDLE -> CP_LOCK. The C0 API polls 6 x 20 us; Qorvo's newer driver
+  /// allows ~1 ms ("on some corners with ch9 it can take ~900us").
+  std::int64_t pll_lock_timeout_ns = 2'000'000;
   std::int64_t pgf_timeout_ns = 1'000'000;       ///< PGF calibration start -> RX_CAL_STS (the API: 3 x 20 us)
   std::int64_t poll_interval_ns = 100'000;    ///< status polling during bring-up
   /// Read every start-up step's registers back and fail the bring-up on a

@@ -157,7 +157,8 @@ class Dw3000Device {
   void runStep(BringUpStep step);
   void resetChip();
   void softReset();
-  void readOtpWords();
+  void readOtpTrimWords();
+  void readOtpOtherWords();
   void applyOtpTrims();
   void applyXtalTrim();
   void applyFrameFormat();
@@ -175,9 +176,9 @@ class Dw3000Device {
   void raiseSpiClock();
   /// Empty if the step's registers hold what it writes, else what differs.
   std::string auditStep(BringUpStep step);
-  /// "; step 'x' (ref) did not take: ..." for the first configuration step
-  /// before `before` whose registers differ, or "".
-  std::string firstStepNotInEffect(BringUpStep before);
+  /// "; step 'x' (ref) did not take: ..." for the first step in [from, to)
+  /// whose registers differ, or "" (never throws: a failed read is said).
+  std::string firstStepNotInEffect(BringUpStep from, BringUpStep to);
   std::uint32_t otpRead(std::uint16_t address, const char* what);
   std::uint32_t exchangeInterrupts() const noexcept;
   std::uint32_t readReg32(RegAddr addr, const char* what);
@@ -196,6 +197,7 @@ class Dw3000Device {
   hal::OutputLine* reset_;
   hal::Clock& clock_;
   bool crc_enabled_ = false;
+  bool soft_reset_crc_ = false;  // the CRC mode the last soft reset was written in
   bool dgc_enabled_ = false;
   bool prf64_ = true;
   std::uint32_t dev_id_ = 0;

@@ -129,6 +129,7 @@ TEST(Bmi263Data, TheCrossAxisFactorIsReadFromThePartAndTakenOut) {
 }
 
 TEST(Bmi263Data, TheCrossAxisCorrectionFollowsBoschsArithmetic) {
+  EXPECT_EQ(Bmi263Config{}.gyro_cross_axis, GyroCrossAxis::kOff);  // unverified on the BMI263
   EXPECT_EQ(decodeGyrCas(0x00), 0);
   EXPECT_EQ(decodeGyrCas(0x3F), 63);
   EXPECT_EQ(decodeGyrCas(0x40), -64);
@@ -147,12 +148,13 @@ TEST(Bmi263Data, TheCrossAxisCorrectionFollowsBoschsArithmetic) {
   EXPECT_EQ(g[0], 32767);
 }
 
-TEST(Bmi263Data, OnlyTheBmi270sIdGetsTheCorrectionByDefault) {
+TEST(Bmi263Data, AutoCorrectsOnlyTheBmi270sIdAndOnReadsTheFactorFromAnyPart) {
   emu::Bmi263EmulatorConfig part;
   part.chip_id = kChipIdBmi260;
   part.gyro_cas = 20;
   Rig rig(part);
   rig.config.accepted_chip_ids = {kChipIdBmi260};
+  rig.config.gyro_cross_axis = GyroCrossAxis::kAuto;
   Bmi263Driver driver(*rig.emulator, rig.clock, rig.config);
   const BringUpResult automatic = driver.bringUp();
   ASSERT_TRUE(automatic.ok) << automatic.error;

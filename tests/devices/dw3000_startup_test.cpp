@@ -60,14 +60,27 @@ TEST_P(Dw3000StartUpStep, ABringUpWithoutItFailsAndNamesIt) {
   }
   EXPECT_EQ(device.bringUpReport().left_out, stepBit(c.step));
 
-  // What the chip does with the start-up it got.
-  const ExchangeResult r = device.range(rig.config.anchors[0]);
+  // What the chip does with that start-up, everything else done: the same
+  // bring-up without the audit (a PLL that does not lock still fails it).
+  Rig chip_rig;
+  chip_rig.config.startup_audit = false;
+  chip_rig.addAnchor(1, 0x0001, 4.0);
+  Dw3000Device unaudited(chip_rig.config, chip_rig.chip, chip_rig.irq, chip_rig.reset_line, chip_rig.clock);
+  unaudited.leaveOut(stepBit(c.step));
+  try {
+    unaudited.bringUp();
+    EXPECT_NE(c.step, BringUpStep::kRfPll) << "the PLL cannot lock without its configuration";
+  } catch (const Dw3000Error& e) {
+    EXPECT_EQ(e.kind(), Dw3000Error::Kind::kPllLock) << e.what();
+    EXPECT_EQ(c.step, BringUpStep::kRfPll) << e.what();
+  }
+  const ExchangeResult r = unaudited.range(chip_rig.config.anchors[0]);
   switch (c.consequence) {
     case Consequence::kNoReception:
-      ASSERT_NE(rig.chip.receiverNotReady(), nullptr);
-      EXPECT_STREQ(rig.chip.receiverNotReady(), c.receiver_item);
+      ASSERT_NE(chip_rig.chip.receiverNotReady(), nullptr);
+      EXPECT_STREQ(chip_rig.chip.receiverNotReady(), c.receiver_item);
       EXPECT_EQ(r.status, ExchangeStatus::kRxTimeout) << toString(r.status);
-      EXPECT_EQ(rig.chip.counters().rx_unconfigured, 1u);
+      EXPECT_EQ(chip_rig.chip.counters().rx_unconfigured, 1u);
       break;
     case Consequence::kNoDiagnostics:
       ASSERT_EQ(r.status, ExchangeStatus::kOk) << toString(r.status);
@@ -76,16 +89,16 @@ TEST_P(Dw3000StartUpStep, ABringUpWithoutItFailsAndNamesIt) {
       EXPECT_TRUE(std::isnan(r.rx_power.fp_power_dbm));
       break;
     case Consequence::kNoPll:
-      EXPECT_EQ(rig.chip.state(), emu::Dw3000Emulator::State::kIdleRc);
+      EXPECT_EQ(chip_rig.chip.state(), emu::Dw3000Emulator::State::kIdleRc);
       EXPECT_NE(r.status, ExchangeStatus::kOk);
-      EXPECT_EQ(rig.chip.counters().tx_while_unlocked, 1u);
+      EXPECT_EQ(chip_rig.chip.counters().tx_while_unlocked, 1u);
       break;
     case Consequence::kNoAnswer:
       EXPECT_NE(r.status, ExchangeStatus::kOk);
-      EXPECT_EQ(rig.chip.counters().responses_delivered, 0u);
+      EXPECT_EQ(chip_rig.chip.counters().responses_delivered, 0u);
       break;
     case Consequence::kRanges:
-      EXPECT_EQ(rig.chip.receiverNotReady(), nullptr);
+      EXPECT_EQ(chip_rig.chip.receiverNotReady(), nullptr);
       EXPECT_EQ(r.status, ExchangeStatus::kOk) << toString(r.status);
       break;
   }
@@ -201,10 +214,65 @@ TEST(Dw3000StartUp, ADgcTableInOtpIsKickedInsteadOfWritten) {
     device.bringUp();
     EXPECT_TRUE(device.bringUpReport().dgc_from_otp);
     EXPECT_TRUE(device.bringUpReport().dgc_on);
-    const std::uint32_t* lut = channel == UwbChannel::k9 ? startup::kDgcLutCh9 : startup::kDgcLutCh5;
-    EXPECT_EQ(rig.chip.peek32(0x03, 0x38), lut[0]);
-    EXPECT_EQ(rig.chip.peek32(0x03, 0x50), lut[6]);
+    // The part's own table for the channel, not the API's.
+    const std::size_t first = channel == UwbChannel::k9 ? 7 : 0;
+    EXPECT_EQ(rig.chip.peek32(0x03, 0x38), params.otp.dgc_lut[first]);
+    EXPECT_EQ(rig.chip.peek32(0x03, 0x50), params.otp.dgc_lut[first + 6]);
+    EXPECT_NE(rig.chip.peek32(0x03, 0x38), startup::kDgcLutCh5[0]);
     EXPECT_EQ(device.range(rig.config.anchors[0]).status, ExchangeStatus::kOk);
+  }
+}
+
+TEST(Dw3000StartUp, TheSitesWritesOverrideTheVendorsStepsWithoutFailingTheAudit) {
+  Rig rig;
+  rig.config.extra_init_writes.push_back(RegisterWrite{reg::kTxPower, 0xFEFEFEFE, 4});  // a board's TX power
+  rig.addAnchor(1, 0x0001, 4.0);
+  Dw3000Device device(rig.config, rig.chip, rig.irq, rig.reset_line, rig.clock);
+  device.bringUp();
+  EXPECT_EQ(rig.chip.peek32(0x01, 0x0C), 0xFEFEFEFEu);
+  EXPECT_EQ(device.range(rig.config.anchors[0]).status, ExchangeStatus::kOk);
+}
+
+TEST(Dw3000StartUp, ASoftResetGetsThroughAChipLeftInSpiCrcModeByAnotherProcess) {
+  Rig rig(emu::Dw3000EmulatorParams{}, /*with_reset_line=*/false);
+  rig.config.spi_crc = true;
+  rig.addAnchor(1, 0x0001, 4.0);
+  {
+    Dw3000Device earlier(rig.config, rig.chip, rig.irq, rig.reset_line, rig.clock);
+    earlier.bringUp();
+    ASSERT_TRUE(rig.chip.spiCrcActive());
+  }  // that process ended without resetting the chip
+  for (const bool crc : {true, false}) {
+    SCOPED_TRACE(crc);
+    Dw3000Config config = rig.config;
+    config.spi_crc = crc;
+    Dw3000Device device(config, rig.chip, rig.irq, rig.reset_line, rig.clock);  // knows nothing of the CRC mode
+    device.bringUp();
+    EXPECT_EQ(rig.chip.spiCrcActive(), crc);
+    EXPECT_EQ(device.range(config.anchors[0]).status, ExchangeStatus::kOk);
+  }
+  EXPECT_GE(rig.chip.counters().write_crc_errors, 1u);  // the first soft reset's writes were dropped
+}
+
+TEST(Dw3000StartUp, TheLongOpsSetLooksLikeTheResetValueSoOnlyTheReceiverShowsItMissing) {
+  // OPS_ID 0 (the long set, preambles of 256 symbols and more) is also the
+  // register's reset value: the audit cannot tell the kick was left out.
+  for (const bool left_out : {false, true}) {
+    SCOPED_TRACE(left_out);
+    Rig rig;
+    rig.config.preamble_length = 256;
+    rig.config.pac_symbols = 16;
+    rig.config.reply_delay_us = 900.0;  // the longer preamble: the receiver opens and closes later
+    rig.config.rx_timeout_us = 900.0;
+    rig.addAnchor(1, 0x0001, 4.0);
+    Dw3000Device device(rig.config, rig.chip, rig.irq, rig.reset_line, rig.clock);
+    if (left_out) device.leaveOut(stepBit(BringUpStep::kOpsTable));
+    device.bringUp();
+    const ExchangeResult r = device.range(rig.config.anchors[0]);
+    EXPECT_EQ(r.status, left_out ? ExchangeStatus::kRxTimeout : ExchangeStatus::kOk) << toString(r.status);
+    if (left_out) {
+      EXPECT_STREQ(rig.chip.receiverNotReady(), "OPS table");
+    }
   }
 }
 

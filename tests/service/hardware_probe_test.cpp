@@ -166,7 +166,7 @@ TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
   EXPECT_NE(text.find("TX 16390 (read back 16390), RX 16380 (read back 16380)"), std::string::npos) << text;
   EXPECT_NE(text.find("BMI263 on emu:bmi263@0x68: up"), std::string::npos) << text;
   EXPECT_NE(text.find("chip id 0x24, INTERNAL_STATUS 0x01 (init_ok)"), std::string::npos) << text;
-  EXPECT_NE(text.find("gyro cross-axis correction: GYR_CAS 0 (x -= 0 z / 512)"), std::string::npos) << text;
+  EXPECT_NE(text.find("gyro cross-axis correction: off"), std::string::npos) << text;  // the default
   EXPECT_NE(text.find("RX timeout"), std::string::npos) << text;  // anchor 3
   EXPECT_NE(text.find("start-up: LDO trims 0x2A6B4C38/0x00A75C14 and bias 0x13 from OTP; XTAL trim 0x1B from OTP; "
                       "PLL lock "),
@@ -181,7 +181,7 @@ TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
   EXPECT_NE(json.find("\"dev_id\": \"0xDECA0302\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"chip_id\": \"0x24\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"internal_status_name\": \"init_ok\""), std::string::npos) << json;
-  EXPECT_NE(json.find("\"gyro_cross_axis\": true, \"gyro_cas\": 0"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"gyro_cross_axis\": false, \"gyro_cas\": null"), std::string::npos) << json;
   // RX level / first-path power from the diagnostics; null for the silent anchor.
   const emu::Dw3000ResponderModel channel;
   EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_rssi_dbm"}),

@@ -118,6 +118,7 @@ void Bmi263Emulator::resetRegisters() {
 
 void Bmi263Emulator::softReset() {
   ++soft_resets_;
+  feat_page_selected_ = false;
   resetRegisters();
   epoch_ns_ = clock_.nowNs();
   busy_until_ns_ = clock_.nowNs() + config_.reset_busy_ns;
@@ -197,8 +198,8 @@ std::uint8_t Bmi263Emulator::readByte(std::uint8_t reg, std::uint32_t sensortime
     case b::reg::kFifoLength0 + 1: return static_cast<std::uint8_t>((fifoBytes() >> 8) & 0x3F);
     case b::reg::kFifoData: return b::fifo::kHeaderEmpty;
     case b::reg::kGyrCas:
-      if (regs_[b::reg::kFeatPage] == 0) return static_cast<std::uint8_t>(config_.gyro_cas & 0x7F);
-      break;
+      return feat_page_selected_ && regs_[b::reg::kFeatPage] == 0 ? static_cast<std::uint8_t>(config_.gyro_cas & 0x7F)
+                                                                  : std::uint8_t{0};
     default: break;
   }
   if (reg >= b::reg::kAccDataX && reg < b::reg::kAccDataX + 12) return data_[reg - b::reg::kAccDataX];
@@ -283,6 +284,7 @@ std::error_code Bmi263Emulator::writeRegisters(std::uint8_t reg, std::span<const
 
 void Bmi263Emulator::writeByte(std::uint8_t reg, std::uint8_t value) {
   if (reg >= 0x80) return;
+  if (reg == b::reg::kFeatPage) feat_page_selected_ = true;
   switch (reg) {
     case b::reg::kCmd:
       if (value == b::cmd::kSoftReset) {

@@ -67,7 +67,9 @@ struct Bmi263EmulatorConfig {
   double temperature_degc = 31.5;
   /// The part's gyro cross-axis sensitivity: its x output reads
   /// x + gyro_cas / 512 * z; the factor is served as GYR_CAS (feature page
-  /// 0, register 0x3C, 7-bit two's complement) as on a BMI270.
+  /// 0, register 0x3C, 7-bit two's complement) as on a BMI270, once the
+  /// driver has selected page 0 itself (FEAT_PAGE's reset value is not
+  /// trusted: 0x3C reads 0 until then).
   std::int8_t gyro_cas = 0;
   std::uint64_t seed = 1;
 };
@@ -160,6 +162,7 @@ class Bmi263Emulator final : public hal::I2cDevice {
 
   // Configuration load.
   bool load_open_ = false;
+  bool feat_page_selected_ = false;  // FEAT_PAGE written since the last reset
   std::vector<std::uint8_t> blob_;
   std::vector<bool> blob_written_;
   bool blob_overrun_ = false;

@@ -214,8 +214,8 @@ void Dw3000Emulator::enterReset() {
   put(kFileRxCal, kRxCalResI, kRxCalFailed, 4);
   put(kFileRxCal, kRxCalResQ, kRxCalFailed, 4);
   put(kFileRst, kClkCtrl, 0x0200, 2);
-  otp_manual_ = false;
   ldo_kicked_ = false;
+  dgc_kicked_ = false;
   ops_kicked_ = false;
   ops_set_ = 0;
   updateIrq();
@@ -413,10 +413,11 @@ void Dw3000Emulator::onOtpCfgWrite(std::uint32_t before) {
     ops_set_ = cfg & kOtpOpsId;
   }
   if ((cfg & kOtpDgcKick) != 0 && otp.dgc_table) {
-    const auto& lut = (cfg & kOtpDgcSel) != 0 ? kDgcLutCh9 : kDgcLutCh5;
-    for (std::size_t i = 0; i < lut.size(); ++i) put(kFileDgc, kDgcLut0 + 4 * i, lut[i], 4);
+    const std::size_t first = (cfg & kOtpDgcSel) != 0 ? 7 : 0;
+    for (std::size_t i = 0; i < 7; ++i) put(kFileDgc, kDgcLut0 + 4 * i, otp.dgc_lut[first + i], 4);
     put(kFileDgc, kDgcCfg0, kDgcCfg0Value, 4);
     put(kFileDgc, kDgcCfg1, kDgcCfg1Value, 4);
+    dgc_kicked_ = true;
   }
   // The kicks clear themselves.
   put(kFileOtp, kOtpCfg, cfg & ~(kOtpDgcKick | kOtpLdoKick | kOtpBiasKick | kOtpOpsKick), 4);
@@ -458,10 +459,8 @@ const char* Dw3000Emulator::receiverNotReady() const {
   const bool prf64 = ((reg32(kFileGen2, kChanCtrl) >> 8) & 0x1Fu) >= 9;
   if (prf64) {
     const auto& lut = ch9 ? kDgcLutCh9 : kDgcLutCh5;
-    if ((dgc & 1u) == 0 || ((dgc >> 9) & 0x3Fu) != 0x32u || reg32(kFileDgc, kDgcCfg0) != kDgcCfg0Value ||
-        reg32(kFileDgc, kDgcLut0) != lut[0]) {
-      return "DGC";
-    }
+    const bool table = dgc_kicked_ || (reg32(kFileDgc, kDgcCfg0) == kDgcCfg0Value && reg32(kFileDgc, kDgcLut0) == lut[0]);
+    if ((dgc & 1u) == 0 || ((dgc >> 9) & 0x3Fu) != 0x32u || !table) return "DGC";
   } else if ((dgc & 1u) != 0) {
     return "DGC";
   }

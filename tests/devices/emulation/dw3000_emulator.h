@@ -98,6 +98,10 @@ struct Dw3000Otp {
   std::uint32_t xtal_trim = 0x1B;           ///< word 0x1E (bits 6:0)
   std::uint32_t revision = 0x02;            ///< word 0x1F
   bool dgc_table = false;                   ///< word 0x20 holds 0x10000240: the DGC table is in OTP
+  /// The part's own DGC table (DGC_LUT_0..6 for channel 5, then 9) that the
+  /// kick loads: not the API's (made-up values).
+  std::array<std::uint32_t, 14> dgc_lut{0x1C0F1, 0x1C431, 0x1C6B1, 0x1C771, 0x1CF31, 0x1CFB1, 0x1CFF1,
+                                        0x2A8F1, 0x2AC31, 0x2A5F1, 0x2AF31, 0x2AF71, 0x2AFB1, 0x2AFB1};
 };
 
 struct Dw3000EmulatorParams {
@@ -273,9 +277,9 @@ class Dw3000Emulator final : public hal::SpiDevice {
   std::error_code read_fail_error_;
   bool never_boots_ = false;
   bool hung_ = false;          // a soft reset with the clock on the PLL: only a hard reset helps
-  bool otp_manual_ = false;    // OTP_CFG manual mode set by the previous write
   bool ldo_kicked_ = false;
   bool ops_kicked_ = false;
+  bool dgc_kicked_ = false;    // the DGC table came from OTP
   std::uint32_t ops_set_ = 0;  // OTP_CFG OPS_ID of the last kick
   std::size_t corrupt_index_ = 0;
   std::uint8_t corrupt_mask_ = 0;

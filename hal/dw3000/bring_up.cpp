@@ -14,25 +14,9 @@
 namespace rilo::dw3000 {
 namespace {
 
-std::string hex8(unsigned v) {
-  char text[8];
-  std::snprintf(text, sizeof text, "0x%02X", v & 0xFFu);
-  return text;
-}
-
-std::string hex16(unsigned v) {
-  char text[10];
-  std::snprintf(text, sizeof text, "0x%04X", v & 0xFFFFu);
-  return text;
-}
-
 std::string mismatch(const char* what, std::uint32_t read, std::uint32_t expected, std::string (*hex)(std::uint32_t)) {
   return std::string(what) + " reads " + hex(read) + ", expected " + hex(expected);
 }
-
-std::string hexU32(std::uint32_t v) { return hex32(v); }
-std::string hexU16(std::uint32_t v) { return hex16(v); }
-std::string hexU8(std::uint32_t v) { return hex8(v); }
 
 const std::uint32_t* dgcLut(UwbChannel channel) {
   return channel == UwbChannel::k9 ? startup::kDgcLutCh9 : startup::kDgcLutCh5;
@@ -575,17 +559,17 @@ std::string Dw3000Device::auditStep(BringUpStep step) {
     case BringUpStep::kLdoBiasTrims: {
       if (!report_.ldo_bias_from_otp) return {};  // not programmed: the chip's defaults stand
       const std::uint32_t lo = readReg32(reg::kLdoTuneLo, "reading LDO_TUNE_LO");
-      if (lo != report_.otp_ldo_tune_lo) return mismatch("LDO_TUNE_LO", lo, report_.otp_ldo_tune_lo, hexU32);
+      if (lo != report_.otp_ldo_tune_lo) return mismatch("LDO_TUNE_LO", lo, report_.otp_ldo_tune_lo, hex32);
       const std::uint32_t hi = readReg32(reg::kLdoTuneHi, "reading LDO_TUNE_HI");
-      if (hi != report_.otp_ldo_tune_hi) return mismatch("LDO_TUNE_HI", hi, report_.otp_ldo_tune_hi, hexU32);
+      if (hi != report_.otp_ldo_tune_hi) return mismatch("LDO_TUNE_HI", hi, report_.otp_ldo_tune_hi, hex32);
       const std::uint8_t bias = readReg8(reg::kBiasCtrl, "reading BIAS_CTRL") & 0x1Fu;
-      if (bias != report_.otp_bias_tune) return mismatch("BIAS_CTRL bias", bias, report_.otp_bias_tune, hexU8);
+      if (bias != report_.otp_bias_tune) return mismatch("BIAS_CTRL bias", bias, report_.otp_bias_tune, hex8);
       return {};
     }
     case BringUpStep::kXtalTrim: {
       const std::uint8_t expected = report_.xtal_trim;
       const std::uint8_t xtal = readReg8(reg::kXtalTrim, "reading XTAL") & 0x7Fu;
-      return xtal == expected ? std::string() : mismatch("XTAL trim", xtal, expected, hexU8);
+      return xtal == expected ? std::string() : mismatch("XTAL trim", xtal, expected, hex8);
     }
     case BringUpStep::kFrameFormat: {
       const std::uint32_t chan = readReg32(reg::kChanCtrl, "reading CHAN_CTRL") & 0x1FFFu;
@@ -593,63 +577,63 @@ std::string Dw3000Device::auditStep(BringUpStep step) {
                                       (static_cast<std::uint32_t>(config_.sfd_type) << 1) |
                                       (static_cast<std::uint32_t>(config_.preamble_code) << 3) |
                                       (static_cast<std::uint32_t>(config_.preamble_code) << 8);
-      if (chan != want_chan) return mismatch("CHAN_CTRL", chan, want_chan, hexU16);
+      if (chan != want_chan) return mismatch("CHAN_CTRL", chan, want_chan, hex16);
       const std::uint32_t fctrl = readReg32(reg::kTxFctrl, "reading TX_FCTRL") & 0xFC00u;
       const std::uint32_t want_fctrl =
           (static_cast<std::uint32_t>(preambleLengthCode(config_.preamble_length)) << tx_fctrl::kPsrShift) |
           (config_.data_rate == DataRate::k6M8 ? tx_fctrl::kBr6M8 : 0u) | tx_fctrl::kRanging;
-      if (fctrl != want_fctrl) return mismatch("TX_FCTRL bits 15:10", fctrl, want_fctrl, hexU16);
+      if (fctrl != want_fctrl) return mismatch("TX_FCTRL bits 15:10", fctrl, want_fctrl, hex16);
       const std::uint8_t fine = readReg8(at(reg::kTxFctrlHi, 1), "reading FINE_PLEN");
       const std::uint8_t want_fine = config_.preamble_length == 72 ? 8 : 0;
-      if (fine != want_fine) return mismatch("FINE_PLEN", fine, want_fine, hexU8);
+      if (fine != want_fine) return mismatch("FINE_PLEN", fine, want_fine, hex8);
       const std::uint32_t sys_cfg = readReg32(reg::kSysCfg, "reading SYS_CFG");
       if ((sys_cfg & sys_cfg::kRxWtoe) == 0) return "SYS_CFG reads " + hex32(sys_cfg) + " without RXWTOE";
       const std::uint32_t pan = readReg32(reg::kPanAdr, "reading PAN_ADR");
       const std::uint32_t want_pan = (static_cast<std::uint32_t>(config_.pan_id) << 16) | config_.tag_address;
-      return pan == want_pan ? std::string() : mismatch("PAN_ADR", pan, want_pan, hexU32);
+      return pan == want_pan ? std::string() : mismatch("PAN_ADR", pan, want_pan, hex32);
     }
     case BringUpStep::kOpsTable: {
       // A kicked set stays selected in OPS_ID; the kick bit clears itself.
       // (The long set's id is 0, the reset value: only the short set shows.)
       const std::uint32_t cfg = readReg32(reg::kOtpCfg, "reading OTP_CFG") & otp_cfg::kOpsIdMask;
-      return cfg == opsSet(config_) ? std::string() : mismatch("OTP_CFG OPS_ID", cfg, opsSet(config_), hexU16);
+      return cfg == opsSet(config_) ? std::string() : mismatch("OTP_CFG OPS_ID", cfg, opsSet(config_), hex16);
     }
     case BringUpStep::kRxTuning: {
       const std::uint8_t pac = readReg8(reg::kDtune0, "reading DTUNE0") & 0x3u;
       const auto want_pac = static_cast<std::uint8_t>(pacCode(config_.pac_symbols));
-      if (pac != want_pac) return mismatch("DTUNE0 PAC", pac, want_pac, hexU8);
+      if (pac != want_pac) return mismatch("DTUNE0 PAC", pac, want_pac, hex8);
       const std::uint32_t sfd = (readReg32(reg::kDtune0, "reading DTUNE0") >> 16) & 0xFFFFu;
-      if (sfd != sfdTimeoutSymbols(config_)) return mismatch("DTUNE0 SFD timeout", sfd, sfdTimeoutSymbols(config_), hexU16);
+      if (sfd != sfdTimeoutSymbols(config_)) return mismatch("DTUNE0 SFD timeout", sfd, sfdTimeoutSymbols(config_), hex16);
       const std::uint32_t dtune3 = readReg32(reg::kDtune3, "reading DTUNE3");
-      if (dtune3 != startup::kDtune3Default) return mismatch("DTUNE3", dtune3, startup::kDtune3Default, hexU32);
+      if (dtune3 != startup::kDtune3Default) return mismatch("DTUNE3", dtune3, startup::kDtune3Default, hex32);
       const std::uint8_t sts = readReg8(reg::kStsCfg0, "reading STS_CFG0");
-      return sts == startup::kStsCfg0Len64 ? std::string() : mismatch("STS_CFG0", sts, startup::kStsCfg0Len64, hexU8);
+      return sts == startup::kStsCfg0Len64 ? std::string() : mismatch("STS_CFG0", sts, startup::kStsCfg0Len64, hex8);
     }
     case BringUpStep::kRfPll: {
       const bool ch9 = config_.channel == UwbChannel::k9;
       const std::uint32_t pll = readReg32(reg::kPllCfg, "reading PLL_CFG") & 0xFFFFu;
       const std::uint32_t want_pll = ch9 ? startup::kPllCfgCh9 : startup::kPllCfgCh5;
-      if (pll != want_pll) return mismatch("PLL_CFG", pll, want_pll, hexU16);
+      if (pll != want_pll) return mismatch("PLL_CFG", pll, want_pll, hex16);
       // PG_DELAY (bits 5:0) belongs to the TX step.
       const std::uint32_t tx = readReg32(reg::kTxCtrlHi, "reading TX_CTRL_HI") & ~0xFFu;
       const std::uint32_t want_tx = (ch9 ? startup::kTxCtrlHiCh9 : startup::kTxCtrlHiCh5) & ~0xFFu;
-      if (tx != want_tx) return mismatch("TX_CTRL_HI bits 31:8", tx, want_tx, hexU32);
+      if (tx != want_tx) return mismatch("TX_CTRL_HI bits 31:8", tx, want_tx, hex32);
       if (ch9) {
         const std::uint32_t rx = readReg32(reg::kRxCtrlHi, "reading RX_CTRL_HI");
-        if (rx != startup::kRxCtrlHiCh9) return mismatch("RX_CTRL_HI", rx, startup::kRxCtrlHiCh9, hexU32);
+        if (rx != startup::kRxCtrlHiCh9) return mismatch("RX_CTRL_HI", rx, startup::kRxCtrlHiCh9, hex32);
       }
       const std::uint8_t rload = readReg8(at(reg::kLdoRload, 1), "reading LDO_RLOAD");
-      if (rload != startup::kLdoRloadByte1) return mismatch("LDO_RLOAD byte 1", rload, startup::kLdoRloadByte1, hexU8);
+      if (rload != startup::kLdoRloadByte1) return mismatch("LDO_RLOAD byte 1", rload, startup::kLdoRloadByte1, hex8);
       const std::uint8_t txlo = readReg8(at(reg::kTxCtrlLo, 2), "reading TX_CTRL_LO");
-      if (txlo != startup::kTxCtrlLoByte2) return mismatch("TX_CTRL_LO byte 2", txlo, startup::kTxCtrlLoByte2, hexU8);
+      if (txlo != startup::kTxCtrlLoByte2) return mismatch("TX_CTRL_LO byte 2", txlo, startup::kTxCtrlLoByte2, hex8);
       const std::uint8_t cal = readReg8(reg::kPllCal, "reading PLL_CAL");
-      return cal == startup::kPllCalByte0 ? std::string() : mismatch("PLL_CAL", cal, startup::kPllCalByte0, hexU8);
+      return cal == startup::kPllCalByte0 ? std::string() : mismatch("PLL_CAL", cal, startup::kPllCalByte0, hex8);
     }
     case BringUpStep::kPllLock: {
       const std::uint32_t seq = readReg32(reg::kSeqCtrl, "reading SEQ_CTRL");
       if ((seq & startup::kAinit2Idle) == 0) return "SEQ_CTRL reads " + hex32(seq) + " without AINIT2IDLE";
       const std::uint32_t clk = readReg32(reg::kClkCtrl, "reading CLK_CTRL") & 0xFFFFu;
-      return clk == startup::kAutoClocks ? std::string() : mismatch("CLK_CTRL", clk, startup::kAutoClocks, hexU16);
+      return clk == startup::kAutoClocks ? std::string() : mismatch("CLK_CTRL", clk, startup::kAutoClocks, hex16);
     }
     case BringUpStep::kDgc: {
       const std::uint32_t cfg = readReg32(reg::kDgcCfg, "reading DGC_CFG");
@@ -659,20 +643,20 @@ std::string Dw3000Device::auditStep(BringUpStep step) {
       }
       if ((cfg & startup::kDgcRxTuneEn) == 0) return "DGC_CFG reads " + hex32(cfg) + " without RX_TUNE_EN";
       const std::uint32_t thr = (cfg & startup::kDgcThr64Mask) >> 9;
-      if (thr != startup::kDgcThr64) return mismatch("DGC_CFG THR_64", thr, startup::kDgcThr64, hexU8);
+      if (thr != startup::kDgcThr64) return mismatch("DGC_CFG THR_64", thr, startup::kDgcThr64, hex8);
       if (report_.dgc_from_otp) {
         // The part's own table, whatever its values: the kick selected the channel's.
         const std::uint32_t sel = readReg32(reg::kOtpCfg, "reading OTP_CFG") & otp_cfg::kDgcSelCh9;
         const std::uint32_t want = config_.channel == UwbChannel::k9 ? otp_cfg::kDgcSelCh9 : 0u;
-        if (sel != want) return mismatch("OTP_CFG DGC_SEL", sel, want, hexU16);
+        if (sel != want) return mismatch("OTP_CFG DGC_SEL", sel, want, hex16);
         const std::uint32_t lut0 = readReg32(reg::kDgcLut0, "reading DGC_LUT_0");
         return lut0 != 0 ? std::string() : "DGC_LUT_0 reads 0 after the DGC kick (no table loaded from OTP)";
       }
       const std::uint32_t cfg0 = readReg32(reg::kDgcCfg0, "reading DGC_CFG0");
-      if (cfg0 != startup::kDgcCfg0Value) return mismatch("DGC_CFG0", cfg0, startup::kDgcCfg0Value, hexU32);
+      if (cfg0 != startup::kDgcCfg0Value) return mismatch("DGC_CFG0", cfg0, startup::kDgcCfg0Value, hex32);
       const std::uint32_t lut0 = readReg32(reg::kDgcLut0, "reading DGC_LUT_0");
       const std::uint32_t want_lut0 = dgcLut(config_.channel)[0];
-      return lut0 == want_lut0 ? std::string() : mismatch("DGC_LUT_0", lut0, want_lut0, hexU32);
+      return lut0 == want_lut0 ? std::string() : mismatch("DGC_LUT_0", lut0, want_lut0, hex32);
     }
     case BringUpStep::kPgfCalibration: {
       const std::uint32_t i = readReg32(reg::kRxCalResI, "reading RX_CAL_RESI");
@@ -681,13 +665,13 @@ std::string Dw3000Device::auditStep(BringUpStep step) {
         return "RX_CAL_RESI/RESQ read " + hex32(i) + "/" + hex32(q) + " (no calibration result)";
       }
       const std::uint8_t mode = readReg8(reg::kRxCalCfg, "reading RX_CAL_CFG") & 0x3u;
-      return mode == 0 ? std::string() : mismatch("RX_CAL_CFG CAL_MODE", mode, 0, hexU8);
+      return mode == 0 ? std::string() : mismatch("RX_CAL_CFG CAL_MODE", mode, 0, hex8);
     }
     case BringUpStep::kTxRf: {
       const std::uint8_t pg = readReg8(reg::kTxCtrlHi, "reading TX_CTRL_HI");
-      if (pg != config_.tx_pg_delay) return mismatch("TX_CTRL_HI PG_DELAY", pg, config_.tx_pg_delay, hexU8);
+      if (pg != config_.tx_pg_delay) return mismatch("TX_CTRL_HI PG_DELAY", pg, config_.tx_pg_delay, hex8);
       const std::uint32_t power = readReg32(reg::kTxPower, "reading TX_POWER");
-      return power == config_.tx_power ? std::string() : mismatch("TX_POWER", power, config_.tx_power, hexU32);
+      return power == config_.tx_power ? std::string() : mismatch("TX_POWER", power, config_.tx_power, hex32);
     }
     case BringUpStep::kCiaDiagnostics: {
       const std::uint32_t cia = readReg32(reg::kCiaConf, "reading CIA_CONF");
@@ -696,20 +680,20 @@ std::string Dw3000Device::auditStep(BringUpStep step) {
     }
     case BringUpStep::kExchangeTiming: {
       const std::uint32_t tx_antd = readReg32(reg::kTxAntd, "reading TX_ANTD") & 0xFFFFu;
-      if (tx_antd != config_.tx_antenna_delay) return mismatch("TX_ANTD", tx_antd, config_.tx_antenna_delay, hexU16);
+      if (tx_antd != config_.tx_antenna_delay) return mismatch("TX_ANTD", tx_antd, config_.tx_antenna_delay, hex16);
       const std::uint32_t rx_antd = readReg32(reg::kCiaConf, "reading CIA_CONF") & 0xFFFFu;
-      if (rx_antd != config_.rx_antenna_delay) return mismatch("CIA_CONF RXANTD", rx_antd, config_.rx_antenna_delay, hexU16);
+      if (rx_antd != config_.rx_antenna_delay) return mismatch("CIA_CONF RXANTD", rx_antd, config_.rx_antenna_delay, hex16);
       const std::uint32_t w4r = readReg32(reg::kAckResp, "reading ACK_RESP") & 0xFFFFFu;
       const std::uint32_t want_w4r = uwbMicrosecondsFromUs(config_.rx_after_tx_delay_us);
-      if (w4r != want_w4r) return mismatch("ACK_RESP W4R_TIM", w4r, want_w4r, hexU32);
+      if (w4r != want_w4r) return mismatch("ACK_RESP W4R_TIM", w4r, want_w4r, hex32);
       const std::uint32_t fwto = readReg32(reg::kRxFwto, "reading RX_FWTO") & 0xFFFFFu;
       const std::uint32_t want_fwto = uwbMicrosecondsFromUs(config_.rx_timeout_us);
-      return fwto == want_fwto ? std::string() : mismatch("RX_FWTO", fwto, want_fwto, hexU32);
+      return fwto == want_fwto ? std::string() : mismatch("RX_FWTO", fwto, want_fwto, hex32);
     }
     case BringUpStep::kInterrupts: {
       const std::uint32_t enabled = readReg32(reg::kSysEnable, "reading SYS_ENABLE");
       const std::uint32_t want = exchangeInterrupts();
-      return enabled == want ? std::string() : mismatch("SYS_ENABLE", enabled, want, hexU32);
+      return enabled == want ? std::string() : mismatch("SYS_ENABLE", enabled, want, hex32);
     }
     default: return {};  // reset, IDLE_RC, DEV_ID, SPI CRC, site writes, fast SPI: checked where they run
   }

@@ -6,6 +6,18 @@
 
 namespace rilo::dw3000 {
 
+inline std::string hex8(std::uint32_t v) {
+  char text[8];
+  std::snprintf(text, sizeof text, "0x%02X", v & 0xFFu);
+  return text;
+}
+
+inline std::string hex16(std::uint32_t v) {
+  char text[10];
+  std::snprintf(text, sizeof text, "0x%04X", v & 0xFFFFu);
+  return text;
+}
+
 inline std::string hex32(std::uint32_t v) {
   char text[16];
   std::snprintf(text, sizeof text, "0x%08X", v);

@@ -189,7 +189,7 @@ ImuParams readImu(const ConfigField& field) {
 void readRelinearization(const ConfigField& field, SmootherParams& s) {
   const ConfigMap m = field.map({"skip", "interval_s", "rotation_rad", "position_m", "velocity_m_s", "anchor_m",
                                  "accel_bias_m_s2", "gyro_bias_rad_s", "together", "max_variables",
-                                 "recent_updates", "wildfire_threshold"});
+                                 "recent_updates", "wildfire_threshold", "after_rejection_s"});
   auto threshold = [](const ConfigField& f) { return f.number(0.0, 1e3); };
   m.read("skip", s.relinearize_skip, [](const ConfigField& f) { return f.integerAs<int>(1, 1000); });
   m.read("interval_s", s.relinearize_interval_s, [](const ConfigField& f) { return f.number(0.0, 3600.0); });
@@ -206,6 +206,7 @@ void readRelinearization(const ConfigField& field, SmootherParams& s) {
          [](const ConfigField& f) { return f.integerAs<int>(0, 1000); });
   if (s.dampedWithStalePreviousState()) m.require("recent_updates").fail(SmootherParams::kDampedNeedsRecentRelinearization);
   m.read("wildfire_threshold", s.wildfire_threshold, threshold);
+  m.read("after_rejection_s", s.after_rejection_max_age_s, [](const ConfigField& f) { return f.number(0.0, 3600.0); });
 }
 
 void readDamping(const ConfigField& field, SmootherParams& s) {

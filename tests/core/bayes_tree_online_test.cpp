@@ -84,5 +84,66 @@ TEST(BayesTreeOnline, DampedFactorsAcceptanceTracksLikeGaussNewtonInAboutOneTry)
   EXPECT_LT(b.mean_tries, 1.5);
 }
 
+struct AfterRejection {
+  int rejections = 0;
+  int whole_tree_refreshes = 0;  ///< updates after a rejection that re-eliminated >= 90% of a grown tree
+  int largest_refresh = 0;       ///< most cliques re-eliminated by an update after a rejection
+  int largest_tree = 0;
+  double mean_error_m = 0.0;
+};
+
+AfterRejection runWithRejections(double after_rejection_max_age_s) {
+  // One damped try per update (lambda_max = lambda_initial): rejections are
+  // frequent, so the update after one is exercised many times.
+  sim::ScenarioParams sp;
+  sp.duration_s = 20.0;
+  sp.seed = 5;
+  const sim::Scenario s = sim::simulateScenario(sp);
+  SmootherParams params;
+  params.lag_s = 5.0;
+  params.d_isam2.lambda_initial = 1e-5;
+  params.d_isam2.lambda_max = 1e-5;
+  params.after_rejection_max_age_s = after_rejection_max_age_s;
+  auto owned = std::make_unique<BayesTreeSmoother>(params);
+  BayesTreeSmoother& smoother = *owned;
+  RangeImuEstimator estimator(s.p_w_anchors, testing::graphParamsFor(s), std::move(owned));
+  AfterRejection r;
+  bool previous_rejected = false;
+  int n = 0;
+  testing::runOnline(s, estimator, [&](const UpdateStats& st, const RangeImuEstimator& e) {
+    ASSERT_EQ(smoother.checkInvariants(), "");
+    if (previous_rejected) {
+      r.largest_refresh = std::max(r.largest_refresh, st.cliques_reeliminated);
+      r.largest_tree = std::max(r.largest_tree, st.cliques_total);
+      // (A tree of a few cliques, at the start, is all young.)
+      if (st.cliques_total >= 20 && st.cliques_reeliminated >= 0.9 * st.cliques_total) ++r.whole_tree_refreshes;
+    }
+    previous_rejected = !st.step_accepted;
+    r.rejections += previous_rejected ? 1 : 0;
+    r.mean_error_m += (e.latest().T_w_b.p - s.truthAt(e.latest().t_ns).T_w_b.p).norm();
+    ++n;
+  });
+  r.mean_error_m /= std::max(n, 1);
+  return r;
+}
+
+TEST(BayesTreeOnline, TheRefreshAfterARejectionCanBeBoundedToTheYoungStates) {
+  // SmootherParams::after_rejection_max_age_s: after a rejected D-iSAM2 step
+  // the whole window is relinearized at the kept estimate (every state is in
+  // the chain to the root: the whole tree is re-eliminated, the real-time
+  // tail); bounded, only the last second's states are, and the tree below
+  // them stays.
+  const AfterRejection whole = runWithRejections(0.0);
+  const AfterRejection bounded = runWithRejections(1.0);
+  ASSERT_GE(whole.rejections, 5);
+  ASSERT_GE(bounded.rejections, 5);
+  EXPECT_GE(whole.whole_tree_refreshes, whole.rejections / 2) << "of " << whole.rejections;
+  EXPECT_EQ(bounded.whole_tree_refreshes, 0) << "of " << bounded.rejections;
+  EXPECT_LT(bounded.largest_refresh, bounded.largest_tree / 2) << "tree " << bounded.largest_tree;
+  // Both keep tracking the walk.
+  EXPECT_LT(whole.mean_error_m, 0.6);
+  EXPECT_LT(bounded.mean_error_m, 0.6);
+}
+
 }  // namespace
 }  // namespace rilo

@@ -162,7 +162,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "  lag_s: 4.5\n"
       "  relinearization: {skip: 2, interval_s: 0.3, rotation_rad: 0.02, position_m: 0.03, velocity_m_s: 0.04, anchor_m: 0.05,\n"
       "                    accel_bias_m_s2: 0.006, gyro_bias_rad_s: 0.0007, together: false, max_variables: 9,\n"
-      "                    recent_updates: 2, wildfire_threshold: 0.002}\n"
+      "                    recent_updates: 2, wildfire_threshold: 0.002, after_rejection_s: 2.5}\n"
       "  damping: {lambda_initial: 1e-4, lambda_min: 1e-8, lambda_max: 1e4, lambda_increase: 5,\n"
       "            lambda_decrease: 0.5, widen: false, acceptance: global, tie_tolerance: 2e-4}\n"
       "  trust_region: {initial: 0.5, min: 1e-6}\n"
@@ -218,6 +218,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_EQ(s.max_relinearized_variables, 9);
   EXPECT_EQ(s.always_relinearize_recent_updates, 2);
   EXPECT_DOUBLE_EQ(s.wildfire_threshold, 0.002);
+  EXPECT_DOUBLE_EQ(s.after_rejection_max_age_s, 2.5);
   EXPECT_DOUBLE_EQ(s.d_isam2.lambda_initial, 1e-4);
   EXPECT_DOUBLE_EQ(s.d_isam2.lambda_min, 1e-8);
   EXPECT_DOUBLE_EQ(s.d_isam2.lambda_max, 1e4);

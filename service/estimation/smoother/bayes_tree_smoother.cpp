@@ -331,6 +331,14 @@ void BayesTreeSmoother::relinearize(std::vector<VarId>& marked, const std::vecto
   if (!together) {
     for (VarId v : marginalizable) vars_[v].mark = skip_stamp;
   }
+  if (all && params_.after_rejection_max_age_s > 0.0 && have_time_) {
+    // A bounded refresh after a rejection: the young states only.
+    const std::int64_t oldest_ns =
+        newest_t_ns_ - static_cast<std::int64_t>(std::llround(params_.after_rejection_max_age_s * 1e9));
+    for (VarSlot& slot : vars_) {
+      if (slot.alive && (!slot.has_time || slot.t_ns < oldest_ns)) slot.mark = skip_stamp;
+    }
+  }
   const bool enough_recent = recent_times_.size() >= static_cast<std::size_t>(params_.relinearize_min_recent_times);
   if (params_.relinearize_max_age_s > 0.0 && have_time_ && !all && enough_recent) {
     std::int64_t oldest_ns = newest_t_ns_ - static_cast<std::int64_t>(std::llround(params_.relinearize_max_age_s * 1e9));

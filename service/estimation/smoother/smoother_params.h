@@ -82,6 +82,12 @@ struct SmootherParams {
   /// 1 Hz the asymmetric model then tracked a clean walk to 3.4 m instead of
   /// 0.6 m). 0: the age limit alone.
   int relinearize_min_recent_times = 40;
+  /// After a rejected D-iSAM2 step every moved variable is relinearized at
+  /// the kept estimate, which re-eliminates the whole tree (the real-time
+  /// tail, docs/smoother.md). > 0: only timed variables this young (s behind
+  /// the newest) are; older states and the static variables (anchors) keep
+  /// their linearization point. 0 = the whole window.
+  double after_rejection_max_age_s = 0.0;
 
   // --- Partial back-substitution -----------------------------------------
   /// Re-solve a clique only when a separator delta moved by more than this
@@ -153,6 +159,7 @@ struct SmootherParams {
     if (!(lag_s >= 0.0)) fail("lag_s", "must be >= 0");
     if (!(relinearize_max_age_s >= 0.0)) fail("relinearize_max_age_s", "must be >= 0");
     if (relinearize_min_recent_times < 0) fail("relinearize_min_recent_times", "must be >= 0");
+    if (!(after_rejection_max_age_s >= 0.0)) fail("after_rejection_max_age_s", "must be >= 0");
     if (!(rank_tolerance > 0.0 && rank_tolerance < 1.0)) fail("rank_tolerance", "must be in (0, 1)");
     if (!(regularization > 0.0)) fail("regularization", "must be > 0");
     auto nonnegative = [](const auto& v) { return (v.array() >= 0.0).all(); };

@@ -86,7 +86,8 @@ struct SmootherParams {
   /// the kept estimate, which re-eliminates the whole tree (the real-time
   /// tail, docs/smoother.md). > 0: only timed variables this young (s behind
   /// the newest) are; older states and the static variables (anchors) keep
-  /// their linearization point. 0 = the whole window.
+  /// their linearization point, and their kept delta until a back-substitution
+  /// or their own threshold reaches them. 0 = the whole window.
   double after_rejection_max_age_s = 0.0;
 
   // --- Partial back-substitution -----------------------------------------

@@ -47,11 +47,16 @@ struct OnlineFigures {
   int updates = 0;
 };
 
-OnlineFigures runWalk(SmootherParams params) {
+/// The 20 s walk (seed 5, the scenario's default NLOS) both tests below run.
+sim::Scenario walk() {
   sim::ScenarioParams sp;
   sp.duration_s = 20.0;
   sp.seed = 5;
-  const sim::Scenario s = sim::simulateScenario(sp);
+  return sim::simulateScenario(sp);
+}
+
+OnlineFigures runWalk(SmootherParams params) {
+  const sim::Scenario s = walk();
   params.lag_s = 5.0;
   RangeImuEstimator estimator(s.p_w_anchors, testing::graphParamsFor(s), std::make_unique<BayesTreeSmoother>(params));
   OnlineFigures fig;
@@ -95,10 +100,7 @@ struct AfterRejection {
 AfterRejection runWithRejections(double after_rejection_max_age_s) {
   // One damped try per update (lambda_max = lambda_initial): rejections are
   // frequent, so the update after one is exercised many times.
-  sim::ScenarioParams sp;
-  sp.duration_s = 20.0;
-  sp.seed = 5;
-  const sim::Scenario s = sim::simulateScenario(sp);
+  const sim::Scenario s = walk();
   SmootherParams params;
   params.lag_s = 5.0;
   params.d_isam2.lambda_initial = 1e-5;

@@ -100,9 +100,6 @@ std::string describe(const BringUpReport& r) {
 // ---------------------------------------------------------------------------
 // Register helpers
 
-std::uint32_t Dw3000Device::exchangeInterrupts() const noexcept {
-  return status::kRxFcg | status::kAllRxErrors | status::kAllRxTimeouts | (crc_enabled_ ? status::kSpiCrcE : 0u);
-}
 
 std::uint32_t Dw3000Device::readReg32(RegAddr addr, const char* what) {
   std::uint32_t v = 0;
@@ -118,13 +115,9 @@ std::uint8_t Dw3000Device::readReg8(RegAddr addr, const char* what) {
 
 std::uint32_t Dw3000Device::otpRead(std::uint16_t address, const char* what) {
   // _dwt_otpread: manual mode, the word address, the read strobe, then RDATA.
-  const auto write16 = [&](RegAddr a, std::uint16_t v) {
-    const std::array<std::uint8_t, 2> b{static_cast<std::uint8_t>(v & 0xFFu), static_cast<std::uint8_t>(v >> 8)};
-    check(write(a, b), what);
-  };
-  write16(reg::kOtpCfg, static_cast<std::uint16_t>(otp_cfg::kManualEnable));
-  write16(reg::kOtpAddr, address);
-  write16(reg::kOtpCfg, static_cast<std::uint16_t>(otp_cfg::kRead));
+  check(write16(reg::kOtpCfg, static_cast<std::uint16_t>(otp_cfg::kManualEnable)), what);
+  check(write16(reg::kOtpAddr, address), what);
+  check(write16(reg::kOtpCfg, static_cast<std::uint16_t>(otp_cfg::kRead)), what);
   return readReg32(reg::kOtpRdata, what);
 }
 
@@ -167,16 +160,9 @@ void Dw3000Device::bringUp() {
 void Dw3000Device::runStep(BringUpStep step) {
   const bool mandatory = step == BringUpStep::kIdleRc || step == BringUpStep::kDevId;
   const bool left_out = !mandatory && (left_out_ & stepBit(step)) != 0;
-  if (step == BringUpStep::kLdoBiasTrims) {
-    // dwt_initialise's OTP reads, in its order around the LDO/bias kick (the
-    // reads after it leave OTP_CFG's kick bits cleared); always read: they
-    // are how the driver learns the part, and later steps use them.
-    readOtpTrimWords();
-    if (!left_out) applyOtpTrims();
-    readOtpOtherWords();
-    return;
-  }
-  if (left_out) return;
+  // The OTP reads around the LDO/bias kick happen even when the step is left
+  // out: they are how the driver learns the part, and later steps use them.
+  if (left_out && step != BringUpStep::kLdoBiasTrims) return;
   switch (step) {
     case BringUpStep::kReset:
       resetChip();
@@ -224,7 +210,13 @@ void Dw3000Device::runStep(BringUpStep step) {
         }
       }
       break;
-    case BringUpStep::kLdoBiasTrims: break;  // above
+    case BringUpStep::kLdoBiasTrims:
+      // dwt_initialise's OTP reads, in its order around the kick (the reads
+      // after it leave OTP_CFG's kick bits cleared).
+      readOtpTrimWords();
+      if (!left_out) applyOtpTrims();
+      readOtpOtherWords();
+      break;
     case BringUpStep::kXtalTrim: applyXtalTrim(); break;
     case BringUpStep::kFrameFormat: applyFrameFormat(); break;
     case BringUpStep::kOpsTable: applyOpsTable(); break;
@@ -263,20 +255,18 @@ void Dw3000Device::softReset() {
   // dwt_softreset. A soft reset still speaks the CRC mode of the last
   // bring-up, so these writes carry it; the SPI must be <= 7 MHz (the chip
   // runs on FOSC/4 while it resets).
-  const auto write8 = [&](RegAddr a, std::uint8_t v, const char* what) { check(write(a, {&v, 1}), what); };
   // Clear the AON configuration: a reset triggers the AON download, which
   // would otherwise bring back a stale wake-up configuration.
-  const std::array<std::uint8_t, 2> zero16{0, 0};
-  check(write(reg::kAonDigCfg, zero16), "soft reset: clearing AON_DIG_CFG");
-  write8(reg::kAnaCfg, 0x00, "soft reset: clearing ANA_CFG");
-  write8(reg::kAonCtrl, 0x00, "soft reset: clearing AON_CTRL");
-  write8(reg::kAonCtrl, 0x02, "soft reset: AON_CTRL ARRAY_SAVE");
+  check(write16(reg::kAonDigCfg, 0x0000), "soft reset: clearing AON_DIG_CFG");
+  check(write8(reg::kAnaCfg, 0x00), "soft reset: clearing ANA_CFG");
+  check(write8(reg::kAonCtrl, 0x00), "soft reset: clearing AON_CTRL");
+  check(write8(reg::kAonCtrl, 0x02), "soft reset: AON_CTRL ARRAY_SAVE");
   clock_.sleepForNs(1'000'000);
   // The system clock must not be the PLL: the reset switches the PLL off.
   check(writeMasked(reg::kClkCtrl, AccessMode::kMask8, 0xFF, startup::kForceSysClkFosc),
         "soft reset: forcing the FOSC clock (CLK_CTRL)");
   soft_reset_crc_ = crc_enabled_;
-  write8(reg::kSoftRst, 0x00, "soft reset: SOFT_RST (reset all)");
+  check(write8(reg::kSoftRst, 0x00), "soft reset: SOFT_RST (reset all)");
   crc_enabled_ = false;
   clock_.sleepForNs(config_.reset_low_ns);
 }
@@ -316,7 +306,7 @@ void Dw3000Device::applyOtpTrims() {
 }
 
 void Dw3000Device::applyXtalTrim() {
-  check(write(reg::kXtalTrim, {&report_.xtal_trim, 1}), "writing XTAL");
+  check(write8(reg::kXtalTrim, report_.xtal_trim), "writing XTAL");
 }
 
 // --- dwt_configure ---------------------------------------------------------------
@@ -336,8 +326,7 @@ void Dw3000Device::applyFrameFormat() {
                                  (config_.data_rate == DataRate::k6M8 ? tx_fctrl::kBr6M8 : 0u) | tx_fctrl::kRanging;
   check(write32(reg::kTxFctrl, tx_fctrl), "writing TX_FCTRL");
   const std::uint8_t fine_plen = config_.preamble_length == 72 ? 8 : 0;  // 72 symbols: TXPSR 64 + FINE_PLEN
-  check(write(RegAddr{reg::kTxFctrlHi.file, static_cast<std::uint8_t>(reg::kTxFctrlHi.offset + 1)}, {&fine_plen, 1}),
-        "writing FINE_PLEN");
+  check(write8(reg::kTxFctrlHi.plus(1), fine_plen), "writing FINE_PLEN");
   check(write32(reg::kPanAdr, (static_cast<std::uint32_t>(config_.pan_id) << 16) | config_.tag_address),
         "writing PAN_ADR");
 }
@@ -350,40 +339,29 @@ void Dw3000Device::applyOpsTable() {
 void Dw3000Device::applyRxTuning() {
   check(writeMasked(reg::kDtune0, AccessMode::kMask8, 0xFC, static_cast<std::uint32_t>(pacCode(config_.pac_symbols))),
         "writing DTUNE0 (PAC)");
-  const std::uint8_t sts_len = startup::kStsCfg0Len64;  // written with the STS off too, as the API does
-  check(write(reg::kStsCfg0, {&sts_len, 1}), "writing STS_CFG0");
+  // Written with the STS off too, as the API does.
+  check(write8(reg::kStsCfg0, startup::kStsCfg0Len64), "writing STS_CFG0");
   check(write32(reg::kDtune3, startup::kDtune3Default), "writing DTUNE3");
-  const std::uint16_t sfd_to = sfdTimeoutSymbols(config_);
-  const std::array<std::uint8_t, 2> b{static_cast<std::uint8_t>(sfd_to & 0xFFu), static_cast<std::uint8_t>(sfd_to >> 8)};
-  check(write(reg::kDtune0SfdTimeout, b), "writing DTUNE0 (SFD timeout)");
+  check(write16(reg::kDtune0SfdTimeout, sfdTimeoutSymbols(config_)), "writing DTUNE0 (SFD timeout)");
 }
 
 void Dw3000Device::applyRfPll() {
   const bool ch9 = config_.channel == UwbChannel::k9;
   check(write32(reg::kTxCtrlHi, ch9 ? startup::kTxCtrlHiCh9 : startup::kTxCtrlHiCh5), "writing TX_CTRL_HI");
-  const std::uint16_t pll = ch9 ? startup::kPllCfgCh9 : startup::kPllCfgCh5;
-  const std::array<std::uint8_t, 2> pll_bytes{static_cast<std::uint8_t>(pll & 0xFFu), static_cast<std::uint8_t>(pll >> 8)};
-  check(write(reg::kPllCfg, pll_bytes), "writing PLL_CFG");
+  check(write16(reg::kPllCfg, ch9 ? startup::kPllCfgCh9 : startup::kPllCfgCh5), "writing PLL_CFG");
   if (ch9) check(write32(reg::kRxCtrlHi, startup::kRxCtrlHiCh9), "writing RX_CTRL_HI");
-  const auto write8 = [&](RegAddr a, std::uint8_t byte_offset, std::uint8_t v, const char* what) {
-    check(write(RegAddr{a.file, static_cast<std::uint8_t>(a.offset + byte_offset)}, {&v, 1}), what);
-  };
-  write8(reg::kLdoRload, 1, startup::kLdoRloadByte1, "writing LDO_RLOAD");
-  write8(reg::kTxCtrlLo, 2, startup::kTxCtrlLoByte2, "writing TX_CTRL_LO");
-  write8(reg::kPllCal, 0, startup::kPllCalByte0, "writing PLL_CAL");
+  check(write8(reg::kLdoRload.plus(1), startup::kLdoRloadByte1), "writing LDO_RLOAD");
+  check(write8(reg::kTxCtrlLo.plus(2), startup::kTxCtrlLoByte2), "writing TX_CTRL_LO");
+  check(write8(reg::kPllCal, startup::kPllCalByte0), "writing PLL_CAL");
 }
 
 void Dw3000Device::lockPll() {
   // Clear CP_LOCK, then dwt_setdwstate(DWT_DW_IDLE): clocks to auto and
   // AINIT2IDLE, so the chip calibrates its PLL and moves to IDLE_PLL; only
   // then is CP_LOCK waited for.
-  const std::uint8_t cp_lock = static_cast<std::uint8_t>(status::kCpLock);
-  check(write(reg::kSysStatus, {&cp_lock, 1}), "clearing CP_LOCK");
-  const std::array<std::uint8_t, 2> auto_clocks{static_cast<std::uint8_t>(startup::kAutoClocks & 0xFFu),
-                                                static_cast<std::uint8_t>(startup::kAutoClocks >> 8)};
-  check(write(reg::kClkCtrl, auto_clocks), "writing CLK_CTRL (auto clocks)");
-  check(writeMasked(RegAddr{reg::kSeqCtrl.file, static_cast<std::uint8_t>(reg::kSeqCtrl.offset + 1)},
-                    AccessMode::kMask8, 0xFF, startup::kAinit2Idle >> 8),
+  check(write8(reg::kSysStatus, static_cast<std::uint8_t>(status::kCpLock)), "clearing CP_LOCK");
+  check(write16(reg::kClkCtrl, startup::kAutoClocks), "writing CLK_CTRL (auto clocks)");
+  check(writeMasked(reg::kSeqCtrl.plus(1), AccessMode::kMask8, 0xFF, startup::kAinit2Idle >> 8),
         "setting SEQ_CTRL AINIT2IDLE");
   const std::int64_t start_ns = clock_.nowNs();
   const std::uint32_t pll_status = waitStatus(status::kCpLock, config_.pll_lock_timeout_ns, "waiting for CP_LOCK");
@@ -407,8 +385,7 @@ void Dw3000Device::applyDgc() {
     } else {
       const std::uint32_t* lut = dgcLut(config_.channel);
       for (int i = 0; i < 7; ++i) {
-        check(write32(RegAddr{reg::kDgcLut0.file, static_cast<std::uint8_t>(reg::kDgcLut0.offset + 4 * i)}, lut[i]),
-              "writing DGC_LUT");
+        check(write32(reg::kDgcLut0.plus(4 * i), lut[i]), "writing DGC_LUT");
       }
       check(write32(reg::kDgcCfg0, startup::kDgcCfg0Value), "writing DGC_CFG0");
       check(write32(reg::kDgcCfg1, startup::kDgcCfg1Value), "writing DGC_CFG1");
@@ -435,12 +412,9 @@ void Dw3000Device::calibratePgf() {
     if (report_.pgf_done || clock_.nowNs() >= deadline_ns) break;
     clock_.sleepForNs(std::min<std::int64_t>(config_.poll_interval_ns, 20'000));
   }
-  const std::uint8_t normal = 0;
-  check(write(reg::kRxCalCfg, {&normal, 1}), "RX_CAL_CFG back to normal mode");
-  const std::uint8_t clear = 1;
-  check(write(reg::kRxCalSts, {&clear, 1}), "clearing RX_CAL_STS");
-  check(writeMasked(RegAddr{reg::kRxCalCfg.file, static_cast<std::uint8_t>(reg::kRxCalCfg.offset + 2)},
-                    AccessMode::kMask8, 0xFF, 0x01),
+  check(write8(reg::kRxCalCfg, 0), "RX_CAL_CFG back to normal mode");
+  check(write8(reg::kRxCalSts, 1), "clearing RX_CAL_STS");
+  check(writeMasked(reg::kRxCalCfg.plus(2), AccessMode::kMask8, 0xFF, 0x01),
         "enabling the calibration result read");
   report_.pgf_result_i = readReg32(reg::kRxCalResI, "reading RX_CAL_RESI");
   report_.pgf_result_q = readReg32(reg::kRxCalResQ, "reading RX_CAL_RESQ");
@@ -457,16 +431,14 @@ void Dw3000Device::calibratePgf() {
 }
 
 void Dw3000Device::applyTxRf() {
-  check(write(reg::kTxCtrlHi, {&config_.tx_pg_delay, 1}), "writing TX_CTRL_HI (PG_DELAY)");
+  check(write8(reg::kTxCtrlHi, config_.tx_pg_delay), "writing TX_CTRL_HI (PG_DELAY)");
   check(write32(reg::kTxPower, config_.tx_power), "writing TX_POWER");
 }
 
 void Dw3000Device::applyCiaDiagnostics() {
-  check(writeMasked(RegAddr{reg::kCiaConf.file, static_cast<std::uint8_t>(reg::kCiaConf.offset + 2)},
-                    AccessMode::kMask8, ~(startup::kCiaMinDiag >> 16) & 0xFFu, 0),
+  check(writeMasked(reg::kCiaConf.plus(2), AccessMode::kMask8, ~(startup::kCiaMinDiag >> 16) & 0xFFu, 0),
         "clearing CIA_CONF MINDIAG");
-  const std::uint8_t mode = 0;  // DW_CIA_DIAG_LOG_ALL >> 1
-  check(write(reg::kRdbDiagMode, {&mode, 1}), "writing RDB_DIAG_MODE");
+  check(write8(reg::kRdbDiagMode, 0), "writing RDB_DIAG_MODE");  // DW_CIA_DIAG_LOG_ALL >> 1
 }
 
 void Dw3000Device::applySiteWrites() {
@@ -480,9 +452,7 @@ void Dw3000Device::applySiteWrites() {
 // --- Ours ------------------------------------------------------------------------
 
 void Dw3000Device::applyExchangeTiming() {
-  const std::array<std::uint8_t, 2> tx_antd{static_cast<std::uint8_t>(config_.tx_antenna_delay & 0xFFu),
-                                            static_cast<std::uint8_t>(config_.tx_antenna_delay >> 8)};
-  check(write(reg::kTxAntd, tx_antd), "writing TX_ANTD");
+  check(write16(reg::kTxAntd, config_.tx_antenna_delay), "writing TX_ANTD");
   check(writeMasked(reg::kCiaConf, AccessMode::kMask16, 0x0000, config_.rx_antenna_delay), "writing CIA_CONF");
   check(writeMasked(reg::kAckResp, AccessMode::kMask32, ~0xFFFFFu, uwbMicrosecondsFromUs(config_.rx_after_tx_delay_us)),
         "writing ACK_RESP (W4R_TIM)");
@@ -495,8 +465,7 @@ void Dw3000Device::applyInterrupts() {
   check(clearAllStatus(), "clearing SYS_STATUS");
   irq_mask_ = exchangeInterrupts();
   check(write32(reg::kSysEnable, irq_mask_), "writing SYS_ENABLE");
-  const std::array<std::uint8_t, 2> zero{0, 0};
-  check(write(reg::kSysEnableHi, zero), "writing SYS_ENABLE (high)");
+  check(write16(reg::kSysEnableHi, 0), "writing SYS_ENABLE (high)");
   if (crc_enabled_) {
     const std::uint32_t st = readReg32(reg::kSysStatus, "reading SYS_STATUS");
     if ((st & status::kSpiCrcE) != 0) {
@@ -552,9 +521,6 @@ std::string Dw3000Device::firstStepNotInEffect(BringUpStep from, BringUpStep to)
 }
 
 std::string Dw3000Device::auditStep(BringUpStep step) {
-  const auto at = [](RegAddr a, int byte_offset) {
-    return RegAddr{a.file, static_cast<std::uint8_t>(a.offset + byte_offset)};
-  };
   switch (step) {
     case BringUpStep::kLdoBiasTrims: {
       if (!report_.ldo_bias_from_otp) return {};  // not programmed: the chip's defaults stand
@@ -583,7 +549,7 @@ std::string Dw3000Device::auditStep(BringUpStep step) {
           (static_cast<std::uint32_t>(preambleLengthCode(config_.preamble_length)) << tx_fctrl::kPsrShift) |
           (config_.data_rate == DataRate::k6M8 ? tx_fctrl::kBr6M8 : 0u) | tx_fctrl::kRanging;
       if (fctrl != want_fctrl) return mismatch("TX_FCTRL bits 15:10", fctrl, want_fctrl, hex16);
-      const std::uint8_t fine = readReg8(at(reg::kTxFctrlHi, 1), "reading FINE_PLEN");
+      const std::uint8_t fine = readReg8(reg::kTxFctrlHi.plus(1), "reading FINE_PLEN");
       const std::uint8_t want_fine = config_.preamble_length == 72 ? 8 : 0;
       if (fine != want_fine) return mismatch("FINE_PLEN", fine, want_fine, hex8);
       const std::uint32_t sys_cfg = readReg32(reg::kSysCfg, "reading SYS_CFG");
@@ -622,9 +588,9 @@ std::string Dw3000Device::auditStep(BringUpStep step) {
         const std::uint32_t rx = readReg32(reg::kRxCtrlHi, "reading RX_CTRL_HI");
         if (rx != startup::kRxCtrlHiCh9) return mismatch("RX_CTRL_HI", rx, startup::kRxCtrlHiCh9, hex32);
       }
-      const std::uint8_t rload = readReg8(at(reg::kLdoRload, 1), "reading LDO_RLOAD");
+      const std::uint8_t rload = readReg8(reg::kLdoRload.plus(1), "reading LDO_RLOAD");
       if (rload != startup::kLdoRloadByte1) return mismatch("LDO_RLOAD byte 1", rload, startup::kLdoRloadByte1, hex8);
-      const std::uint8_t txlo = readReg8(at(reg::kTxCtrlLo, 2), "reading TX_CTRL_LO");
+      const std::uint8_t txlo = readReg8(reg::kTxCtrlLo.plus(2), "reading TX_CTRL_LO");
       if (txlo != startup::kTxCtrlLoByte2) return mismatch("TX_CTRL_LO byte 2", txlo, startup::kTxCtrlLoByte2, hex8);
       const std::uint8_t cal = readReg8(reg::kPllCal, "reading PLL_CAL");
       return cal == startup::kPllCalByte0 ? std::string() : mismatch("PLL_CAL", cal, startup::kPllCalByte0, hex8);

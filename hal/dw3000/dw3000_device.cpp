@@ -141,6 +141,16 @@ std::error_code Dw3000Device::write32(RegAddr addr, std::uint32_t value) noexcep
   return write(addr, bytes);
 }
 
+std::error_code Dw3000Device::write16(RegAddr addr, std::uint16_t value) noexcept {
+  std::array<std::uint8_t, 2> bytes{};
+  putLe(value, bytes.data(), 2);
+  return write(addr, bytes);
+}
+
+std::uint32_t Dw3000Device::exchangeInterrupts() const noexcept {
+  return kExchangeEnd | (crc_enabled_ ? status::kSpiCrcE : 0u);
+}
+
 // ---------------------------------------------------------------------------
 // Bring-up helpers (the steps are in bring_up.cpp)
 
@@ -166,8 +176,7 @@ std::uint32_t Dw3000Device::waitStatus(std::uint32_t bits, std::int64_t timeout_
 
 std::error_code Dw3000Device::clearAllStatus() noexcept {
   if (const std::error_code e = write32(reg::kSysStatus, 0xFFFF'FFFFu)) return e;
-  const std::array<std::uint8_t, 2> ones{0xFF, 0xFF};
-  return write(reg::kSysStatusHi, ones);
+  return write16(reg::kSysStatusHi, 0xFFFF);
 }
 
 std::error_code Dw3000Device::drainEdges() noexcept {

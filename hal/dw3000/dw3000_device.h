@@ -147,6 +147,8 @@ class Dw3000Device {
   std::error_code fastCommand(std::uint8_t command) noexcept;
   std::error_code read32(RegAddr addr, std::uint32_t& value) noexcept;
   std::error_code write32(RegAddr addr, std::uint32_t value) noexcept;
+  std::error_code write16(RegAddr addr, std::uint16_t value) noexcept;
+  std::error_code write8(RegAddr addr, std::uint8_t value) noexcept { return write(addr, {&value, 1}); }
 
  private:
   static constexpr std::size_t kMaxAccess = 128;  // longest register/buffer access

@@ -13,6 +13,8 @@ struct RegAddr {
   std::uint8_t file = 0;
   std::uint8_t offset = 0;
   friend constexpr bool operator==(RegAddr a, RegAddr b) { return a.file == b.file && a.offset == b.offset; }
+  /// The register's byte `bytes` further on (a byte or field inside it).
+  constexpr RegAddr plus(int bytes) const { return RegAddr{file, static_cast<std::uint8_t>(offset + bytes)}; }
 };
 
 namespace reg {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <utility>
 
 namespace rilo::dds {
 namespace {
@@ -126,10 +127,10 @@ Mat6 fromRowMajor(const double (&in)[36]) noexcept {
   return m;
 }
 
-void fillOdometry(const NavigationState& state, nav_msgs_msg_dds__Odometry_& msg) noexcept {
+void fillOdometry(const NavigationState& state, nav_msgs_msg_dds__Odometry_& msg, std::int64_t stamp_offset_ns) noexcept {
   const Eigen::Quaterniond q_w_b = state.q_w_b.normalized();
   const Eigen::Matrix3d R_w_b = q_w_b.toRotationMatrix();
-  toRosTime(state.t_ns, msg.header.stamp);
+  toRosTime(state.t_ns + stamp_offset_ns, msg.header.stamp);
   putPose(state.p_w_b, q_w_b, msg.pose.pose);
   toRowMajor(rosPoseCovariance(R_w_b, state.pose_covariance), msg.pose.covariance);
   const BodyTwist twist = bodyTwist(R_w_b, state);
@@ -138,15 +139,28 @@ void fillOdometry(const NavigationState& state, nav_msgs_msg_dds__Odometry_& msg
   toRowMajor(twist.covariance, msg.twist.covariance);
 }
 
-void fillPose(const NavigationState& state, geometry_msgs_msg_dds__PoseWithCovarianceStamped_& msg) noexcept {
+void fillPose(const NavigationState& state, geometry_msgs_msg_dds__PoseWithCovarianceStamped_& msg,
+              std::int64_t stamp_offset_ns) noexcept {
   const Eigen::Quaterniond q_w_b = state.q_w_b.normalized();
-  toRosTime(state.t_ns, msg.header.stamp);
+  toRosTime(state.t_ns + stamp_offset_ns, msg.header.stamp);
   putPose(state.p_w_b, q_w_b, msg.pose.pose);
   toRowMajor(rosPoseCovariance(q_w_b.toRotationMatrix(), state.pose_covariance), msg.pose.covariance);
 }
 
-void fillStatus(const ServiceStatus& status, rilo_msg_dds__Status_& msg) noexcept {
-  toRosTime(status.t_ns, msg.header.stamp);
+void fillTransform(const NavigationState& state, geometry_msgs_msg_dds__TransformStamped_& msg,
+                   std::int64_t stamp_offset_ns) noexcept {
+  const Eigen::Quaterniond q_w_b = state.q_w_b.normalized();
+  toRosTime(state.t_ns + stamp_offset_ns, msg.header.stamp);
+  putVector(state.p_w_b, msg.transform.translation);
+  msg.transform.rotation.x = q_w_b.x();
+  msg.transform.rotation.y = q_w_b.y();
+  msg.transform.rotation.z = q_w_b.z();
+  msg.transform.rotation.w = q_w_b.w();
+}
+
+void fillStatus(const ServiceStatus& status, rilo_msg_dds__Status_& msg, std::int64_t stamp_offset_ns) noexcept {
+  toRosTime(status.t_ns + stamp_offset_ns, msg.header.stamp);
+  msg.monotonic_ns = status.t_ns;
   msg.state = static_cast<std::uint8_t>(status.state);
   msg.imu_samples = status.imu_samples;
   msg.range_samples = status.range_samples;
@@ -206,8 +220,9 @@ PoseMessage toPoseMessage(const geometry_msgs_msg_dds__PoseWithCovarianceStamped
 
 StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg) {
   StatusMessage out;
+  out.stamp_ns = fromRosTime(msg.header.stamp);
   ServiceStatus& s = out.status;
-  s.t_ns = fromRosTime(msg.header.stamp);
+  s.t_ns = msg.monotonic_ns;
   s.state = static_cast<TrackingState>(msg.state);
   s.imu_samples = msg.imu_samples;
   s.range_samples = msg.range_samples;
@@ -244,6 +259,23 @@ StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg) {
   copyString(msg.last_fault, s.last_fault);
   copyString(msg.reason, s.reason);
   out.state_name = stringOf(msg.state_name);
+  return out;
+}
+
+TfMessage toTfMessage(const tf2_msgs_msg_dds__TFMessage_& msg) {
+  TfMessage out;
+  out.transforms.reserve(msg.transforms._length);
+  for (std::uint32_t i = 0; i < msg.transforms._length; ++i) {
+    const geometry_msgs_msg_dds__TransformStamped_& t = msg.transforms._buffer[i];
+    TransformMessage m;
+    m.stamp_ns = fromRosTime(t.header.stamp);
+    m.frame_id = stringOf(t.header.frame_id);
+    m.child_frame_id = stringOf(t.child_frame_id);
+    m.translation = getVector(t.transform.translation);
+    m.rotation = Eigen::Quaterniond(t.transform.rotation.w, t.transform.rotation.x, t.transform.rotation.y,
+                                    t.transform.rotation.z);
+    out.transforms.push_back(std::move(m));
+  }
   return out;
 }
 

@@ -3,7 +3,9 @@
 //
 // Time: header.stamp and the DDS source timestamp both carry the state's t_ns
 // (rilo's one clock: CLOCK_MONOTONIC on the device, the recording's clock in
-// replay), not ROS wall time. sec = floor(t_ns / 1e9), nanosec the remainder.
+// replay) plus `stamp_offset_ns`: the publisher's tracked system-minus-
+// monotonic offset with dds.stamp_clock: system (stamp_clock.h), 0 with
+// monotonic. sec = floor(stamp / 1e9), nanosec the remainder.
 //
 // Pose covariance: NavigationState perturbs the rotation in the body frame,
 // R_w_b' = R_w_b Exp(dtheta_b); ROS defines the rotation part about the fixed
@@ -30,6 +32,7 @@
 #include "geometry_msgs.h"
 #include "nav_msgs.h"
 #include "rilo_msgs.h"
+#include "tf2_msgs.h"
 #include "runtime/navigation_state.h"
 #include "runtime/service_status.h"
 
@@ -56,13 +59,21 @@ const char* trackingStateName(TrackingState state) noexcept;
 void toRowMajor(const Mat6& covariance, double (&out)[36]) noexcept;
 Mat6 fromRowMajor(const double (&in)[36]) noexcept;
 
-void fillOdometry(const NavigationState& state, nav_msgs_msg_dds__Odometry_& msg) noexcept;
-void fillPose(const NavigationState& state, geometry_msgs_msg_dds__PoseWithCovarianceStamped_& msg) noexcept;
-/// Everything but the strings state_name and last_fault.
-void fillStatus(const ServiceStatus& status, rilo_msg_dds__Status_& msg) noexcept;
+void fillOdometry(const NavigationState& state, nav_msgs_msg_dds__Odometry_& msg,
+                  std::int64_t stamp_offset_ns = 0) noexcept;
+void fillPose(const NavigationState& state, geometry_msgs_msg_dds__PoseWithCovarianceStamped_& msg,
+              std::int64_t stamp_offset_ns = 0) noexcept;
+/// The body's pose in the world as a transform (stamp, translation, rotation;
+/// the frame ids are the caller's).
+void fillTransform(const NavigationState& state, geometry_msgs_msg_dds__TransformStamped_& msg,
+                   std::int64_t stamp_offset_ns = 0) noexcept;
+/// Everything but the strings state_name and last_fault; header.stamp =
+/// t_ns + stamp_offset_ns, monotonic_ns = t_ns.
+void fillStatus(const ServiceStatus& status, rilo_msg_dds__Status_& msg, std::int64_t stamp_offset_ns = 0) noexcept;
 
 OdometryMessage toOdometryMessage(const nav_msgs_msg_dds__Odometry_& msg);
 PoseMessage toPoseMessage(const geometry_msgs_msg_dds__PoseWithCovarianceStamped_& msg);
 StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg);
+TfMessage toTfMessage(const tf2_msgs_msg_dds__TFMessage_& msg);
 
 }  // namespace rilo::dds

@@ -5,6 +5,7 @@
 // body frame.
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -16,7 +17,7 @@ namespace rilo::dds {
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 
 struct OdometryMessage {
-  std::int64_t stamp_ns = 0;             ///< header.stamp (ns, rilo's one clock)
+  std::int64_t stamp_ns = 0;             ///< header.stamp (ns, on the service's dds.stamp_clock: system time by default)
   std::int64_t source_timestamp_ns = 0;  ///< DDS source timestamp of the sample (rilo writes stamp_ns)
   std::string frame_id;                  ///< world frame
   std::string child_frame_id;            ///< body frame
@@ -38,9 +39,25 @@ struct PoseMessage {
 };
 
 struct StatusMessage {
+  std::int64_t stamp_ns = 0;             ///< header.stamp (dds.stamp_clock)
   std::int64_t source_timestamp_ns = 0;
-  ServiceStatus status;                  ///< status.t_ns = header.stamp
+  ServiceStatus status;                  ///< status.t_ns = monotonic_ns: the same instant on rilo's clock
   std::string state_name;
+};
+
+/// One geometry_msgs/TransformStamped: the pose of child_frame_id in frame_id.
+struct TransformMessage {
+  std::int64_t stamp_ns = 0;
+  std::string frame_id;                  ///< parent (world)
+  std::string child_frame_id;            ///< child (body)
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+};
+
+/// One tf2_msgs/TFMessage.
+struct TfMessage {
+  std::int64_t source_timestamp_ns = 0;
+  std::vector<TransformMessage> transforms;
 };
 
 }  // namespace rilo::dds

@@ -56,6 +56,11 @@ Publisher::Publisher(const Participant& participant, PublisherOptions options)
   odometry_writer_ = createWriter(participant_, odometry_topic_, TopicKind::kOdometry, names.odometry);
   pose_writer_ = createWriter(participant_, pose_topic_, TopicKind::kPose, names.pose);
   status_writer_ = createWriter(participant_, status_topic_, TopicKind::kStatus, names.status);
+  if (!names.tf.empty()) {
+    tf_topic_ = createTopic(participant_, tf2_msgs_msg_dds__TFMessage__desc, names.tf);
+    tf_writer_ = createWriter(participant_, tf_topic_, TopicKind::kTf, names.tf);
+  }
+  refreshStampOffset();
 
   // Strings are set once; the publish calls only write numbers.
   odometry_.header.frame_id = options_.frames.world.data();
@@ -65,6 +70,12 @@ Publisher::Publisher(const Participant& participant, PublisherOptions options)
   status_.state_name = state_name_.data();
   status_.last_fault = last_fault_.data();
   status_.reason = reason_.data();
+  transform_.header.frame_id = options_.frames.world.data();
+  transform_.child_frame_id = options_.frames.body.data();
+  tf_.transforms._buffer = &transform_;  // not owned (_release false): never freed by Cyclone
+  tf_.transforms._length = 1;
+  tf_.transforms._maximum = 1;
+  tf_.transforms._release = false;
 
   // Keyless topics have one instance. Registering it keeps Cyclone's instance
   // entry alive; otherwise a write with no reader holding the instance
@@ -77,42 +88,65 @@ Publisher::Publisher(const Participant& participant, PublisherOptions options)
               "topic '" + names.pose + "'");
   checkReturn(dds_register_instance(status_writer_.get(), &instance, &status_), "dds_register_instance",
               "topic '" + names.status + "'");
+  if (tf_writer_) {
+    checkReturn(dds_register_instance(tf_writer_.get(), &instance, &tf_), "dds_register_instance",
+                "topic '" + names.tf + "'");
+  }
 }
 
 Publisher::~Publisher() = default;
 
+void Publisher::refreshStampOffset() noexcept {
+  if (options_.stamp_clock == StampClock::kSystem) {
+    stamp_offset_ns_.store(systemMinusMonotonicNs(), std::memory_order_relaxed);
+  }
+}
+
 WriteStatus Publisher::publishOdometry(const NavigationState& state) noexcept {
   if (const WriteStatus s = checkState(state); !s.ok()) return s;
-  fillOdometry(state, odometry_);
-  return {dds_write_ts(odometry_writer_.get(), &odometry_, state.t_ns)};
+  const std::int64_t offset_ns = stampOffsetNs();
+  fillOdometry(state, odometry_, offset_ns);
+  return {dds_write_ts(odometry_writer_.get(), &odometry_, state.t_ns + offset_ns)};
 }
 
 WriteStatus Publisher::publishPose(const NavigationState& state) noexcept {
   if (const WriteStatus s = checkState(state); !s.ok()) return s;
-  fillPose(state, pose_);
-  return {dds_write_ts(pose_writer_.get(), &pose_, state.t_ns)};
+  const std::int64_t offset_ns = stampOffsetNs();
+  fillPose(state, pose_, offset_ns);
+  return {dds_write_ts(pose_writer_.get(), &pose_, state.t_ns + offset_ns)};
+}
+
+WriteStatus Publisher::publishTransform(const NavigationState& state) noexcept {
+  if (!tf_writer_) return {};
+  if (const WriteStatus s = checkState(state); !s.ok()) return s;
+  const std::int64_t offset_ns = stampOffsetNs();
+  fillTransform(state, transform_, offset_ns);
+  return {dds_write_ts(tf_writer_.get(), &tf_, state.t_ns + offset_ns)};
 }
 
 WriteStatus Publisher::publishStatus(const ServiceStatus& status) noexcept {
   if (status.t_ns < 0) return {DDS_RETCODE_BAD_PARAMETER, "negative t_ns"};
-  fillStatus(status, status_);
+  const std::int64_t offset_ns = stampOffsetNs();
+  fillStatus(status, status_, offset_ns);
   const char* name = trackingStateName(status.state);
   copyTruncated(name, std::strlen(name), state_name_);
   copyTruncated(status.last_fault.data(), status.last_fault.size(), last_fault_);
   copyTruncated(status.reason.data(), status.reason.size(), reason_);
-  return {dds_write_ts(status_writer_.get(), &status_, status.t_ns)};
+  return {dds_write_ts(status_writer_.get(), &status_, status.t_ns + offset_ns)};
 }
 
 dds_entity_t Publisher::writerOf(TopicKind kind) const noexcept {
   switch (kind) {
     case TopicKind::kOdometry: return odometry_writer_.get();
     case TopicKind::kPose: return pose_writer_.get();
+    case TopicKind::kTf: return tf_writer_.get();
     case TopicKind::kStatus: break;
   }
   return status_writer_.get();
 }
 
 std::uint32_t Publisher::matchedSubscribers(TopicKind kind) const {
+  if (writerOf(kind) == 0) return 0;  // no TF topic
   dds_publication_matched_status_t matched{};
   checkReturn(dds_get_publication_matched_status(writerOf(kind), &matched), "dds_get_publication_matched_status",
               "topic '" + options_.topics.of(kind) + "'");

@@ -1,5 +1,6 @@
 #pragma once
-// Writes rilo's three topics (topics.h, QoS in qos.h) from the service.
+// Writes rilo's topics (topics.h, QoS in qos.h) from the service: odometry,
+// pose, status, and TF (world -> body) unless its topic name is empty.
 //
 // Set-up (constructor) throws std::runtime_error naming the failing DDS call
 // and topic. The publish calls are for the real-time path: noexcept, no heap
@@ -10,16 +11,19 @@
 // Cyclone's own dds_write allocation behaviour is measured in
 // tests/dds/publish_allocation_test.cpp (see README.md).
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <string>
 
 #include "dds/entity.h"
 #include "dds/participant.h"
+#include "dds/stamp_clock.h"
 #include "dds/topics.h"
 #include "geometry_msgs.h"
 #include "nav_msgs.h"
 #include "rilo_msgs.h"
+#include "tf2_msgs.h"
 #include "runtime/navigation_state.h"
 #include "runtime/service_status.h"
 
@@ -28,6 +32,7 @@ namespace rilo::dds {
 struct PublisherOptions {
   TopicNames topics;
   FrameIds frames;
+  StampClock stamp_clock = StampClock::kSystem;  ///< the clock of every header stamp (stamp_clock.h)
 };
 
 /// Outcome of one publish call. `reason` is a static string when the sample
@@ -51,11 +56,23 @@ class Publisher {
   Publisher& operator=(Publisher&&) = delete;
   ~Publisher();
 
-  /// nav_msgs/Odometry of `state` (IMU rate). Source timestamp = header.stamp = state.t_ns.
+  /// nav_msgs/Odometry of `state` (IMU rate). Source timestamp = header.stamp
+  /// = state.t_ns + stampOffsetNs().
   [[nodiscard]] WriteStatus publishOdometry(const NavigationState& state) noexcept;
   /// geometry_msgs/PoseWithCovarianceStamped of `state` (smoother rate).
   [[nodiscard]] WriteStatus publishPose(const NavigationState& state) noexcept;
+  /// tf2_msgs/TFMessage with one transform world -> body (the odometry's
+  /// pose, same stamp). Without a TF topic: OK, nothing written.
+  [[nodiscard]] WriteStatus publishTransform(const NavigationState& state) noexcept;
   [[nodiscard]] WriteStatus publishStatus(const ServiceStatus& status) noexcept;
+
+  /// Re-reads system time minus CLOCK_MONOTONIC (stamp_clock.h; no-op with
+  /// StampClock::kMonotonic). Any thread; the publish calls pick the new
+  /// offset up at their next write.
+  void refreshStampOffset() noexcept;
+  /// What the publish calls add to t_ns for header stamps (0 when monotonic).
+  std::int64_t stampOffsetNs() const noexcept { return stamp_offset_ns_.load(std::memory_order_relaxed); }
+  bool publishesTf() const noexcept { return static_cast<bool>(tf_writer_); }
 
   /// Readers currently matched with the writer of `kind` (throws on DDS error).
   std::uint32_t matchedSubscribers(TopicKind kind) const;
@@ -76,16 +93,21 @@ class Publisher {
   PublisherOptions options_;
   std::string status_frame_id_;  // empty: status has no frame
   // Topics before writers: members are destroyed in reverse order.
+  std::atomic<std::int64_t> stamp_offset_ns_{0};
   Entity odometry_topic_;
   Entity pose_topic_;
   Entity status_topic_;
+  Entity tf_topic_;  // empty without a TF topic name
   Entity odometry_writer_;
   Entity pose_writer_;
   Entity status_writer_;
+  Entity tf_writer_;
   // Pre-allocated samples; string members point into options_ / the buffers below.
   nav_msgs_msg_dds__Odometry_ odometry_{};
   geometry_msgs_msg_dds__PoseWithCovarianceStamped_ pose_{};
   rilo_msg_dds__Status_ status_{};
+  geometry_msgs_msg_dds__TransformStamped_ transform_{};  // the TF sample's one element
+  tf2_msgs_msg_dds__TFMessage_ tf_{};
   std::array<char, 16> state_name_{};
   std::array<char, 128> last_fault_{};
   std::array<char, 160> reason_{};

@@ -32,6 +32,10 @@ QosPtr writerQos(TopicKind kind) {
       dds_qset_durability(qos.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
       dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
       break;
+    case TopicKind::kTf:
+      dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kTfHistoryDepth);
+      break;
   }
   return qos;
 }
@@ -55,6 +59,10 @@ QosPtr readerQos(TopicKind kind, std::int32_t odometry_depth) {
       dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
       dds_qset_durability(qos.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
       dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kStatusReaderDepth);
+      break;
+    case TopicKind::kTf:
+      dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kTfHistoryDepth);
       break;
   }
   return qos;

@@ -5,6 +5,7 @@
 //   odometry  best-effort, volatile, keep-last 1                best-effort, keep-last `depth` (default 256)
 //   pose      reliable, volatile, keep-last 10                  reliable, keep-last 10
 //   status    reliable, transient-local, keep-last 1            reliable, transient-local, keep-last 64
+//   tf        reliable, volatile, keep-last 100                 reliable, keep-last 100
 //
 // Odometry is sensor data at IMU rate: a late sample is worthless, so it is
 // never retransmitted and never blocks (ROS 2 subscribers need the
@@ -17,6 +18,9 @@
 // loaded machine, a fast replay whose 30 s ranging blackout lasts a few
 // status periods) still sees every state the service went through, not only
 // the last one (a sample lost on the wire is repaired only with the newest).
+// TF is what tf2_ros's TransformBroadcaster and TransformListener use
+// (reliable, volatile, depth 100), so rviz2 and every tf2 listener match; its
+// writer does not block either (max_blocking_time 0).
 #include <dds/dds.h>
 
 #include <cstdint>
@@ -34,6 +38,7 @@ using QosPtr = std::unique_ptr<dds_qos_t, QosDeleter>;
 inline constexpr std::int32_t kPoseHistoryDepth = 10;
 inline constexpr std::int32_t kDefaultOdometryReaderDepth = 256;
 inline constexpr std::int32_t kStatusReaderDepth = 64;
+inline constexpr std::int32_t kTfHistoryDepth = 100;  ///< tf2_ros's DynamicBroadcasterQoS / DynamicListenerQoS
 
 QosPtr writerQos(TopicKind kind);
 /// `odometry_depth` is the keep-last depth of an odometry reader (> 0).

@@ -1,6 +1,7 @@
 #include "dds/subscriber.h"
 
 #include <array>
+#include <stdexcept>
 #include <utility>
 
 #include "dds/conversions.h"
@@ -9,6 +10,7 @@
 #include "geometry_msgs.h"
 #include "nav_msgs.h"
 #include "rilo_msgs.h"
+#include "tf2_msgs.h"
 
 namespace rilo::dds {
 namespace {
@@ -78,6 +80,10 @@ Subscriber::Subscriber(const Participant& participant, SubscriberOptions options
   if (options_.odometry) open(odometry_, TopicKind::kOdometry, nav_msgs_msg_dds__Odometry__desc);
   if (options_.pose) open(pose_, TopicKind::kPose, geometry_msgs_msg_dds__PoseWithCovarianceStamped__desc);
   if (options_.status) open(status_, TopicKind::kStatus, rilo_msg_dds__Status__desc);
+  if (options_.tf) {
+    if (options_.topics.tf.empty()) throw std::invalid_argument("Subscriber: tf requested but the TF topic name is empty");
+    open(tf_, TopicKind::kTf, tf2_msgs_msg_dds__TFMessage__desc);
+  }
 }
 
 Subscriber::~Subscriber() {
@@ -110,10 +116,17 @@ std::size_t Subscriber::takeStatus(std::vector<StatusMessage>& out) {
                                         [](const rilo_msg_dds__Status_& m) { return toStatusMessage(m); });
 }
 
+std::size_t Subscriber::takeTf(std::vector<TfMessage>& out) {
+  if (!tf_.reader) return 0;
+  return takeAll<tf2_msgs_msg_dds__TFMessage_>(tf_.reader.get(), options_.topics.tf, out,
+                                               [](const tf2_msgs_msg_dds__TFMessage_& m) { return toTfMessage(m); });
+}
+
 const Subscriber::Endpoint& Subscriber::endpointOf(TopicKind kind) const noexcept {
   switch (kind) {
     case TopicKind::kOdometry: return odometry_;
     case TopicKind::kPose: return pose_;
+    case TopicKind::kTf: return tf_;
     case TopicKind::kStatus: break;
   }
   return status_;

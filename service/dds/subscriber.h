@@ -1,6 +1,6 @@
 #pragma once
 // Reader side of rilo's topics (`rilo listen`, tests): subscribes to any of
-// the three topics with QoS compatible with the service's writers (qos.h),
+// the topics with QoS compatible with the service's writers (qos.h),
 // waits on a waitset for data and takes samples as C++ values (messages.h).
 // Not for the real-time path: taking allocates. Set-up and take errors throw
 // std::runtime_error naming the DDS call and topic.
@@ -22,6 +22,7 @@ struct SubscriberOptions {
   bool odometry = true;  ///< subscribe to the odometry topic
   bool pose = true;
   bool status = true;
+  bool tf = false;       ///< subscribe to TF (topics.tf), e.g. to check it against the odometry
   std::int32_t odometry_depth = kDefaultOdometryReaderDepth;  ///< keep-last depth of the odometry reader
 };
 
@@ -41,6 +42,7 @@ class Subscriber {
   std::size_t takeOdometry(std::vector<OdometryMessage>& out);
   std::size_t takePose(std::vector<PoseMessage>& out);
   std::size_t takeStatus(std::vector<StatusMessage>& out);
+  std::size_t takeTf(std::vector<TfMessage>& out);
 
   bool subscribed(TopicKind kind) const noexcept;
   /// Writers currently matched with the reader of `kind` (0 when not subscribed).
@@ -63,6 +65,7 @@ class Subscriber {
   Endpoint odometry_;
   Endpoint pose_;
   Endpoint status_;
+  Endpoint tf_;
   Entity waitset_;  // declared last: deleted first
 };
 

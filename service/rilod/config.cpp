@@ -410,6 +410,11 @@ std::string readTopicName(const ConfigField& f) {
   return name;
 }
 
+/// A topic name, or "" for a topic not published (TF).
+std::string readOptionalTopicName(const ConfigField& f) {
+  return f.string(/*allow_empty=*/true).empty() ? std::string() : readTopicName(f);
+}
+
 std::string readFrameId(const ConfigField& f) {
   const std::string id = f.string();
   if (std::any_of(id.begin(), id.end(), [](char c) { return c == ' ' || c == '\t' || c == '\n'; })) {
@@ -419,8 +424,11 @@ std::string readFrameId(const ConfigField& f) {
 }
 
 DdsConfig readDds(const ConfigField& field) {
-  const ConfigMap m = field.map({"domain", "loopback_only", "cyclone_config_file", "topics", "frames"});
+  const ConfigMap m = field.map({"domain", "loopback_only", "cyclone_config_file", "stamp_clock", "topics", "frames"});
   DdsConfig c;
+  m.read("stamp_clock", c.stamp_clock, [](const ConfigField& f) {
+    return f.choice<dds::StampClock>({{"system", dds::StampClock::kSystem}, {"monotonic", dds::StampClock::kMonotonic}});
+  });
   m.read("domain", c.domain_id, [](const ConfigField& f) { return f.integerAs<std::uint32_t>(0, 232); });
   m.read("loopback_only", c.loopback_only, [](const ConfigField& f) { return f.boolean(); });
   if (auto f = m.get("cyclone_config_file")) {
@@ -428,13 +436,16 @@ DdsConfig readDds(const ConfigField& field) {
     if (c.loopback_only) f->fail("give either loopback_only: true or cyclone_config_file, not both");
   }
   if (auto f = m.get("topics")) {
-    const ConfigMap t = f->map({"odometry", "pose", "status"});
+    const ConfigMap t = f->map({"odometry", "pose", "status", "tf"});
     t.read("odometry", c.topics.odometry, readTopicName);
     t.read("pose", c.topics.pose, readTopicName);
     t.read("status", c.topics.status, readTopicName);
+    t.read("tf", c.topics.tf, readOptionalTopicName);
+    const std::string& tf = c.topics.tf;
     if (c.topics.odometry == c.topics.pose || c.topics.odometry == c.topics.status ||
-        c.topics.pose == c.topics.status) {
-      f->fail("the odometry, pose and status topics must have different names");
+        c.topics.pose == c.topics.status ||
+        (!tf.empty() && (tf == c.topics.odometry || tf == c.topics.pose || tf == c.topics.status))) {
+      f->fail("the odometry, pose, status and tf topics must have different names");
     }
   }
   if (auto f = m.get("frames")) {

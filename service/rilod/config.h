@@ -24,6 +24,7 @@
 #include <string_view>
 #include <vector>
 
+#include "dds/stamp_clock.h"
 #include "dds/topics.h"
 #include "estimation/assembly/range_imu_graph.h"
 #include "estimation/assembly/range_imu_graph_stream.h"
@@ -192,6 +193,9 @@ struct DdsConfig {
   /// Cyclone DDS XML configuration file (absolute); empty = Cyclone's defaults
   /// (CYCLONEDDS_URI). Exclusive with loopback_only.
   std::filesystem::path cyclone_config_file;
+  /// Clock of the published stamps: system time (ROS 2) or rilo's
+  /// CLOCK_MONOTONIC (dds/stamp_clock.h).
+  dds::StampClock stamp_clock = dds::StampClock::kSystem;
   dds::TopicNames topics;
   dds::FrameIds frames;
 };

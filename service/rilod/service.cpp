@@ -251,6 +251,9 @@ int Service::run(const std::atomic<bool>& stop) {
   while (!stop.load() && !estimator_done_.load()) {
     const std::int64_t now = hal::monotonicNowNs();
     status_beat_.beat(now);
+    // Follow the wall clock (NTP slew or step) for the published stamps; the
+    // samples' clock stays CLOCK_MONOTONIC (dds/stamp_clock.h).
+    publisher_.refreshStampOffset();
     if (now >= next_status_ns) {
       publishStatus(now);
       next_status_ns = now + period_ns;
@@ -581,6 +584,7 @@ void Service::publisherLoop() {
         // ahead of this lane, the output stays at the smoothed time, and
         // publishing it once per waiting sample repeated that stamp.
         if (out.valid && out.t_ns == item.sample.t_ns && publisher_.publishOdometry(out).ok()) {
+          (void)publisher_.publishTransform(out);  // the same pose and stamp as the odometry
           counters_.published_odometry.add();
           atomicMax(odometry_latency_max_ns_, hal::monotonicNowNs() - item.arrival_ns);
         }

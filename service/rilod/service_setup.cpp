@@ -15,6 +15,7 @@ ServiceOptions serviceOptions(const ServiceConfig& cfg) {
   if (!cfg.dds.cyclone_config_file.empty()) so.participant.config_xml = "file://" + cfg.dds.cyclone_config_file.string();
   so.publisher.topics = cfg.dds.topics;
   so.publisher.frames = cfg.dds.frames;
+  so.publisher.stamp_clock = cfg.dds.stamp_clock;
   so.queue_capacity = cfg.realtime.queue_capacity;
   // The odometry's body rate is a gyro sample less the bias: the IMU model's
   // white noise, and the bias's start prior (a bound: the smoother narrows it).

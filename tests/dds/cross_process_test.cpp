@@ -55,6 +55,8 @@ int runChildPublisher(std::uint32_t domain_id) {
     Participant participant(testing::loopbackOptions(domain_id));
     PublisherOptions po;
     po.topics = namesFromEnvironment();
+    po.topics.tf.clear();
+    po.stamp_clock = StampClock::kMonotonic;  // stamps compared exactly with the states
     Publisher pub(participant, po);
     for (TopicKind kind : {TopicKind::kOdometry, TopicKind::kPose, TopicKind::kStatus}) {
       if (!pub.waitForSubscribers(kind, 1, testing::kMatchTimeout)) {

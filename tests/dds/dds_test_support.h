@@ -37,6 +37,7 @@ inline TopicNames uniqueTopicNames(const std::string& test_name) {
   names.odometry += suffix;
   names.pose += suffix;
   names.status += suffix;
+  names.tf += suffix;
   return names;
 }
 

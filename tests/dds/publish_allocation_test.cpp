@@ -141,11 +141,13 @@ TEST_F(DdsPublishAllocation, OurFillAndChecksNeverAllocate) {
   nav_msgs_msg_dds__Odometry_ odometry{};
   geometry_msgs_msg_dds__PoseWithCovarianceStamped_ pose{};
   rilo_msg_dds__Status_ status_msg{};
+  geometry_msgs_msg_dds__TransformStamped_ transform{};
   AllocationWindow w;
   for (int i = 0; i < kWrites; ++i) {
     state.t_ns += kImuPeriodNs;
     fillOdometry(state, odometry);
     fillPose(state, pose);
+    fillTransform(state, transform, 1'000);
     status.t_ns = state.t_ns;
     fillStatus(status, status_msg);
   }
@@ -176,7 +178,7 @@ TEST_F(DdsPublishAllocation, RejectedSamplesNeverAllocate) {
   EXPECT_EQ(c.reallocs, 0u);
 }
 
-enum class Writes { kOdometry, kPose, kStatus };
+enum class Writes { kOdometry, kPose, kTransform, kStatus };
 
 /// Publishes kWarmUp then kWrites (counted) samples of one topic.
 Counts countWrites(Publisher& pub, Writes what, std::mt19937& rng) {
@@ -188,6 +190,7 @@ Counts countWrites(Publisher& pub, Writes what, std::mt19937& rng) {
     switch (what) {
       case Writes::kOdometry: return pub.publishOdometry(state).ok();
       case Writes::kPose: return pub.publishPose(state).ok();
+      case Writes::kTransform: return pub.publishTransform(state).ok();
       case Writes::kStatus: break;
     }
     return pub.publishStatus(status).ok();
@@ -229,12 +232,14 @@ TEST_F(DdsPublishAllocation, AllTopicsWithInProcessSubscriber) {
   Participant sub_participant(testing::loopbackOptions());
   PublisherOptions po;
   po.topics = testing::uniqueTopicNames("alloc_sub");
+  po.stamp_clock = StampClock::kMonotonic;  // the stamp is checked below
   Publisher pub(pub_participant, po);
   SubscriberOptions so;
   so.topics = po.topics;
+  so.tf = true;
   so.odometry_depth = 1;  // the reader keeps one sample: steady state from the first write
   Subscriber sub(sub_participant, so);
-  for (TopicKind kind : {TopicKind::kOdometry, TopicKind::kPose, TopicKind::kStatus}) {
+  for (TopicKind kind : {TopicKind::kOdometry, TopicKind::kPose, TopicKind::kTf, TopicKind::kStatus}) {
     ASSERT_TRUE(pub.waitForSubscribers(kind, 1, testing::kMatchTimeout));
   }
   std::mt19937 rng(34);
@@ -244,6 +249,9 @@ TEST_F(DdsPublishAllocation, AllTopicsWithInProcessSubscriber) {
   const Counts pose = countWrites(pub, Writes::kPose, rng);
   EXPECT_EQ(pose.news, 0u);
   report("pose writes, in-process subscriber", pose);
+  const Counts transform = countWrites(pub, Writes::kTransform, rng);
+  EXPECT_EQ(transform.news, 0u);
+  report("TF writes, in-process subscriber", transform);
   const Counts status = countWrites(pub, Writes::kStatus, rng);
   EXPECT_EQ(status.news, 0u);
   report("status writes, in-process subscriber", status);

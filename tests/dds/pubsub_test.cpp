@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdlib>
+#include <ctime>
+#include <stdexcept>
 #include <random>
 #include <string>
 #include <vector>
@@ -52,9 +55,12 @@ class DdsPubSub : public ::testing::Test {
         pub_participant_(testing::loopbackOptions()),
         sub_participant_(testing::loopbackOptions()) {}
 
+  /// Stamps on the samples' own clock, so they compare exactly (the system
+  /// clock's offset has its own test below).
   PublisherOptions publisherOptions() const {
     PublisherOptions po;
     po.topics = names_;
+    po.stamp_clock = StampClock::kMonotonic;
     return po;
   }
   /// A reader of the status topic alone.
@@ -72,8 +78,7 @@ class DdsPubSub : public ::testing::Test {
 };
 
 TEST_F(DdsPubSub, OdometryArrivesWithExactFields) {
-  PublisherOptions po;
-  po.topics = names_;
+  PublisherOptions po = publisherOptions();
   Publisher pub(pub_participant_, po);
   SubscriberOptions so;
   so.topics = names_;
@@ -98,8 +103,7 @@ TEST_F(DdsPubSub, OdometryArrivesWithExactFields) {
 }
 
 TEST_F(DdsPubSub, CustomFramesAndTopicNames) {
-  PublisherOptions po;
-  po.topics = names_;
+  PublisherOptions po = publisherOptions();
   po.topics.odometry = "rt/robot7/odom_";
   po.topics.odometry += std::to_string(::getpid());
   po.frames.world = "odom";
@@ -123,8 +127,7 @@ TEST_F(DdsPubSub, CustomFramesAndTopicNames) {
 }
 
 TEST_F(DdsPubSub, PoseArrivesWithExactFields) {
-  PublisherOptions po;
-  po.topics = names_;
+  PublisherOptions po = publisherOptions();
   Publisher pub(pub_participant_, po);
   SubscriberOptions so;
   so.topics = names_;
@@ -146,8 +149,7 @@ TEST_F(DdsPubSub, PoseArrivesWithExactFields) {
 }
 
 TEST_F(DdsPubSub, StatusArrivesWithExactFields) {
-  PublisherOptions po;
-  po.topics = names_;
+  PublisherOptions po = publisherOptions();
   Publisher pub(pub_participant_, po);
   SubscriberOptions so;
   so.topics = names_;
@@ -242,8 +244,7 @@ TEST_F(DdsPubSub, StatusesPublishedBetweenTakesAllArriveInOrder) {
 
 // Transient-local: a listener that joins after the last status still gets it.
 TEST_F(DdsPubSub, LateStatusSubscriberGetsTheLastStatus) {
-  PublisherOptions po;
-  po.topics = names_;
+  PublisherOptions po = publisherOptions();
   Publisher pub(pub_participant_, po);
   ServiceStatus first = testing::sampleStatus(1'000);
   first.state = TrackingState::kInitializing;
@@ -270,8 +271,7 @@ TEST_F(DdsPubSub, WaitForDataTimesOutWithoutPublisher) {
 }
 
 TEST_F(DdsPubSub, InvalidStatesAreRejectedWithoutWriting) {
-  PublisherOptions po;
-  po.topics = names_;
+  PublisherOptions po = publisherOptions();
   Publisher pub(pub_participant_, po);
   SubscriberOptions so;
   so.topics = names_;
@@ -295,6 +295,112 @@ TEST_F(DdsPubSub, InvalidStatesAreRejectedWithoutWriting) {
   EXPECT_STREQ(ws.text(), "non-finite navigation state");
   EXPECT_FALSE(sub.waitForData(100ms));
   EXPECT_STREQ(WriteStatus{}.text(), dds_strretcode(DDS_RETCODE_OK));
+}
+
+// ROS 2 stamps are system time: the publisher adds its tracked offset to the
+// samples' CLOCK_MONOTONIC t_ns; the status keeps rilo's time too.
+TEST_F(DdsPubSub, SystemStampsAreTheSampleTimePlusTheTrackedOffset) {
+  PublisherOptions po = publisherOptions();
+  po.stamp_clock = StampClock::kSystem;
+  Publisher pub(pub_participant_, po);
+  SubscriberOptions so;
+  so.topics = names_;
+  so.tf = true;
+  Subscriber sub(sub_participant_, so);
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kOdometry, 1, kMatchTimeout));
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kTf, 1, kMatchTimeout));
+  timespec mono{}, real{};
+  clock_gettime(CLOCK_MONOTONIC, &mono);
+  std::mt19937 rng(25);
+  const NavigationState s = testing::randomState(rng, mono.tv_sec * 1'000'000'000LL + mono.tv_nsec);
+  const std::int64_t offset_ns = pub.stampOffsetNs();
+  ASSERT_TRUE(pub.publishOdometry(s).ok());
+  ASSERT_TRUE(pub.publishPose(s).ok());
+  ASSERT_TRUE(pub.publishTransform(s).ok());
+  ServiceStatus status = testing::sampleStatus(s.t_ns);
+  ASSERT_TRUE(pub.publishStatus(status).ok());
+  const auto odometry = receive<OdometryMessage>(sub, 1, [&](auto& out) { sub.takeOdometry(out); });
+  const auto pose = receive<PoseMessage>(sub, 1, [&](auto& out) { sub.takePose(out); });
+  const auto tf = receive<TfMessage>(sub, 1, [&](auto& out) { sub.takeTf(out); });
+  const auto got_status = receive<StatusMessage>(sub, 1, [&](auto& out) { sub.takeStatus(out); });
+  clock_gettime(CLOCK_REALTIME, &real);
+  ASSERT_EQ(odometry.size(), 1u);
+  ASSERT_EQ(pose.size(), 1u);
+  ASSERT_EQ(tf.size(), 1u);
+  ASSERT_EQ(tf[0].transforms.size(), 1u);
+  ASSERT_EQ(got_status.size(), 1u);
+  EXPECT_EQ(odometry[0].stamp_ns, s.t_ns + offset_ns);
+  EXPECT_EQ(odometry[0].source_timestamp_ns, s.t_ns + offset_ns);
+  EXPECT_EQ(pose[0].stamp_ns, s.t_ns + offset_ns);
+  EXPECT_EQ(tf[0].transforms[0].stamp_ns, s.t_ns + offset_ns);
+  EXPECT_EQ(got_status[0].stamp_ns, s.t_ns + offset_ns);
+  EXPECT_EQ(got_status[0].status.t_ns, s.t_ns) << "monotonic_ns: the same instant on rilo's clock";
+  // The stamp is the wall clock of the moment the state was taken (CLOCK_MONOTONIC
+  // and CLOCK_REALTIME are decades apart on any machine; 60 s allows a loaded one).
+  const std::int64_t real_ns = real.tv_sec * 1'000'000'000LL + real.tv_nsec;
+  EXPECT_LT(std::llabs(real_ns - odometry[0].stamp_ns), 60'000'000'000LL);
+}
+
+TEST_F(DdsPubSub, MonotonicStampsAddNothing) {
+  Publisher pub(pub_participant_, publisherOptions());
+  pub.refreshStampOffset();
+  EXPECT_EQ(pub.stampOffsetNs(), 0);
+}
+
+// TF (rviz2 needs it): the odometry's pose as map -> base_link, same stamp.
+TEST_F(DdsPubSub, TfCarriesTheOdometryPoseUnderTheConfiguredFrames) {
+  PublisherOptions po = publisherOptions();
+  po.frames.world = "world_" + std::to_string(::getpid());
+  po.frames.body = "tag_link";
+  Publisher pub(pub_participant_, po);
+  EXPECT_TRUE(pub.publishesTf());
+  SubscriberOptions so;
+  so.topics = names_;
+  so.pose = false;
+  so.status = false;
+  so.tf = true;
+  Subscriber sub(sub_participant_, so);
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kTf, 1, kMatchTimeout));
+  ASSERT_TRUE(sub.waitForPublishers(TopicKind::kTf, 1, kMatchTimeout));
+  std::mt19937 rng(26);
+  std::vector<NavigationState> sent;
+  for (int i = 0; i < 10; ++i) {
+    sent.push_back(testing::randomState(rng, 20'000'000'000 + i * 5'000'000));
+    ASSERT_TRUE(pub.publishOdometry(sent.back()).ok());
+    const WriteStatus ws = pub.publishTransform(sent.back());
+    ASSERT_TRUE(ws.ok()) << ws.text();
+  }
+  const auto odometry = receive<OdometryMessage>(sub, sent.size(), [&](auto& out) { sub.takeOdometry(out); });
+  const auto tf = receive<TfMessage>(sub, sent.size(), [&](auto& out) { sub.takeTf(out); });
+  ASSERT_EQ(odometry.size(), sent.size());
+  ASSERT_EQ(tf.size(), sent.size());
+  for (std::size_t i = 0; i < sent.size(); ++i) {
+    SCOPED_TRACE(i);
+    ASSERT_EQ(tf[i].transforms.size(), 1u);
+    const TransformMessage& t = tf[i].transforms[0];
+    EXPECT_EQ(t.stamp_ns, odometry[i].stamp_ns);
+    EXPECT_EQ(tf[i].source_timestamp_ns, odometry[i].source_timestamp_ns);
+    EXPECT_EQ(t.frame_id, odometry[i].frame_id);
+    EXPECT_EQ(t.child_frame_id, odometry[i].child_frame_id);
+    EXPECT_EQ(t.frame_id, po.frames.world);
+    EXPECT_EQ(t.child_frame_id, "tag_link");
+    EXPECT_EQ(t.translation, odometry[i].p_w_b);
+    EXPECT_EQ(t.rotation.coeffs(), odometry[i].q_w_b.coeffs());
+  }
+}
+
+TEST_F(DdsPubSub, AnEmptyTfTopicNamePublishesNoTf) {
+  PublisherOptions po = publisherOptions();
+  po.topics.tf.clear();
+  Publisher pub(pub_participant_, po);
+  EXPECT_FALSE(pub.publishesTf());
+  EXPECT_EQ(pub.matchedSubscribers(TopicKind::kTf), 0u);
+  std::mt19937 rng(27);
+  EXPECT_TRUE(pub.publishTransform(testing::randomState(rng, 1'000)).ok());
+  SubscriberOptions so;
+  so.topics = po.topics;
+  so.tf = true;
+  EXPECT_THROW(Subscriber(sub_participant_, so), std::invalid_argument);
 }
 
 }  // namespace

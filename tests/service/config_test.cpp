@@ -136,6 +136,8 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
             std::numeric_limits<double>::infinity());
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_EQ(c.dds.topics.odometry, "rt/rilo/odometry");
+  EXPECT_EQ(c.dds.topics.tf, "rt/tf");
+  EXPECT_EQ(c.dds.stamp_clock, dds::StampClock::kSystem);
   EXPECT_EQ(c.dds.frames.world, "map");
   EXPECT_FALSE(c.recording.enabled);
   EXPECT_EQ(c.recording.flush_interval_ns, 200'000'000);
@@ -178,7 +180,8 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "dds:\n"
       "  domain: 42\n"
       "  cyclone_config_file: cyclone.xml\n"
-      "  topics: {odometry: rt/a/odom, pose: rt/a/pose, status: rt/a/status}\n"
+      "  stamp_clock: monotonic\n"
+      "  topics: {odometry: rt/a/odom, pose: rt/a/pose, status: rt/a/status, tf: ''}\n"
       "  frames: {world: odom_world, body: imu_link}\n"
       "recording: {enabled: true, directory: recs, flush_interval_s: 0.05, sync: true}\n"
       "realtime:\n"
@@ -268,6 +271,8 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_EQ(c.dds.topics.odometry, "rt/a/odom");
   EXPECT_EQ(c.dds.topics.pose, "rt/a/pose");
   EXPECT_EQ(c.dds.topics.status, "rt/a/status");
+  EXPECT_EQ(c.dds.topics.tf, "") << "no TF";
+  EXPECT_EQ(c.dds.stamp_clock, dds::StampClock::kMonotonic);
   EXPECT_EQ(c.dds.frames.world, "odom_world");
   EXPECT_EQ(c.dds.frames.body, "imu_link");
 
@@ -848,6 +853,10 @@ std::vector<BadCase> badCases() {
       {"frame_with_space", valid("dds:\n  frames: {world: my map}\n"), "dds.frames.world", "without whitespace", 11},
       {"same_frames", valid("dds:\n  frames: {world: a, body: a}\n"), "dds.frames", "must differ", 11},
       {"empty_topic", valid("dds:\n  topics: {status: ''}\n"), "dds.topics.status", "expected a non-empty string", 11},
+      {"tf_same_as_odometry", valid("dds:\n  topics: {odometry: rt/tf}\n"), "dds.topics", "must have different names", 11},
+      {"tf_with_space", valid("dds:\n  topics: {tf: rt/t f}\n"), "dds.topics.tf", "expected a DDS topic name", 11},
+      {"stamp_clock_unknown", valid("dds:\n  stamp_clock: wall\n"), "dds.stamp_clock",
+       "expected one of system, monotonic, got 'wall'", 11},
       // recording, realtime, status, watchdog
       {"flush_interval_zero", valid("recording:\n  flush_interval_s: 0\n"), "recording.flush_interval_s",
        "[0.001, 60]", 11},

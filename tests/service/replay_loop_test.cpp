@@ -58,7 +58,7 @@ TEST(ReplayLoop, ServiceTracksAgainAfterEachSeamAndKeepsRunning) {
           "\n    pace: as_fast_as_possible\n    loop: true\n    shift_to_now: false\n"
           "anchors:\n  file: " + rec.string() + "/anchors.csv\n"
           "estimator:\n  smoother: d-isam2\n  range:\n    lever_arm_m: [0.06, 0.0, 0.10]\n"
-          "dds:\n  domain: " + std::to_string(testing::testDomain()) + "\n  loopback_only: true\n"
+          "dds:\n  domain: " + std::to_string(testing::testDomain()) + "\n  loopback_only: true\n  stamp_clock: monotonic\n"
           "realtime:\n  lock_memory: false\n  queue_capacity: 1024\n"
           "status:\n  period_s: 0.02\n",
       dir / "rilod.yaml");

@@ -35,7 +35,7 @@ std::string config(const std::filesystem::path& recording, const std::string& fa
          "\n    pace: as_fast_as_possible\n    shift_to_now: false\n    faults:\n" + faults +
          "anchors:\n  file: " + rec + "/anchors.csv\n" +
          "estimator:\n  smoother: d-isam2\n  range:\n    lever_arm_m: [0.06, 0.0, 0.10]\n" +
-         "dds:\n  domain: " + std::to_string(testing::testDomain()) + "\n  loopback_only: true\n" +
+         "dds:\n  domain: " + std::to_string(testing::testDomain()) + "\n  loopback_only: true\n  stamp_clock: monotonic\n" +
          "realtime:\n  lock_memory: false\n  queue_capacity: 1024\n" +
          "status:\n  period_s: 0.05\n  imu_timeout_s: 0.1\n  range_timeout_s: 2.0\n";
 }
@@ -100,7 +100,7 @@ void expectOdometryClean(const RilodOutput& out) {
 
 TEST(RilodFaults, RangingBlackoutDegradesWhileOdometryContinuesThenRecovers) {
   testing::TempDir dir("rilod-blackout");
-  // 60 s of the default office walk (rilo sim --seed 1 --minutes 1): longer
+  // 60 s of the default office walk (rilo sim --seed 1 --seconds 60): longer
   // than the committed demo, so that tracking has 15 s after the blackout.
   sim::OfficeScenarioParams params;
   params.seed = 1;

@@ -130,7 +130,7 @@ int main(int argc, char** argv) {
         << "anchors:\n  file: " << recording << "/anchors.csv\n"
         << "estimator:\n  smoother: d-isam2\n  range:\n    lever_arm_m: [" << lever.x() << ", " << lever.y() << ", "
         << lever.z() << "]\n"
-        << "dds:\n  domain: " << domain << "\n  loopback_only: true\n";
+        << "dds:\n  domain: " << domain << "\n  loopback_only: true\n  stamp_clock: monotonic\n";
     if (no_realtime) {
       out << "realtime:\n  lock_memory: false\n  threads:\n    replay_source: {priority: 0}\n    publisher: {priority: 0}\n";
     }

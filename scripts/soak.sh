@@ -19,14 +19,14 @@ out="${OUT:-/tmp/rilo-soak}"
 mkdir -p "$out"
 if [[ -z "$rec" ]]; then
   rec="$out/office-10min"
-  [[ -d "$rec" ]] || "$build/bin/rilo" sim "$rec" --seed 7 --minutes 10 >/dev/null
+  [[ -d "$rec" ]] || "$build/bin/rilo" sim "$rec" --seed 7 --seconds 600 >/dev/null
 fi
 rec="$(cd "$rec" && pwd)"
 sed -e "s|path: ../tests/data/office-demo |path: $rec |" -e "s|speed: 1.0 |speed: $speed |" \
     -e "s|loop: false |loop: true  |" -e "s|file: ../tests/data/office-demo/anchors.csv|file: $rec/anchors.csv|" \
     config/rilod.yaml >"$out/soak.yaml"
 wall_s=$(awk -v m="$minutes" -v s="$speed" 'BEGIN { printf "%d", m * 60 / s + 1 }')
-"$build/bin/rilod" --config "$out/soak.yaml" --duration "$wall_s" >"$out/rilod.log" 2>&1 &
+"$build/bin/rilod" --config "$out/soak.yaml" --seconds "$wall_s" >"$out/rilod.log" 2>&1 &
 pid=$!
 echo "minute rss_kb p99_ms max_ms overflows"
 first=""

@@ -114,12 +114,12 @@ void makeLabelsUnique(std::vector<ReportRecording>& recordings) {
   }
 }
 
-std::filesystem::path simulateReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir,
+std::filesystem::path simulateReportRecording(std::uint64_t seed, double seconds, const std::filesystem::path& dir,
                                               sim::OfficePlanKind plan) {
   // The defaults of `rilo sim` (service/apps/rilo/sim_command.h, SimOptions).
   sim::OfficeScenarioParams p;
   p.seed = seed;
-  p.duration_s = minutes * 60.0;
+  p.duration_s = seconds;
   p.range_rate_hz = 40.0;
   p.anchors.count = 8;
   p.channel.nlos_severity = 1.0;
@@ -137,7 +137,7 @@ std::filesystem::path simulateReportRecording(std::uint64_t seed, double minutes
                 "rilo report: %s plan, seed %llu, %d anchors, %.1f min walk, ranging %.1f Hz (%d per "
                 "cycle), packet loss %.2f, NLOS severity %.2f",
                 plan == sim::OfficePlanKind::kHall ? "hall" : plan == sim::OfficePlanKind::kRandom ? "random office" : "default office",
-                static_cast<unsigned long long>(seed), p.anchors.count, minutes, p.range_rate_hz, p.ranges_per_cycle,
+                static_cast<unsigned long long>(seed), p.anchors.count, seconds / 60.0, p.range_rate_hz, p.ranges_per_cycle,
                 p.packet_loss, p.channel.nlos_severity);
   ro.description = description;
   ro.truth_rate_hz = 200.0;

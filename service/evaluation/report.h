@@ -59,11 +59,11 @@ ReportRecording loadReportRecording(const std::filesystem::path& dir);
 /// recordings in folders of the same name).
 void makeLabelsUnique(std::vector<ReportRecording>& recordings);
 
-/// Simulates an office session exactly as `rilo sim DIR --seed SEED --minutes
-/// MINUTES --plan PLAN` does with its other options at their defaults (same
+/// Simulates an office session exactly as `rilo sim DIR --seed SEED --seconds
+/// SECONDS --plan PLAN` does with its other options at their defaults (same
 /// library call, sim::writeOfficeRecording) and writes it into `dir`,
 /// replacing a recording already there. Returns the folder.
-std::filesystem::path simulateReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir,
+std::filesystem::path simulateReportRecording(std::uint64_t seed, double seconds, const std::filesystem::path& dir,
                                               sim::OfficePlanKind plan = sim::OfficePlanKind::kDefault);
 
 struct ReportOptions {

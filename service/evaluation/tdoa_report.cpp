@@ -128,13 +128,13 @@ TdoaReportResults runTdoaReport(const std::vector<ReportRecording>& recordings, 
   return results;
 }
 
-std::filesystem::path simulateTdoaReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir,
+std::filesystem::path simulateTdoaReportRecording(std::uint64_t seed, double seconds, const std::filesystem::path& dir,
                                                   sim::OfficePlanKind plan) {
   // The defaults of `rilo sim` (service/apps/rilo/sim_command.h, SimOptions)
   // with --tdoa --keep-twr --ultrasonic.
   sim::OfficeScenarioParams p;
   p.seed = seed;
-  p.duration_s = minutes * 60.0;
+  p.duration_s = seconds;
   p.range_rate_hz = 40.0;
   p.anchors.count = 8;
   p.channel.nlos_severity = 1.0;
@@ -155,7 +155,7 @@ std::filesystem::path simulateTdoaReportRecording(std::uint64_t seed, double min
                 "rilo report --system tdoa: %s plan, seed %llu, %d anchors, %.1f min walk; TDoA %.1f Hz rounds, "
                 "packet reception %.2f, sigma %.3f m; SS-TWR kept (%.1f Hz); ultrasonic %d beacons at %.1f Hz",
                 plan == sim::OfficePlanKind::kHall ? "hall" : plan == sim::OfficePlanKind::kRandom ? "random office" : "default office",
-                static_cast<unsigned long long>(seed), p.anchors.count, minutes, p.tdoa.round_rate_hz,
+                static_cast<unsigned long long>(seed), p.anchors.count, seconds / 60.0, p.tdoa.round_rate_hz,
                 p.tdoa.packet_reception, p.tdoa.sigma_m, p.range_rate_hz, p.ultrasonic.beacons, p.ultrasonic.ping_rate_hz);
   ro.description = description;
   ro.truth_rate_hz = 200.0;

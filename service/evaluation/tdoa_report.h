@@ -85,11 +85,11 @@ std::vector<TdoaRunSpec> planTdoaRuns(const TdoaReportOptions& options, std::siz
 /// options or no recordings; a failing run is recorded in its TdoaRun.
 TdoaReportResults runTdoaReport(const std::vector<ReportRecording>& recordings, const TdoaReportOptions& options);
 
-/// Simulates a session as `rilo sim DIR --seed SEED --minutes MINUTES --plan
+/// Simulates a session as `rilo sim DIR --seed SEED --seconds SECONDS --plan
 /// PLAN --tdoa --keep-twr --ultrasonic` does (its other defaults), into `dir`
 /// (replacing a recording there). --keep-twr: the same session can also be
 /// replayed with two-way ranges (ReplaySettings::measurements).
-std::filesystem::path simulateTdoaReportRecording(std::uint64_t seed, double minutes, const std::filesystem::path& dir,
+std::filesystem::path simulateTdoaReportRecording(std::uint64_t seed, double seconds, const std::filesystem::path& dir,
                                                   sim::OfficePlanKind plan = sim::OfficePlanKind::kHall);
 
 /// (baseline - proposed) / baseline * 100, the IMU-Ultrasonic-UWB paper's "38 % improvement"; NaN

@@ -9,7 +9,10 @@
 #include <memory>
 #include <stdexcept>
 #include <thread>
+#include <utility>
 #include <variant>
+
+#include <nlohmann/json.hpp>
 
 #include "hal/bmi263/bmi263_driver.h"
 #include "hal/bmi263/bmi263_registers.h"
@@ -349,58 +352,15 @@ std::string countsText(const std::map<std::string, std::uint64_t>& counts) {
   return text.empty() ? std::string("none") : text;
 }
 
-// --- JSON ---------------------------------------------------------------------
+// --- JSON (nlohmann-json: keys in the order written; NaN and inf dump as null) ---
 
-std::string jsonText(const std::string& s) {
-  std::string out = "\"";
-  for (const char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (c < 0x20) {
-      out += format("\\u%04x", static_cast<unsigned>(c));
-    } else {
-      out += ch;
-    }
-  }
-  return out + "\"";
-}
+using Json = nlohmann::ordered_json;
 
-/// `v` with `decimals` digits after the point (6 significant digits if < 0); null if not finite.
-std::string jsonNumber(double v, int decimals = -1) {
-  if (!std::isfinite(v)) return "null";
-  return decimals < 0 ? format("%.6g", v) : fixed(v, decimals);
-}
+Json orNull(bool have, Json value) { return have ? std::move(value) : Json(nullptr); }
 
-std::string jsonStat(const RunningStats& s, int decimals) {
-  return s.count > 0 ? jsonNumber(s.mean, decimals) : std::string("null");
-}
+Json jsonStat(const RunningStats& s) { return orNull(s.count > 0, s.mean); }
 
-std::string jsonCounts(const std::map<std::string, std::uint64_t>& counts) {
-  std::string out = "{";
-  for (const auto& [kind, n] : counts) {
-    if (out.size() > 1) out += ", ";
-    out += jsonText(kind) + ": " + std::to_string(n);
-  }
-  return out + "}";
-}
-
-std::string jsonBool(bool b) { return b ? "true" : "false"; }
-
-std::string jsonError(const std::string& e) { return e.empty() ? std::string("null") : jsonText(e); }
-
-std::string jsonVec(const std::array<double, 3>& v) {
-  // Appended piecewise: GCC 12's -Wrestrict misreads the inlined chain of
-  // operator+ on a one-character literal here.
-  std::string out("[");
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    if (i > 0) out.append(", ");
-    out.append(jsonNumber(v[i], 6));
-  }
-  out.push_back(']');
-  return out;
-}
+Json jsonError(const std::string& e) { return orNull(!e.empty(), e); }
 
 }  // namespace
 
@@ -558,99 +518,112 @@ std::string probeReportText(const ProbeReport& report) {
 std::string probeReportJson(const ProbeReport& report) {
   const UwbProbe& u = report.uwb;
   const ImuProbe& m = report.imu;
-  std::string j = "{\n";
-  j += "  \"ok\": " + jsonBool(report.exitCode() == 0) + ",\n";
-  j += "  \"exit_code\": " + std::to_string(report.exitCode()) + ",\n";
-  j += "  \"problems\": [";
-  const std::vector<std::string> problems = report.problems();
-  for (std::size_t i = 0; i < problems.size(); ++i) j += (i > 0 ? ", " : "") + jsonText(problems[i]);
-  j += "],\n";
-  j += "  \"uwb\": {\n";
-  j += "    \"device\": " + jsonText(u.device) + ", \"opened\": " + jsonBool(u.opened) + ", \"up\": " + jsonBool(u.up) +
-       ", \"error\": " + jsonError(u.error) + ",\n";
-  j += "    \"dev_id\": " + (u.dev_id != 0 ? jsonText(hex(u.dev_id, 8)) : "null") + ", \"part\": " +
-       (u.dev_id != 0 ? jsonText(partName(u.dev_id)) : "null") + ",\n";
-  j += "    \"channel\": " + std::to_string(u.channel) + ", \"preamble_code\": " + std::to_string(u.preamble_code) +
-       ", \"preamble_length\": " + std::to_string(u.preamble_length) + ", \"data_rate\": " + jsonText(u.data_rate) +
-       ",\n";
-  j += "    \"tx_antenna_delay\": " + std::to_string(u.tx_antenna_delay) +
-       ", \"rx_antenna_delay\": " + std::to_string(u.rx_antenna_delay) +
-       ", \"tx_antenna_delay_read\": " + std::to_string(u.tx_antenna_delay_read) +
-       ", \"rx_antenna_delay_read\": " + std::to_string(u.rx_antenna_delay_read) + ",\n";
-  j += "    \"spi_crc\": " + jsonBool(u.spi_crc) + ", \"sys_status\": " + jsonText(hex(u.sys_status, 8)) +
-       ", \"sys_state\": " + jsonText(hex(u.sys_state, 8)) + ", \"irq_mask\": " + jsonText(hex(u.irq_mask, 8)) +
-       ", \"clock_offset_source\": " + jsonText(u.clock_offset_source) +
-       ", \"reply_delay_us\": " + jsonNumber(u.reply_delay_us) + ",\n";
+  Json j;
+  j["ok"] = report.exitCode() == 0;
+  j["exit_code"] = report.exitCode();
+  j["problems"] = report.problems();
+
+  Json& uwb = j["uwb"];
+  uwb["device"] = u.device;
+  uwb["opened"] = u.opened;
+  uwb["up"] = u.up;
+  uwb["error"] = jsonError(u.error);
+  uwb["dev_id"] = orNull(u.dev_id != 0, hex(u.dev_id, 8));
+  uwb["part"] = orNull(u.dev_id != 0, partName(u.dev_id));
+  uwb["channel"] = u.channel;
+  uwb["preamble_code"] = u.preamble_code;
+  uwb["preamble_length"] = u.preamble_length;
+  uwb["data_rate"] = u.data_rate;
+  uwb["tx_antenna_delay"] = u.tx_antenna_delay;
+  uwb["rx_antenna_delay"] = u.rx_antenna_delay;
+  uwb["tx_antenna_delay_read"] = u.tx_antenna_delay_read;
+  uwb["rx_antenna_delay_read"] = u.rx_antenna_delay_read;
+  uwb["spi_crc"] = u.spi_crc;
+  uwb["sys_status"] = hex(u.sys_status, 8);
+  uwb["sys_state"] = hex(u.sys_state, 8);
+  uwb["irq_mask"] = hex(u.irq_mask, 8);
+  uwb["clock_offset_source"] = u.clock_offset_source;
+  uwb["reply_delay_us"] = u.reply_delay_us;
   const dw3000::BringUpReport& b = u.startup;
-  j += "    \"startup\": {\"otp_ldo_tune_lo\": " + jsonText(hex(b.otp_ldo_tune_lo, 8)) +
-       ", \"otp_ldo_tune_hi\": " + jsonText(hex(b.otp_ldo_tune_hi, 8)) +
-       ", \"otp_bias_tune\": " + jsonText(hex(b.otp_bias_tune, 2)) +
-       ", \"ldo_bias_from_otp\": " + jsonBool(b.ldo_bias_from_otp) + ", \"xtal_trim\": " + jsonText(hex(b.xtal_trim, 2)) +
-       ", \"xtal_trim_from_otp\": " + jsonBool(b.xtal_trim_from_otp) +
-       ", \"otp_part_id\": " + jsonText(hex(b.otp_part_id, 8)) + ", \"otp_lot_id\": " + jsonText(hex(b.otp_lot_id, 8)) +
-       ", \"otp_revision\": " + jsonText(hex(b.otp_revision, 2)) +
-       ", \"pll_lock_us\": " + (b.pll_lock_ns >= 0 ? jsonNumber(static_cast<double>(b.pll_lock_ns) * 1e-3, 1) : "null") +
-       ", \"dgc_on\": " + jsonBool(b.dgc_on) + ", \"dgc_from_otp\": " + jsonBool(b.dgc_from_otp) +
-       ", \"pgf_done\": " + jsonBool(b.pgf_done) + ", \"pgf_result_i\": " + jsonText(hex(b.pgf_result_i, 8)) +
-       ", \"pgf_result_q\": " + jsonText(hex(b.pgf_result_q, 8)) + "},\n";
-  j += "    \"first_frames\": [";
-  for (std::size_t i = 0; i < u.first_frames.size(); ++i) {
-    const FrameDiagnostics& f = u.first_frames[i];
-    j += (i > 0 ? ", " : "") + std::string("{\"anchor\": ") + std::to_string(f.anchor_id) +
-         ", \"range_m\": " + jsonNumber(f.range_m, 4) + ", \"cir_power\": " + std::to_string(f.raw.cir_power) +
-         ", \"fp_ampl\": [" + std::to_string(f.raw.fp_ampl1) + ", " + std::to_string(f.raw.fp_ampl2) + ", " +
-         std::to_string(f.raw.fp_ampl3) + "], \"accumulation_count\": " + std::to_string(f.raw.accumulation_count) +
-         ", \"dgc_decision\": " + std::to_string(f.raw.dgc_decision) + ", \"rssi_dbm\": " + jsonNumber(f.rssi_dbm, 2) +
-         ", \"fp_power_dbm\": " + jsonNumber(f.fp_power_dbm, 2) + "}";
+  uwb["startup"] = Json{{"otp_ldo_tune_lo", hex(b.otp_ldo_tune_lo, 8)},
+                        {"otp_ldo_tune_hi", hex(b.otp_ldo_tune_hi, 8)},
+                        {"otp_bias_tune", hex(b.otp_bias_tune, 2)},
+                        {"ldo_bias_from_otp", b.ldo_bias_from_otp},
+                        {"xtal_trim", hex(b.xtal_trim, 2)},
+                        {"xtal_trim_from_otp", b.xtal_trim_from_otp},
+                        {"otp_part_id", hex(b.otp_part_id, 8)},
+                        {"otp_lot_id", hex(b.otp_lot_id, 8)},
+                        {"otp_revision", hex(b.otp_revision, 2)},
+                        {"pll_lock_us", orNull(b.pll_lock_ns >= 0, static_cast<double>(b.pll_lock_ns) * 1e-3)},
+                        {"dgc_on", b.dgc_on},
+                        {"dgc_from_otp", b.dgc_from_otp},
+                        {"pgf_done", b.pgf_done},
+                        {"pgf_result_i", hex(b.pgf_result_i, 8)},
+                        {"pgf_result_q", hex(b.pgf_result_q, 8)}};
+  Json frames = Json::array();
+  for (const FrameDiagnostics& f : u.first_frames) {
+    frames.push_back(Json{{"anchor", f.anchor_id},
+                          {"range_m", f.range_m},
+                          {"cir_power", f.raw.cir_power},
+                          {"fp_ampl", {f.raw.fp_ampl1, f.raw.fp_ampl2, f.raw.fp_ampl3}},
+                          {"accumulation_count", f.raw.accumulation_count},
+                          {"dgc_decision", f.raw.dgc_decision},
+                          {"rssi_dbm", f.rssi_dbm},
+                          {"fp_power_dbm", f.fp_power_dbm}});
   }
-  j += "],\n";
-  j += "    \"seconds\": " + jsonNumber(u.seconds, 3) + ",\n";
-  j += "    \"anchors\": [";
-  for (std::size_t i = 0; i < u.anchors.size(); ++i) {
-    const AnchorProbe& a = u.anchors[i];
-    j += i > 0 ? ",\n      " : "\n      ";
-    j += "{\"id\": " + std::to_string(a.id) + ", \"short_address\": " + jsonText(hex(a.short_address, 4)) +
-         ", \"polls\": " + std::to_string(a.attempts) + ", \"ranges\": " + std::to_string(a.ranges()) +
-         ", \"success_rate\": " + jsonNumber(a.successRate(), 4) +
-         ", \"mean_range_m\": " + jsonStat(a.range_m, 5) +
-         ", \"std_range_m\": " + (a.range_m.count > 1 ? jsonNumber(a.range_m.stddev(), 5) : "null") +
-         ", \"min_range_m\": " + (a.range_m.count > 0 ? jsonNumber(a.range_m.min, 5) : "null") +
-         ", \"max_range_m\": " + (a.range_m.count > 0 ? jsonNumber(a.range_m.max, 5) : "null") +
-         ", \"mean_rssi_dbm\": " + jsonStat(a.rssi_dbm, 2) +
-         ", \"mean_fp_power_dbm\": " + jsonStat(a.fp_power_dbm, 2) +
-         ", \"mean_clock_offset_ppm\": " + jsonStat(a.clock_offset_ppm, 3) + ", \"errors\": " + jsonCounts(a.errors) +
-         "}";
+  uwb["first_frames"] = std::move(frames);
+  uwb["seconds"] = u.seconds;
+  Json anchors = Json::array();
+  for (const AnchorProbe& a : u.anchors) {
+    anchors.push_back(Json{{"id", a.id},
+                           {"short_address", hex(a.short_address, 4)},
+                           {"polls", a.attempts},
+                           {"ranges", a.ranges()},
+                           {"success_rate", a.successRate()},
+                           {"mean_range_m", jsonStat(a.range_m)},
+                           {"std_range_m", orNull(a.range_m.count > 1, a.range_m.stddev())},
+                           {"min_range_m", orNull(a.range_m.count > 0, a.range_m.min)},
+                           {"max_range_m", orNull(a.range_m.count > 0, a.range_m.max)},
+                           {"mean_rssi_dbm", jsonStat(a.rssi_dbm)},
+                           {"mean_fp_power_dbm", jsonStat(a.fp_power_dbm)},
+                           {"mean_clock_offset_ppm", jsonStat(a.clock_offset_ppm)},
+                           {"errors", a.errors}});
   }
-  j += u.anchors.empty() ? "],\n" : "\n    ],\n";
-  j += "    \"device_faults\": " + jsonCounts(u.device_faults) +
-       ", \"reinitializations\": " + std::to_string(u.reinitializations) + "\n";
-  j += "  },\n";
-  j += "  \"imu\": {\n";
-  j += "    \"device\": " + jsonText(m.device) + ", \"opened\": " + jsonBool(m.opened) + ", \"up\": " + jsonBool(m.up) +
-       ", \"error\": " + jsonError(m.error) + ",\n";
-  j += "    \"chip_id\": " + (m.opened ? jsonText(hex(m.chip_id, 2)) : "null") +
-       ", \"internal_status\": " + (m.opened ? jsonText(hex(m.internal_status, 2)) : "null") +
-       ", \"internal_status_name\": " +
-       (m.opened ? jsonText(bmi263::internal_status::name(m.internal_status)) : "null") + ",\n";
-  j += "    \"odr_hz\": " + jsonNumber(m.odr_hz) + ", \"accel_range_g\": " + jsonNumber(m.accel_range_g) +
-       ", \"gyro_range_dps\": " + jsonNumber(m.gyro_range_dps) + ", \"interrupt_mode\": " + jsonText(m.interrupt_mode) +
-       ", \"gyro_cross_axis\": " + jsonBool(m.gyro_cross_axis) +
-       ", \"gyro_cas\": " + (m.gyro_cross_axis ? std::to_string(m.gyro_cas) : std::string("null")) + ",\n";
+  uwb["anchors"] = std::move(anchors);
+  uwb["device_faults"] = u.device_faults;
+  uwb["reinitializations"] = u.reinitializations;
+
+  Json& imu = j["imu"];
+  imu["device"] = m.device;
+  imu["opened"] = m.opened;
+  imu["up"] = m.up;
+  imu["error"] = jsonError(m.error);
+  imu["chip_id"] = orNull(m.opened, hex(m.chip_id, 2));
+  imu["internal_status"] = orNull(m.opened, hex(m.internal_status, 2));
+  imu["internal_status_name"] = orNull(m.opened, bmi263::internal_status::name(m.internal_status));
+  imu["odr_hz"] = m.odr_hz;
+  imu["accel_range_g"] = m.accel_range_g;
+  imu["gyro_range_dps"] = m.gyro_range_dps;
+  imu["interrupt_mode"] = m.interrupt_mode;
+  imu["gyro_cross_axis"] = m.gyro_cross_axis;
+  imu["gyro_cas"] = orNull(m.gyro_cross_axis, m.gyro_cas);
   const bool have = m.samples > 0;
-  j += "    \"samples\": " + std::to_string(m.samples) + ", \"seconds\": " + jsonNumber(m.seconds, 4) +
-       ", \"rate_hz\": " + (have ? jsonNumber(m.rate_hz, 3) : "null") +
-       ", \"max_gap_ms\": " + (have ? jsonNumber(m.max_gap_ms, 3) : "null") + ",\n";
-  j += "    \"mean_accel_norm_m_s2\": " + (have ? jsonNumber(m.mean_accel_norm_m_s2, 5) : "null") +
-       ", \"mean_accel_m_s2\": " + (have ? jsonVec(m.mean_accel_m_s2) : "null") +
-       ", \"mean_gyro_rad_s\": " + (have ? jsonVec(m.mean_gyro_rad_s) : "null") + ",\n";
-  j += "    \"temperature_degc\": " + jsonNumber(m.temperature_degc, 2) +
-       ", \"missed_samples\": " + std::to_string(m.missed_samples) + ", \"i2c_retries\": " + std::to_string(m.i2c_retries) +
-       ", \"i2c_failures\": " + std::to_string(m.i2c_failures) + ", \"recoveries\": " + std::to_string(m.recoveries) +
-       ", \"fault_count\": " + std::to_string(m.fault_count) + ",\n";
-  j += "    \"faults\": [";
-  for (std::size_t i = 0; i < m.faults.size(); ++i) j += (i > 0 ? ", " : "") + jsonText(m.faults[i]);
-  j += "]\n  }\n}\n";
-  return j;
+  imu["samples"] = m.samples;
+  imu["seconds"] = m.seconds;
+  imu["rate_hz"] = orNull(have, m.rate_hz);
+  imu["max_gap_ms"] = orNull(have, m.max_gap_ms);
+  imu["mean_accel_norm_m_s2"] = orNull(have, m.mean_accel_norm_m_s2);
+  imu["mean_accel_m_s2"] = orNull(have, m.mean_accel_m_s2);
+  imu["mean_gyro_rad_s"] = orNull(have, m.mean_gyro_rad_s);
+  imu["temperature_degc"] = m.temperature_degc;
+  imu["missed_samples"] = m.missed_samples;
+  imu["i2c_retries"] = m.i2c_retries;
+  imu["i2c_failures"] = m.i2c_failures;
+  imu["recoveries"] = m.recoveries;
+  imu["fault_count"] = m.fault_count;
+  imu["faults"] = m.faults;
+  // Device texts are not trusted to be UTF-8: bad bytes become U+FFFD, not an exception.
+  return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 }  // namespace rilo

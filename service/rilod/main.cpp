@@ -203,7 +203,8 @@ int main(int argc, char** argv) {
   double max_seconds = 0.0;
   app.set_version_flag("--version", "rilod " RILO_VERSION_TEXT);
   app.add_option("--config", config_path, "YAML configuration (see config/README.md)")->required()->check(CLI::ExistingFile);
-  app.add_option("--duration", max_seconds, "Stop after this many seconds (0: until the data ends or SIGTERM)")
+  app.add_option("--seconds", max_seconds, "Stop after this many seconds (0: until the data ends or SIGTERM)")
+      ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   CLI11_PARSE(app, argc, argv);
 

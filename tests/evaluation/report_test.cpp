@@ -195,7 +195,7 @@ TEST(ReportMatrix, QuickMatrixOnASimulatedWalkWritesConsistentReport) {
   // A 20 s office walk made by the simulator library, and a copy without
   // ranges: every run on it throws and must show up as Fail.
   std::vector<ReportRecording> recordings;
-  recordings.push_back(loadReportRecording(simulateReportRecording(1, 20.0 / 60.0, dir / "recordings" / "sim-1")));
+  recordings.push_back(loadReportRecording(simulateReportRecording(1, 20.0, dir / "recordings" / "sim-1")));
   ASSERT_EQ(recordings[0].label, "sim-1");
   ASSERT_FALSE(recordings[0].data.groundtruth.empty());
   EXPECT_NEAR(recordings[0].durationS(), 20.0, 0.5);

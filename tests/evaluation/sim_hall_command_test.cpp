@@ -26,7 +26,7 @@ class RiloSimHall : public ::testing::Test {
 TEST_F(RiloSimHall, TdoaAndUltrasonicSessionReadsBackAsTheSimulatorWroteIt) {
   const std::string out = (dir_ / "hall").string();
   const testing::ToolRun run =
-      sim({"sim", out, "--plan", "hall", "--tdoa", "--ultrasonic", "--minutes", "0.3", "--seed", "4"});
+      sim({"sim", out, "--plan", "hall", "--tdoa", "--ultrasonic", "--seconds", "18", "--seed", "4"});
   ASSERT_EQ(run.exit_code, 0) << run.out << run.err;
   EXPECT_NE(run.out.find("plan      hall 16.0 m x 10.0 m, 2 pillars"), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("TDoA NLOS"), std::string::npos) << run.out;
@@ -76,7 +76,7 @@ TEST_F(RiloSimHall, TdoaAndUltrasonicSessionReadsBackAsTheSimulatorWroteIt) {
 TEST_F(RiloSimHall, HallSizeOptionsResizeTheHallAndNeedPlanHall) {
   const std::string out = (dir_ / "big").string();
   const testing::ToolRun run = sim({"sim", out, "--plan", "hall", "--hall-length", "24", "--hall-width", "14",
-                                    "--minutes", "0.1", "--anchors", "6"});
+                                    "--seconds", "6", "--anchors", "6"});
   ASSERT_EQ(run.exit_code, 0) << run.out << run.err;
   const Recording rec = readRecording(out);
   ASSERT_EQ(rec.anchors.size(), 6u);
@@ -89,7 +89,7 @@ TEST_F(RiloSimHall, HallSizeOptionsResizeTheHallAndNeedPlanHall) {
   EXPECT_DOUBLE_EQ(y_max, 13.75);
   EXPECT_FALSE(rec.ranges.empty());
 
-  const testing::ToolRun refused = sim({"sim", (dir_ / "no").string(), "--hall-length", "24", "--minutes", "0.1"});
+  const testing::ToolRun refused = sim({"sim", (dir_ / "no").string(), "--hall-length", "24", "--seconds", "6"});
   EXPECT_EQ(refused.exit_code, 1);
   EXPECT_NE(refused.err.find("--hall-length and --hall-width need --plan hall"), std::string::npos) << refused.err;
 }
@@ -98,7 +98,7 @@ TEST_F(RiloSimHall, BodyHeightOptionCarriesTheTagAtThatHeight) {
   // A head-worn device (glasses): the walk keeps the body frame at the given
   // height, give or take the gait's bob, and the description says so.
   const std::string out = (dir_ / "glasses").string();
-  const testing::ToolRun run = sim({"sim", out, "--minutes", "0.1", "--body-height", "1.6"});
+  const testing::ToolRun run = sim({"sim", out, "--seconds", "6", "--body-height", "1.6"});
   ASSERT_EQ(run.exit_code, 0) << run.out << run.err;
   const Recording rec = readRecording(out);
   ASSERT_FALSE(rec.groundtruth.empty());
@@ -106,12 +106,12 @@ TEST_F(RiloSimHall, BodyHeightOptionCarriesTheTagAtThatHeight) {
   EXPECT_NE(rec.meta.description.find("body frame 1.60 m above the floor"), std::string::npos) << rec.meta.description;
 
   // The default (chest) height is not mentioned, and out-of-range heights are refused by name.
-  const testing::ToolRun chest = sim({"sim", (dir_ / "chest").string(), "--minutes", "0.1"});
+  const testing::ToolRun chest = sim({"sim", (dir_ / "chest").string(), "--seconds", "6"});
   ASSERT_EQ(chest.exit_code, 0) << chest.out << chest.err;
   const Recording rec_chest = readRecording((dir_ / "chest").string());
   EXPECT_EQ(rec_chest.meta.description.find("body frame"), std::string::npos) << rec_chest.meta.description;
   EXPECT_NEAR(rec_chest.groundtruth.front().p_w_b.z(), 1.25, 0.06);
-  const testing::ToolRun refused = sim({"sim", (dir_ / "tall").string(), "--minutes", "0.1", "--body-height", "2.5"});
+  const testing::ToolRun refused = sim({"sim", (dir_ / "tall").string(), "--seconds", "6", "--body-height", "2.5"});
   EXPECT_NE(refused.exit_code, 0);
   EXPECT_NE(refused.err.find("--body-height"), std::string::npos) << refused.err;
 }

@@ -177,7 +177,7 @@ TEST(TdoaReportMarkdown, ThrownRunsAreFailAndNamed) {
 TEST(TdoaReportRun, ShortHallSessionRunsEveryEstimatorAtBothReceptions) {
   testing::TempDir dir("tdoa-report");
   std::vector<ReportRecording> recs;
-  recs.push_back(loadReportRecording(simulateTdoaReportRecording(5, 0.4, dir / "hall-5")));
+  recs.push_back(loadReportRecording(simulateTdoaReportRecording(5, 24.0, dir / "hall-5")));
   EXPECT_FALSE(recs[0].data.tdoa.empty());
   EXPECT_FALSE(recs[0].data.ultrasonic.empty());
   EXPECT_FALSE(recs[0].data.ranges.empty());  // SS-TWR kept
@@ -216,7 +216,7 @@ TEST(TdoaReportRun, ShortHallSessionRunsEveryEstimatorAtBothReceptions) {
 TEST(RiloReportTdoa, WritesTheTableAndTheTwrReportStaysTheDefault) {
   testing::TempDir dir("rilo-report-tdoa");
   const testing::ToolRun run = testing::runRilo(
-      {"report", "--system", "tdoa", "--out", (dir / "tdoa").string(), "--sim-seeds", "2", "--sim-minutes", "0.3",
+      {"report", "--system", "tdoa", "--out", (dir / "tdoa").string(), "--sim-seeds", "2", "--sim-seconds", "18",
        "--sim-plan", "hall", "--smoothers", "ekf", "--receptions", "1,0.5", "--jobs", "1"},
       dir.path());
   ASSERT_EQ(run.exit_code, 0) << run.out << run.err;

@@ -31,7 +31,7 @@ TEST(RiloUnsignedOptions, RefuseANegativeNumberNamingTheOption) {
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "never"));
   // Zero and positive values still parse (a 3 s simulation).
-  const testing::ToolRun ok = testing::runRilo({"sim", (dir / "seed0").string(), "--seed", "0", "--minutes", "0.05"}, dir.path());
+  const testing::ToolRun ok = testing::runRilo({"sim", (dir / "seed0").string(), "--seed", "0", "--seconds", "3"}, dir.path());
   EXPECT_EQ(ok.exit_code, 0) << ok.err;
 }
 

@@ -59,7 +59,7 @@ std::vector<std::string> linesOf(const std::string& text) {
 
 TEST(OfficeTdoaRecording, DefaultOutputIsTheCommittedGoldenWalk) {
   // tests/data/golden-walk was written by `rilo sim tests/data/golden-walk --seed 7
-  // --minutes 0.4 --plan default --truth-hz 50` before TDoA and ultrasonic
+  // --seconds 24 --plan default --truth-hz 50` before TDoA and ultrasonic
   // existed: with both off, the simulator must still write exactly those
   // files. (If the default simulation is changed on purpose, this reference
   // goes with it.)

@@ -9,6 +9,8 @@
 #include <string>
 #include <system_error>
 
+#include <nlohmann/json.hpp>
+
 #include "evaluation/eval_test_support.h"
 #include "rilod/config.h"
 #include "service/emulated_board.h"
@@ -19,16 +21,17 @@ namespace {
 
 using testing::BoardTruth;
 using testing::EmulatedBoard;
-using testing::jsonNumberAt;
 using testing::TempDir;
 
 constexpr double kGravity = 9.80665;
 
 /// The JSON line of the anchor with this short address (one anchor per line).
-std::string anchorLine(const std::string& json, const std::string& address) {
-  const std::size_t at = json.find("\"short_address\": \"" + address + "\"");
-  if (at == std::string::npos) return {};
-  return json.substr(at, json.find('\n', at) - at);
+/// The probe's entry of the anchor at `address` in uwb.anchors (null if none).
+nlohmann::json anchorOf(const nlohmann::json& report, const std::string& address) {
+  for (const nlohmann::json& a : report["uwb"]["anchors"]) {
+    if (a["short_address"] == address) return a;
+  }
+  return nullptr;
 }
 
 class HardwareProbeTest : public ::testing::Test {
@@ -176,32 +179,39 @@ TEST_F(HardwareProbeTest, TextAndJsonCarryTheFigures) {
   EXPECT_NE(text.find("first frames: anchor 0 at 2.50"), std::string::npos) << text;
   EXPECT_NE(text.find("probe: OK"), std::string::npos) << text;
 
-  const std::string json = probeReportJson(report);
-  EXPECT_NE(json.find("\"ok\": true"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"dev_id\": \"0xDECA0302\""), std::string::npos) << json;
-  EXPECT_NE(json.find("\"chip_id\": \"0x24\""), std::string::npos) << json;
-  EXPECT_NE(json.find("\"internal_status_name\": \"init_ok\""), std::string::npos) << json;
-  EXPECT_NE(json.find("\"gyro_cross_axis\": false, \"gyro_cas\": null"), std::string::npos) << json;
+  const nlohmann::json json = nlohmann::json::parse(probeReportJson(report));
+  EXPECT_EQ(json["ok"], true) << json;
+  EXPECT_EQ(json["uwb"]["dev_id"], "0xDECA0302") << json;
+  EXPECT_EQ(json["imu"]["chip_id"], "0x24") << json;
+  EXPECT_EQ(json["imu"]["internal_status_name"], "init_ok") << json;
+  EXPECT_EQ(json["imu"]["gyro_cross_axis"], false) << json;
+  EXPECT_TRUE(json["imu"]["gyro_cas"].is_null()) << json;
   // RX level / first-path power from the diagnostics; null for the silent anchor.
   const emu::Dw3000ResponderModel channel;
-  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_rssi_dbm"}),
-              channel.rx_level_at_1m_dbm - 20.0 * std::log10(2.5), 0.1);
-  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_fp_power_dbm"}),
+  const nlohmann::json a1 = anchorOf(json, "0x0001"), a2 = anchorOf(json, "0x0002"), a3 = anchorOf(json, "0x0003"),
+                       a4 = anchorOf(json, "0x0004");
+  ASSERT_FALSE(a1.is_null() || a2.is_null() || a3.is_null() || a4.is_null()) << json;
+  EXPECT_NEAR(a1["mean_rssi_dbm"].get<double>(), channel.rx_level_at_1m_dbm - 20.0 * std::log10(2.5), 0.1);
+  EXPECT_NEAR(a1["mean_fp_power_dbm"].get<double>(),
               channel.rx_level_at_1m_dbm - 20.0 * std::log10(2.5) - channel.nlos_gap_db(0), 0.1);
-  EXPECT_NE(anchorLine(json, "0x0004").find("\"mean_rssi_dbm\": null"), std::string::npos) << json;
-  EXPECT_EQ(jsonNumberAt(json, {"exit_code"}), 0.0);
-  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0001"), {"mean_range_m"}), 2.5, 0.01);
-  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0002"), {"mean_range_m"}), 4.0, 0.01);
-  EXPECT_NEAR(jsonNumberAt(anchorLine(json, "0x0003"), {"mean_range_m"}), 7.25, 0.01);
-  EXPECT_EQ(jsonNumberAt(anchorLine(json, "0x0004"), {"ranges"}), 0.0);
-  EXPECT_GT(jsonNumberAt(anchorLine(json, "0x0004"), {"RX timeout"}), 5.0);
-  EXPECT_NEAR(jsonNumberAt(json, {"imu", "rate_hz"}), 800.0, 1.0);
-  EXPECT_NEAR(jsonNumberAt(json, {"imu", "mean_accel_norm_m_s2"}), kGravity, 0.01);
-  EXPECT_NEAR(jsonNumberAt(json, {"imu", "odr_hz"}), 800.0, 1e-9);
-  EXPECT_NE(json.find("\"xtal_trim\": \"0x1B\", \"xtal_trim_from_otp\": true"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"pgf_done\": true"), std::string::npos) << json;
-  EXPECT_GT(jsonNumberAt(json, {"uwb", "startup", "pll_lock_us"}), 0.0);
-  EXPECT_NE(json.find("\"first_frames\": [{\"anchor\": 0, \"range_m\": 2.50"), std::string::npos) << json;
+  EXPECT_TRUE(a4["mean_rssi_dbm"].is_null()) << a4;
+  EXPECT_EQ(json["exit_code"], 0);
+  EXPECT_NEAR(a1["mean_range_m"].get<double>(), 2.5, 0.01);
+  EXPECT_NEAR(a2["mean_range_m"].get<double>(), 4.0, 0.01);
+  EXPECT_NEAR(a3["mean_range_m"].get<double>(), 7.25, 0.01);
+  EXPECT_EQ(a4["ranges"], 0);
+  EXPECT_GT(a4["errors"]["RX timeout"].get<double>(), 5.0) << a4;
+  EXPECT_NEAR(json["imu"]["rate_hz"].get<double>(), 800.0, 1.0);
+  EXPECT_NEAR(json["imu"]["mean_accel_norm_m_s2"].get<double>(), kGravity, 0.01);
+  EXPECT_NEAR(json["imu"]["odr_hz"].get<double>(), 800.0, 1e-9);
+  const nlohmann::json& startup = json["uwb"]["startup"];
+  EXPECT_EQ(startup["xtal_trim"], "0x1B") << startup;
+  EXPECT_EQ(startup["xtal_trim_from_otp"], true) << startup;
+  EXPECT_EQ(startup["pgf_done"], true) << startup;
+  EXPECT_GT(startup["pll_lock_us"].get<double>(), 0.0);
+  ASSERT_FALSE(json["uwb"]["first_frames"].empty()) << json;
+  EXPECT_EQ(json["uwb"]["first_frames"][0]["anchor"], 0);
+  EXPECT_NEAR(json["uwb"]["first_frames"][0]["range_m"].get<double>(), 2.5, 0.005);
 }
 
 TEST_F(HardwareProbeTest, AFailedDiagnosticsReadKeepsTheRangeAndIsListed) {
@@ -254,9 +264,9 @@ TEST_F(HardwareProbeTest, WrongChipIdFailsTheImuNamingTheDevice) {
   EXPECT_EQ(report.imu.chip_id, 0x99);
   EXPECT_NE(report.imu.error.find("emu:bmi263@0x68"), std::string::npos) << report.imu.error;
   EXPECT_EQ(report.exitCode(), 2);
-  const std::string json = probeReportJson(report);
-  EXPECT_NE(json.find("\"chip_id\": \"0x99\""), std::string::npos) << json;
-  EXPECT_NE(json.find("\"ok\": false"), std::string::npos) << json;
+  const nlohmann::json json = nlohmann::json::parse(probeReportJson(report));
+  EXPECT_EQ(json["imu"]["chip_id"], "0x99") << json;
+  EXPECT_EQ(json["ok"], false) << json;
 }
 
 TEST_F(HardwareProbeTest, DevicesThatCouldNotBeOpenedAreReportedWithTheirError) {

@@ -16,6 +16,7 @@
 
 #include "hal/recording/recording_reader.h"
 #include "service_test_support.h"
+#include "support/json_file.h"
 
 namespace rilo {
 namespace {
@@ -65,13 +66,6 @@ int runRilo(const std::vector<std::string>& args, const RunOptions& run = {}) {
   return WEXITSTATUS(status);
 }
 
-/// The number after `key` in `text` (NaN when the key is missing or null).
-double numberAfter(const std::string& text, const std::string& key) {
-  const std::size_t at = text.find(key);
-  if (at == std::string::npos) return std::nan("");
-  return std::strtod(text.c_str() + at + key.size(), nullptr);
-}
-
 /// Replaces data row `row` (1 = the first after the header) of a CSV file.
 void replaceRow(const std::filesystem::path& file, std::size_t row, const std::string& text) {
   std::ifstream in(file);
@@ -111,15 +105,12 @@ TEST(RiloReplay, ImpossibleRowsAreDroppedAndCountedUnderAMemoryCap) {
   }
   ASSERT_EQ(runRilo({"replay", rec.string(), "--out", (dir / "out").string()}, RunOptions{"", "", true}), 0)
       << "killed, or out of memory under the 4 GB cap";
-  std::ifstream in(dir / "out" / "summary.json");
-  std::stringstream text;
-  text << in.rdbuf();
-  const std::string summary = text.str();
-  EXPECT_EQ(numberAfter(summary, "\"far_future\": "), 1.0) << summary;
-  EXPECT_EQ(numberAfter(summary, "\"out_of_bounds\": "), 3.0) << summary;
-  EXPECT_EQ(numberAfter(summary, "\"beyond_full_scale\": "), 1.0) << summary;
-  EXPECT_EQ(numberAfter(summary, "\"reinitializations\": "), 0.0) << summary;
-  EXPECT_LT(numberAfter(summary, "\"mean_m\": "), 1.0) << summary;  // the estimate never saw them
+  const nlohmann::json summary = testing::readJsonFile(dir / "out" / "summary.json");
+  EXPECT_EQ(summary["input_dropped"]["far_future"], 1) << summary;
+  EXPECT_EQ(summary["input_dropped"]["out_of_bounds"], 3) << summary;
+  EXPECT_EQ(summary["input_dropped"]["beyond_full_scale"], 1) << summary;
+  EXPECT_EQ(summary["reinitializations"], 0) << summary;
+  EXPECT_LT(summary["ape_online"]["mean_m"].get<double>(), 1.0) << summary;  // the estimate never saw them
 }
 
 TEST(RiloReplay, NothingEstimatedIsNullInTheSummaryAndNotAvailableOnTheConsole) {
@@ -141,13 +132,15 @@ TEST(RiloReplay, NothingEstimatedIsNullInTheSummaryAndNotAvailableOnTheConsole) 
   }
   const std::string console = (dir / "console.txt").string();
   ASSERT_EQ(runRilo({"replay", rec.string(), "--out", (dir / "out").string()}, RunOptions{console, "", false}), 0);
-  std::stringstream summary, text;
-  summary << std::ifstream(dir / "out" / "summary.json").rdbuf();
+  std::stringstream text;
   text << std::ifstream(console).rdbuf();
-  EXPECT_NE(summary.str().find("\"ape_online\": {\"poses\": 0, \"mean_m\": null"), std::string::npos) << summary.str();
-  EXPECT_NE(summary.str().find("\"update_ms\": {\"mean\": null, \"p99\": null, \"max\": null}"), std::string::npos)
-      << summary.str();
-  EXPECT_EQ(summary.str().find("\"mean_m\": 0,"), std::string::npos) << summary.str();
+  const nlohmann::json summary = testing::readJsonFile(dir / "out" / "summary.json");
+  EXPECT_EQ(summary["ape_online"]["poses"], 0) << summary;
+  for (const char* figure : {"mean_m", "median_m", "rmse_m", "max_m", "vertical_bias_m"}) {
+    EXPECT_TRUE(summary["ape_online"][figure].is_null()) << figure << ": " << summary;
+    EXPECT_TRUE(summary["ape_smoothed"][figure].is_null()) << figure << ": " << summary;
+  }
+  for (const char* figure : {"mean", "p99", "max"}) EXPECT_TRUE(summary["update_ms"][figure].is_null()) << summary;
   EXPECT_NE(text.str().find("APE online   n/a (no poses)"), std::string::npos) << text.str();
   EXPECT_NE(text.str().find("0 updates, update times n/a"), std::string::npos) << text.str();
 }
@@ -213,23 +206,20 @@ TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
     const double qn = row[4] * row[4] + row[5] * row[5] + row[6] * row[6] + row[7] * row[7];
     ASSERT_NEAR(qn, 1.0, 1e-6);
   }
-  std::ifstream summary(out / "summary.json");
-  std::stringstream buffer;
-  buffer << summary.rdbuf();
-  const std::string text = buffer.str();
-  EXPECT_NE(text.find("\"ape_online\""), std::string::npos);
-  EXPECT_NE(text.find("\"ape_smoothed\""), std::string::npos);
-  EXPECT_NE(text.find("\"reinitializations\": 0"), std::string::npos) << text;
+  const nlohmann::json text = testing::readJsonFile(out / "summary.json");
+  EXPECT_TRUE(text.contains("ape_online"));
+  EXPECT_TRUE(text.contains("ape_smoothed"));
+  EXPECT_EQ(text["reinitializations"], 0) << text;
   // What the service publishes: position-only fixes from the first second
   // (position_only.tum: their orientation is unknown), then the full states
   // (online.tum, strictly increasing times as `rilo eval` needs).
-  const double first_position_s = numberAfter(text, "\"first_position_s\": ");
-  const double first_full_state_s = numberAfter(text, "\"first_full_state_s\": ");
+  const double first_position_s = text["first_position_s"].get<double>();
+  const double first_full_state_s = text["first_full_state_s"].get<double>();
   EXPECT_LE(first_position_s, 3.0) << text;
   EXPECT_LT(first_position_s, first_full_state_s) << text;
   const auto position_only = readTum(out / "position_only.tum");
   ASSERT_FALSE(position_only.empty());
-  EXPECT_EQ(numberAfter(text, "\"position_only_poses\": "), static_cast<double>(position_only.size())) << text;
+  EXPECT_EQ(text["position_only_poses"], position_only.size()) << text;
   for (std::size_t i = 1; i < position_only.size(); ++i) ASSERT_GT(position_only[i][0], position_only[i - 1][0]);
   for (std::size_t i = 1; i < online.size(); ++i) ASSERT_GT(online[i][0], online[i - 1][0]);
   // rilo eval reads the online trajectory as it did before.
@@ -251,25 +241,18 @@ TEST(RiloReplay, MeasurementKindsAndReceptionAreCountedInTheSummary) {
   ASSERT_EQ(runRilo({"replay", rec, "--out", out.path().string(), "--measurements", "range", "--reception", "0.7",
                      "--reception-seed", "3", "--smoother", "ekf"}),
             0);
-  std::ifstream summary(out / "summary.json");
-  std::stringstream buffer;
-  buffer << summary.rdbuf();
-  const std::string text = buffer.str();
-  EXPECT_NE(text.find("\"selected\": \"range\", \"reception\": 0.7, \"reception_seed\": 3"), std::string::npos) << text;
-  EXPECT_NE(text.find("\"tdoa\": {\"recorded\": 0, \"used\": 0, \"dropped\": 0, \"selected\": false, "
-                      "\"flagged_one\": 0, \"flagged_both\": 0, \"deep_nlos\": 0}"),
-            std::string::npos)
-      << text;
-  const std::size_t range = text.find("\"range\": {\"recorded\": ");
-  ASSERT_NE(range, std::string::npos) << text;
-  std::size_t recorded = 0, used = 0, dropped = 0;
-  ASSERT_EQ(std::sscanf(text.c_str() + range, "\"range\": {\"recorded\": %zu, \"used\": %zu, \"dropped\": %zu", &recorded,
-                        &used, &dropped),
-            3)
-      << text;
+  const nlohmann::json summary = testing::readJsonFile(out / "summary.json");
+  const nlohmann::json& m = summary["measurements"];
+  EXPECT_EQ(m["selected"], "range") << summary;
+  EXPECT_EQ(m["reception"], 0.7) << summary;
+  EXPECT_EQ(m["reception_seed"], 3) << summary;
+  EXPECT_EQ(m["tdoa"], nlohmann::json::parse(R"({"recorded": 0, "used": 0, "dropped": 0, "selected": false,
+                                                 "flagged_one": 0, "flagged_both": 0, "deep_nlos": 0})"))
+      << summary;
+  const std::size_t recorded = m["range"]["recorded"], used = m["range"]["used"], dropped = m["range"]["dropped"];
   EXPECT_EQ(used + dropped, recorded);
   EXPECT_NEAR(static_cast<double>(used) / static_cast<double>(recorded), 0.7, 0.05);
-  EXPECT_NE(text.find("\"ranges_used\": " + std::to_string(used)), std::string::npos);
+  EXPECT_EQ(summary["ranges_used"], used);
   // A kind the tool does not know, a reception outside [0, 1]: refused.
   EXPECT_NE(runRilo({"replay", rec, "--out", out.path().string(), "--measurements", "range,lidar"}), 0);
   EXPECT_NE(runRilo({"replay", rec, "--out", out.path().string(), "--reception", "1.5"}), 0);

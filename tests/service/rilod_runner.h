@@ -48,7 +48,7 @@ inline pid_t startRilod(const std::filesystem::path& config, double duration_s, 
         ::close(fd);
       }
     }
-    ::execl(exe.c_str(), exe.c_str(), "--config", cfg.c_str(), "--duration", dur.c_str(), static_cast<char*>(nullptr));
+    ::execl(exe.c_str(), exe.c_str(), "--config", cfg.c_str(), "--seconds", dur.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
   }
   return pid;
@@ -77,7 +77,7 @@ struct RilodOutput {
   std::string log;  ///< rilod's stdout + stderr
 };
 
-/// Writes `config_text` into `dir`, runs rilod on it (stopped by --duration
+/// Writes `config_text` into `dir`, runs rilod on it (stopped by --seconds
 /// after `duration_s`) while subscribing on testDomain(), and returns what
 /// arrived once rilod exited (killed after `timeout` x timeScale()).
 inline RilodOutput runRilod(const TempDir& dir, const std::string& config_text, double duration_s,

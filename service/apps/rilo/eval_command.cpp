@@ -1,6 +1,7 @@
 #include "eval_command.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <cmath>
 #include <cstdio>
@@ -11,7 +12,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "evaluation/json_text.h"
+#include <nlohmann/json.hpp>
+
 #include "evaluation/tum.h"
 #include "hal/recording/number_text.h"
 #include "hal/recording/recording_files.h"
@@ -21,24 +23,20 @@ namespace rilo::tool {
 
 namespace {
 
-std::string jsonNumber(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6f", v);
-  return buf;
-}
+using Json = nlohmann::ordered_json;
 
 /// {"mean": .., "median": .., "rmse": .., "max": .., "count": n}; null figures when count is 0.
-std::string jsonStats(const ErrorStats& s) {
-  const auto fig = [&](double v) { return s.count > 0 ? jsonNumber(v) : std::string("null"); };
-  return "{\"mean\": " + fig(s.mean) + ", \"median\": " + fig(s.median) + ", \"rmse\": " + fig(s.rmse) +
-         ", \"max\": " + fig(s.max) + ", \"count\": " + std::to_string(s.count) + "}";
+Json jsonStats(const ErrorStats& s) {
+  const auto fig = [&](double v) { return s.count > 0 ? Json(v) : Json(nullptr); };
+  return Json{{"mean", fig(s.mean)}, {"median", fig(s.median)}, {"rmse", fig(s.rmse)}, {"max", fig(s.max)},
+              {"count", s.count}};
 }
 
-std::string jsonRpe(const RelativePoseErrorStats& r, const char* delta_key) {
-  return "{\"" + std::string(delta_key) + "\": " + jsonNumber(r.params.delta) +
-         ", \"pairs\": " + std::to_string(r.translation_m.count) +
-         ",\n    \"translation_m\": " + jsonStats(r.translation_m) + ",\n    \"rotation_deg\": " +
-         jsonStats(r.rotation_deg) + "}";
+Json jsonRpe(const RelativePoseErrorStats& r, const char* delta_key) {
+  return Json{{delta_key, r.params.delta},
+              {"pairs", r.translation_m.count},
+              {"translation_m", jsonStats(r.translation_m)},
+              {"rotation_deg", jsonStats(r.rotation_deg)}};
 }
 
 std::string shortNumber(double v) {
@@ -140,22 +138,23 @@ int evaluate(const EvalOptions& o) {
 
 std::string evaluationJson(const EvalOptions& o, const TrajectoryEvaluation& ev) {
   const auto& assoc = ev.association;
-  std::string j = "{\n";
-  j += "  \"estimate\": " + jsonString(o.estimate) + ",\n";
-  j += "  \"recording\": " + jsonString(o.recording) + ",\n";
-  j += "  \"max_dt_ms\": " + jsonNumber(o.max_dt_ms) + ",\n";
-  j += "  \"poses\": {\"estimated\": " + std::to_string(ev.estimate_poses) +
-       ", \"matched\": " + std::to_string(assoc.pairs.size()) +
-       ", \"unmatched\": " + std::to_string(assoc.unmatched.size()) +
-       ", \"ground_truth\": " + std::to_string(ev.truth_poses) +
-       ", \"max_abs_dt_ms\": " + jsonNumber(static_cast<double>(assoc.max_abs_dt_ns) * 1e-6) + "},\n";
-  j += "  \"ape_m\": {\n    \"3d\": " + jsonStats(ev.ape.ape_3d) + ",\n    \"horizontal\": " +
-       jsonStats(ev.ape.ape_horizontal) + ",\n    \"vertical\": " + jsonStats(ev.ape.ape_vertical) +
-       ",\n    \"vertical_bias\": " + jsonNumber(ev.ape.vertical_bias_m) + "},\n";
-  j += "  \"rpe_time\": " + jsonRpe(ev.rpe_time, "delta_s") + ",\n";
-  j += "  \"rpe_distance\": " + jsonRpe(ev.rpe_distance, "delta_m") + "\n";
-  j += "}\n";
-  return j;
+  Json j;
+  j["estimate"] = o.estimate;
+  j["recording"] = o.recording;
+  j["max_dt_ms"] = o.max_dt_ms;
+  j["poses"] = Json{{"estimated", ev.estimate_poses},
+                    {"matched", assoc.pairs.size()},
+                    {"unmatched", assoc.unmatched.size()},
+                    {"ground_truth", ev.truth_poses},
+                    {"max_abs_dt_ms", static_cast<double>(assoc.max_abs_dt_ns) * 1e-6}};
+  j["ape_m"] = Json{{"3d", jsonStats(ev.ape.ape_3d)},
+                    {"horizontal", jsonStats(ev.ape.ape_horizontal)},
+                    {"vertical", jsonStats(ev.ape.ape_vertical)},
+                    {"vertical_bias", ev.ape.vertical_bias_m}};
+  j["rpe_time"] = jsonRpe(ev.rpe_time, "delta_s");
+  j["rpe_distance"] = jsonRpe(ev.rpe_distance, "delta_m");
+  // Paths are the user's bytes, not necessarily UTF-8: bad bytes become U+FFFD.
+  return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 int runEval(const EvalOptions& options) {
@@ -163,7 +162,7 @@ int runEval(const EvalOptions& options) {
     return evaluate(options);
   } catch (const std::exception& e) {
     std::fflush(stdout);
-    std::fprintf(stderr, "rilo eval: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
 }

@@ -1,6 +1,7 @@
 #include "import_command.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <cstdio>
 #include <exception>
@@ -90,12 +91,11 @@ int importUtil(const ImportUtilOptions& o) {
   std::printf("rilo import-util: %s", importer::formatUtilSummary(imported, check, verdicts).c_str());
 
   const bool contradiction = importer::anyContradiction(verdicts);
-  if (contradiction && !o.force) {
+  if (contradiction && !o.ignore_check) {
     std::fflush(stdout);
-    std::fprintf(stderr,
-                 "rilo import-util: the data contradicts the chosen options (CONTRADICTS above): %s; change the "
-                 "option as suggested, or --force to write anyway\n",
-                 o.check_only ? "check failed" : "nothing written");
+    spdlog::error("the data contradicts the chosen options (CONTRADICTS above): {}; change the option as suggested, "
+                  "or --ignore-check to write anyway",
+                  o.check_only ? "check failed" : "nothing written");
     return 2;
   }
   if (o.check_only) {
@@ -105,7 +105,7 @@ int importUtil(const ImportUtilOptions& o) {
   importer::writeUtilRecording(imported, o.out, o.overwrite);
   std::printf("  wrote %s (%zu imu, %zu tdoa, %zu ground-truth rows)%s\n", o.out.c_str(),
               imported.recording.imu.size(), imported.recording.tdoa.size(), imported.recording.groundtruth.size(),
-              contradiction ? " DESPITE the contradiction (--force)" : "");
+              contradiction ? " DESPITE the contradiction (--ignore-check)" : "");
   return 0;
 }
 
@@ -116,7 +116,7 @@ int runImportUtil(const ImportUtilOptions& options) {
     return importUtil(options);
   } catch (const std::exception& e) {
     std::fflush(stdout);
-    std::fprintf(stderr, "rilo import-util: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
 }
@@ -151,7 +151,7 @@ void addImportUtilCommand(CLI::App& app) {
                 "Drop and count samples out of time order instead of failing");
   cmd->add_flag("--overwrite", options->overwrite, "Replace a recording already in --out");
   cmd->add_flag("--check", options->check_only, "Parse and run the physics check only; write nothing");
-  cmd->add_flag("--force", options->force, "Write even if the physics check contradicts the chosen options");
+  cmd->add_flag("--ignore-check", options->ignore_check, "Write even if the physics check contradicts the chosen options");
   cmd->footer(
       "Physics check (always run, on the converted data against the Vicon ground truth): median |accel| against g\n"
       "(g vs m/s^2), gyro integral against the Vicon rotation over 0.25 s windows (deg/s vs rad/s), and TDoA\n"

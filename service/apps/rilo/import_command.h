@@ -5,7 +5,7 @@
 // assumed units and TDoA sign against the Vicon ground truth and prints a
 // summary. Exit codes: 0 written (or checked), 1 bad input (message names
 // file:line: column), 2 the physics check contradicts the chosen options
-// (nothing written unless --force).
+// (nothing written unless --ignore-check).
 #include <string>
 
 namespace CLI {
@@ -28,7 +28,7 @@ struct ImportUtilOptions {
   bool drop_unordered = false;
   bool overwrite = false;
   bool check_only = false;         ///< parse and check, write nothing
-  bool force = false;              ///< write even if the check contradicts the options
+  bool ignore_check = false;       ///< write even if the check contradicts the options
 };
 
 /// Returns the process exit code (0, 1 or 2; messages on stdout/stderr).

@@ -1,23 +1,26 @@
 #include "listen.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <deque>
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "dds/conversions.h"
 #include "dds/participant.h"
 #include "dds/subscriber.h"
-#include "hal/bus/clock.h"
 #include "unsigned_option.h"
 
 namespace rilo::tool {
@@ -66,93 +69,34 @@ Eigen::Vector3d sigmas(const dds::Mat6& covariance) {
 
 double stampSeconds(std::int64_t t_ns) { return static_cast<double>(t_ns) * 1e-9; }
 
-// --- JSON, one object per line ---------------------------------------------
+// --- JSON, one object per line (nlohmann-json; NaN and inf dump as null) -----
 
-class JsonLine {
- public:
-  explicit JsonLine(const char* topic) {
-    line_ = "{";
-    string("topic", topic);
-  }
-  JsonLine& number(const char* key, double v) {
-    this->key(key);
-    appendNumber(v);
-    return *this;
-  }
-  JsonLine& integer(const char* key, std::int64_t v) {
-    this->key(key);
-    line_ += std::to_string(v);
-    return *this;
-  }
-  JsonLine& unsignedInteger(const char* key, std::uint64_t v) {
-    this->key(key);
-    line_ += std::to_string(v);
-    return *this;
-  }
-  JsonLine& string(const char* key, const std::string& v) {
-    this->key(key);
-    line_ += '"';
-    for (const char c : v) {
-      switch (c) {
-        case '"': line_ += "\\\""; break;
-        case '\\': line_ += "\\\\"; break;
-        case '\n': line_ += "\\n"; break;
-        case '\t': line_ += "\\t"; break;
-        default:
-          if (static_cast<unsigned char>(c) < 0x20) {
-            std::array<char, 8> u{};
-            std::snprintf(u.data(), u.size(), "\\u%04x", static_cast<unsigned>(static_cast<unsigned char>(c)));
-            line_ += u.data();
-          } else {
-            line_ += c;
-          }
-      }
-    }
-    line_ += '"';
-    return *this;
-  }
-  template <class Vector>
-  JsonLine& array(const char* key, const Vector& v) {
-    this->key(key);
-    line_ += '[';
-    for (Eigen::Index i = 0; i < v.size(); ++i) {
-      if (i > 0) line_ += ',';
-      appendNumber(v(i));
-    }
-    line_ += ']';
-    return *this;
-  }
-  JsonLine& matrix(const char* key, const dds::Mat6& m) {  // row-major, as on the wire
-    Eigen::Matrix<double, 36, 1> flat;
-    for (int r = 0; r < 6; ++r) {
-      for (int c = 0; c < 6; ++c) flat(6 * r + c) = m(r, c);
-    }
-    return array(key, flat);
-  }
-  void print() {
-    line_ += "}\n";
-    std::fputs(line_.c_str(), stdout);
-    std::fflush(stdout);
-  }
+using Json = nlohmann::ordered_json;
 
- private:
-  void key(const char* k) {
-    if (line_.size() > 1) line_ += ',';
-    line_ += '"';
-    line_ += k;
-    line_ += "\":";
+/// {"topic": topic, ...}: the caller adds the fields in print order.
+Json jsonLine(const char* topic) { return Json{{"topic", topic}}; }
+
+template <class Vector>
+Json jsonArray(const Vector& v) {
+  Json out = Json::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) out.push_back(v(i));
+  return out;
+}
+
+/// Row-major, as on the wire.
+Json jsonMatrix(const dds::Mat6& m) {
+  Json out = Json::array();
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < 6; ++c) out.push_back(m(r, c));
   }
-  void appendNumber(double v) {
-    if (!std::isfinite(v)) {
-      line_ += "null";  // JSON has no NaN/inf
-      return;
-    }
-    std::array<char, 32> buf{};
-    std::snprintf(buf.data(), buf.size(), "%.15g", v);
-    line_ += buf.data();
-  }
-  std::string line_;
-};
+  return out;
+}
+
+void printJson(const Json& line) {
+  // Frame ids and fault texts come off the wire: bad UTF-8 becomes U+FFFD.
+  std::fputs((line.dump(-1, ' ', false, Json::error_handler_t::replace) + "\n").c_str(), stdout);
+  std::fflush(stdout);
+}
 
 Eigen::Vector4d xyzw(const Eigen::Quaterniond& q) { return {q.x(), q.y(), q.z(), q.w()}; }
 
@@ -165,19 +109,19 @@ struct TopicStats {
 
 void printOdometry(const dds::OdometryMessage& m, double rate_hz, double latency_ms, bool json) {
   if (json) {
-    JsonLine("odometry")
-        .integer("stamp_ns", m.stamp_ns)
-        .string("frame_id", m.frame_id)
-        .string("child_frame_id", m.child_frame_id)
-        .array("position", m.p_w_b)
-        .array("orientation_xyzw", xyzw(m.q_w_b))
-        .array("linear_velocity_body", m.v_b)
-        .array("angular_velocity_body", m.omega_b)
-        .matrix("pose_covariance", m.pose_covariance)
-        .matrix("twist_covariance", m.twist_covariance)
-        .number("rate_hz", rate_hz)
-        .number("latency_ms", latency_ms)
-        .print();
+    Json j = jsonLine("odometry");
+    j["stamp_ns"] = m.stamp_ns;
+    j["frame_id"] = m.frame_id;
+    j["child_frame_id"] = m.child_frame_id;
+    j["position"] = jsonArray(m.p_w_b);
+    j["orientation_xyzw"] = jsonArray(xyzw(m.q_w_b));
+    j["linear_velocity_body"] = jsonArray(m.v_b);
+    j["angular_velocity_body"] = jsonArray(m.omega_b);
+    j["pose_covariance"] = jsonMatrix(m.pose_covariance);
+    j["twist_covariance"] = jsonMatrix(m.twist_covariance);
+    j["rate_hz"] = rate_hz;
+    j["latency_ms"] = latency_ms;
+    printJson(j);
     return;
   }
   const Rpy rpy = rpyOf(m.q_w_b);
@@ -192,15 +136,15 @@ void printOdometry(const dds::OdometryMessage& m, double rate_hz, double latency
 
 void printPose(const dds::PoseMessage& m, double rate_hz, double latency_ms, bool json) {
   if (json) {
-    JsonLine("pose")
-        .integer("stamp_ns", m.stamp_ns)
-        .string("frame_id", m.frame_id)
-        .array("position", m.p_w_b)
-        .array("orientation_xyzw", xyzw(m.q_w_b))
-        .matrix("covariance", m.covariance)
-        .number("rate_hz", rate_hz)
-        .number("latency_ms", latency_ms)
-        .print();
+    Json j = jsonLine("pose");
+    j["stamp_ns"] = m.stamp_ns;
+    j["frame_id"] = m.frame_id;
+    j["position"] = jsonArray(m.p_w_b);
+    j["orientation_xyzw"] = jsonArray(xyzw(m.q_w_b));
+    j["covariance"] = jsonMatrix(m.covariance);
+    j["rate_hz"] = rate_hz;
+    j["latency_ms"] = latency_ms;
+    printJson(j);
     return;
   }
   const Rpy rpy = rpyOf(m.q_w_b);
@@ -225,47 +169,48 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
     printable(reason);
   }
   if (json) {
-    JsonLine("status")
-        .integer("stamp_ns", s.t_ns)
-        .unsignedInteger("state", static_cast<std::uint64_t>(s.state))
-        .string("state_name", m.state_name)
-        .unsignedInteger("imu_samples", s.imu_samples)
-        .unsignedInteger("range_samples", s.range_samples)
-        .unsignedInteger("tdoa_samples", s.tdoa_samples)
-        .unsignedInteger("ultrasonic_samples", s.ultrasonic_samples)
-        .unsignedInteger("queue_overflows", s.queue_overflows)
-        .unsignedInteger("late_updates", s.late_updates)
-        .unsignedInteger("sensor_faults", s.sensor_faults)
-        .unsignedInteger("sensor_silences", s.sensor_silences)
-        .unsignedInteger("reinitializations", s.reinitializations)
-        .unsignedInteger("rejected_ranges", s.rejected_ranges)
-        .unsignedInteger("deep_nlos_tdoa_rows", s.deep_nlos_tdoa_rows)
-        .unsignedInteger("published_odometry", s.published_odometry)
-        .unsignedInteger("non_finite_samples", s.non_finite_samples)
-        .unsignedInteger("duplicate_samples", s.duplicate_samples)
-        .unsignedInteger("out_of_order_samples", s.out_of_order_samples)
-        .unsignedInteger("imu_gaps", s.imu_gaps)
-        .unsignedInteger("ranging_gaps", s.ranging_gaps)
-        .unsignedInteger("out_of_bounds_samples", s.out_of_bounds_samples)
-        .unsignedInteger("beyond_full_scale_samples", s.beyond_full_scale_samples)
-        .unsignedInteger("far_future_samples", s.far_future_samples)
-        .unsignedInteger("time_jumps", s.time_jumps)
-        .number("last_update_ms", s.last_update_ms)
-        .number("mean_update_ms", s.mean_update_ms)
-        .number("max_update_ms", s.max_update_ms)
-        .number("p99_update_ms", s.p99_update_ms)
-        .unsignedInteger("estimator_queue_high_water", s.estimator_queue_high_water)
-        .unsignedInteger("publisher_queue_high_water", s.publisher_queue_high_water)
-        .unsignedInteger("last_cliques_reeliminated", s.last_cliques_reeliminated)
-        .unsignedInteger("last_relinearized", s.last_relinearized)
-        .number("last_lambda", s.last_lambda)
-        .number("odometry_latency_ms", s.odometry_latency_ms)
-        .number("pose_latency_ms", s.pose_latency_ms)
-        .string("last_fault", fault)
-        .string("reason", reason)
-        .number("rate_hz", rate_hz)
-        .number("latency_ms", latency_ms)
-        .print();
+    Json j = jsonLine("status");
+    j["stamp_ns"] = m.stamp_ns;
+    j["state"] = static_cast<std::uint64_t>(s.state);
+    j["state_name"] = m.state_name;
+    j["imu_samples"] = s.imu_samples;
+    j["range_samples"] = s.range_samples;
+    j["tdoa_samples"] = s.tdoa_samples;
+    j["ultrasonic_samples"] = s.ultrasonic_samples;
+    j["queue_overflows"] = s.queue_overflows;
+    j["late_updates"] = s.late_updates;
+    j["sensor_faults"] = s.sensor_faults;
+    j["sensor_silences"] = s.sensor_silences;
+    j["reinitializations"] = s.reinitializations;
+    j["rejected_ranges"] = s.rejected_ranges;
+    j["deep_nlos_tdoa_rows"] = s.deep_nlos_tdoa_rows;
+    j["published_odometry"] = s.published_odometry;
+    j["non_finite_samples"] = s.non_finite_samples;
+    j["duplicate_samples"] = s.duplicate_samples;
+    j["out_of_order_samples"] = s.out_of_order_samples;
+    j["imu_gaps"] = s.imu_gaps;
+    j["ranging_gaps"] = s.ranging_gaps;
+    j["out_of_bounds_samples"] = s.out_of_bounds_samples;
+    j["beyond_full_scale_samples"] = s.beyond_full_scale_samples;
+    j["far_future_samples"] = s.far_future_samples;
+    j["time_jumps"] = s.time_jumps;
+    j["last_update_ms"] = s.last_update_ms;
+    j["mean_update_ms"] = s.mean_update_ms;
+    j["max_update_ms"] = s.max_update_ms;
+    j["p99_update_ms"] = s.p99_update_ms;
+    j["estimator_queue_high_water"] = s.estimator_queue_high_water;
+    j["publisher_queue_high_water"] = s.publisher_queue_high_water;
+    j["last_cliques_reeliminated"] = s.last_cliques_reeliminated;
+    j["last_relinearized"] = s.last_relinearized;
+    j["last_lambda"] = s.last_lambda;
+    j["odometry_latency_ms"] = s.odometry_latency_ms;
+    j["pose_latency_ms"] = s.pose_latency_ms;
+    j["monotonic_ns"] = s.t_ns;
+    j["last_fault"] = fault;
+    j["reason"] = reason;
+    j["rate_hz"] = rate_hz;
+    j["latency_ms"] = latency_ms;
+    printJson(j);
     return;
   }
   char tdoa[96] = "";  // the IMU-Ultrasonic-UWB paper's system only
@@ -286,7 +231,7 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
       "silences %llu  reinit %llu  dropped %llu/%llu/%llu (non-finite/duplicate/out-of-order)%s  gaps %llu/%llu "
       "(imu/ranging)  update %.2f ms (mean %.2f, p99 %.2f, max %.2f)  queues %u/%u (high water)  odometry latency %.2f ms  pose latency "
       "%.2f ms  %5.1f Hz  latency %7.2f ms%s%s%s%s%s%s\n",
-      stampSeconds(s.t_ns), m.state_name.c_str(), static_cast<unsigned long long>(s.imu_samples),
+      stampSeconds(m.stamp_ns), m.state_name.c_str(), static_cast<unsigned long long>(s.imu_samples),
       static_cast<unsigned long long>(s.range_samples), static_cast<unsigned long long>(s.rejected_ranges), tdoa,
       static_cast<unsigned long long>(s.queue_overflows), static_cast<unsigned long long>(s.late_updates),
       static_cast<unsigned long long>(s.sensor_faults), static_cast<unsigned long long>(s.sensor_silences),
@@ -300,7 +245,42 @@ void printStatus(const dds::StatusMessage& m, double rate_hz, double latency_ms,
   std::fflush(stdout);
 }
 
-double latencyMs(std::int64_t stamp_ns) { return static_cast<double>(hal::monotonicNowNs() - stamp_ns) * 1e-6; }
+void printTransform(const dds::TransformMessage& m, double rate_hz, double latency_ms, bool json) {
+  if (json) {
+    Json j = jsonLine("tf");
+    j["stamp_ns"] = m.stamp_ns;
+    j["frame_id"] = m.frame_id;
+    j["child_frame_id"] = m.child_frame_id;
+    j["translation"] = jsonArray(m.translation);
+    j["rotation_xyzw"] = jsonArray(xyzw(m.rotation));
+    j["rate_hz"] = rate_hz;
+    j["latency_ms"] = latency_ms;
+    printJson(j);
+    return;
+  }
+  const Rpy rpy = rpyOf(m.rotation);
+  std::printf("tf       %14.6f  %s -> %s  t [%8.3f %8.3f %8.3f] m  rpy [%7.2f %7.2f %7.2f] deg  %6.1f Hz  latency %7.2f ms\n",
+              stampSeconds(m.stamp_ns), m.frame_id.c_str(), m.child_frame_id.c_str(), m.translation.x(),
+              m.translation.y(), m.translation.z(), rpy.roll_deg, rpy.pitch_deg, rpy.yaw_deg, rate_hz, latency_ms);
+  std::fflush(stdout);
+}
+
+std::int64_t nowNs(clockid_t clock) {
+  timespec ts{};
+  clock_gettime(clock, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+/// now - stamp (ms) on the stamps' own clock: system time (the service's
+/// dds.stamp_clock: system, the default) or CLOCK_MONOTONIC (monotonic). The
+/// two clocks are decades apart, so the one nearer the stamp is its clock.
+double latencyMs(std::int64_t stamp_ns) {
+  const std::int64_t system_ns = nowNs(CLOCK_REALTIME);
+  const std::int64_t monotonic_ns = nowNs(CLOCK_MONOTONIC);
+  const std::int64_t now_ns =
+      std::llabs(system_ns - stamp_ns) <= std::llabs(monotonic_ns - stamp_ns) ? system_ns : monotonic_ns;
+  return static_cast<double>(now_ns - stamp_ns) * 1e-6;
+}
 
 }  // namespace
 
@@ -309,11 +289,13 @@ int runListen(const ListenOptions& o) {
   so.topics.odometry = o.odometry_topic;
   so.topics.pose = o.pose_topic;
   so.topics.status = o.status_topic;
+  so.topics.tf = o.tf_topic;
   so.odometry = o.topic == "all" || o.topic == "odometry";
   so.pose = o.topic == "all" || o.topic == "pose";
   so.status = o.topic == "all" || o.topic == "status";
-  if (!so.odometry && !so.pose && !so.status) {
-    throw std::invalid_argument("--topic must be odometry, pose, status or all, got '" + o.topic + "'");
+  so.tf = o.topic == "tf";
+  if (!so.odometry && !so.pose && !so.status && !so.tf) {
+    throw std::invalid_argument("--topic must be odometry, pose, status, tf or all, got '" + o.topic + "'");
   }
   if (!(o.timeout_s >= 0.0)) throw std::invalid_argument("--timeout must be >= 0");
 
@@ -321,19 +303,23 @@ int runListen(const ListenOptions& o) {
       dds::ParticipantOptions{o.domain, o.loopback ? dds::loopbackConfigXml() : std::string()});
   dds::Subscriber subscriber(participant, so);
   if (!o.json) {
-    std::fprintf(stderr, "rilo listen: domain %u, %s%s%s%s%s (stamps and latency on CLOCK_MONOTONIC)\n", o.domain,
-                 so.odometry ? so.topics.odometry.c_str() : "", so.odometry ? " " : "",
-                 so.pose ? so.topics.pose.c_str() : "", so.pose ? " " : "", so.status ? so.topics.status.c_str() : "");
+    std::string topics;
+    for (const auto& [on, name] : {std::pair{so.odometry, &so.topics.odometry}, std::pair{so.pose, &so.topics.pose},
+                                   std::pair{so.status, &so.topics.status}, std::pair{so.tf, &so.topics.tf}}) {
+      if (on) topics += (topics.empty() ? "" : " ") + *name;
+    }
+    spdlog::info("domain {}, {} (latency = now - stamp on the stamps' clock)", o.domain, topics);
   }
 
   g_stop = 0;
   std::signal(SIGINT, onStopSignal);
   std::signal(SIGTERM, onStopSignal);
 
-  TopicStats odometry_stats, pose_stats, status_stats;
+  TopicStats odometry_stats, pose_stats, status_stats, tf_stats;
   std::vector<dds::OdometryMessage> odometry;
   std::vector<dds::PoseMessage> poses;
   std::vector<dds::StatusMessage> statuses;
+  std::vector<dds::TfMessage> tf;
   std::uint64_t received = 0;
   const auto timeout = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(o.timeout_s));
   auto last_arrival = std::chrono::steady_clock::now();
@@ -344,7 +330,7 @@ int runListen(const ListenOptions& o) {
     if (o.timeout_s > 0.0) {
       const auto left = timeout - (std::chrono::steady_clock::now() - last_arrival);
       if (left <= std::chrono::nanoseconds::zero()) {
-        std::fprintf(stderr, "rilo listen: nothing received for %.1f s on domain %u\n", o.timeout_s, o.domain);
+        spdlog::error("nothing received for {:.1f} s on domain {}", o.timeout_s, o.domain);
         return kExitTimeout;
       }
       wait = std::min(wait, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
@@ -354,10 +340,14 @@ int runListen(const ListenOptions& o) {
     odometry.clear();
     poses.clear();
     statuses.clear();
+    tf.clear();
     subscriber.takeOdometry(odometry);
     subscriber.takePose(poses);
     subscriber.takeStatus(statuses);
-    if (!odometry.empty() || !poses.empty() || !statuses.empty()) last_arrival = std::chrono::steady_clock::now();
+    subscriber.takeTf(tf);
+    if (!odometry.empty() || !poses.empty() || !statuses.empty() || !tf.empty()) {
+      last_arrival = std::chrono::steady_clock::now();
+    }
     for (const auto& m : odometry) {
       if (done()) break;
       printOdometry(m, odometry_stats.rate.add(m.stamp_ns), latencyMs(m.stamp_ns), o.json);
@@ -370,8 +360,15 @@ int runListen(const ListenOptions& o) {
     }
     for (const auto& m : statuses) {
       if (done()) break;
-      printStatus(m, status_stats.rate.add(m.status.t_ns), latencyMs(m.status.t_ns), o.json);
+      printStatus(m, status_stats.rate.add(m.stamp_ns), latencyMs(m.stamp_ns), o.json);
       ++received;
+    }
+    for (const auto& message : tf) {
+      for (const auto& m : message.transforms) {
+        if (done()) break;
+        printTransform(m, tf_stats.rate.add(m.stamp_ns), latencyMs(m.stamp_ns), o.json);
+        ++received;
+      }
     }
     if (done()) return 0;
   }
@@ -382,11 +379,11 @@ void addListenCommand(CLI::App& app) {
   auto options = std::make_shared<ListenOptions>();
   CLI::App* cmd = app.add_subcommand(
       "listen",
-      "Subscribe to rilod's DDS topics and print poses, per-topic rate and latency (now - stamp, CLOCK_MONOTONIC: "
-      "meaningful on the device itself)");
-  cmd->add_option("--topic", options->topic, "Topic to listen to")
+      "Subscribe to rilod's DDS topics and print poses, per-topic rate and latency (now - stamp on the stamps' "
+      "clock: system time by default, CLOCK_MONOTONIC with dds.stamp_clock: monotonic)");
+  cmd->add_option("--topic", options->topic, "Topic to listen to (all: odometry, pose and status)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"odometry", "pose", "status", "all"}));
+      ->check(CLI::IsMember({"odometry", "pose", "status", "tf", "all"}));
   cmd->add_option("--count", options->count, "Stop after this many samples (0 = until Ctrl-C)")
       ->capture_default_str()
       ->check(cli::notNegative());
@@ -404,12 +401,13 @@ void addListenCommand(CLI::App& app) {
   cmd->add_option("--odometry-topic", options->odometry_topic, "DDS name of the odometry topic")->capture_default_str();
   cmd->add_option("--pose-topic", options->pose_topic, "DDS name of the pose topic")->capture_default_str();
   cmd->add_option("--status-topic", options->status_topic, "DDS name of the status topic")->capture_default_str();
+  cmd->add_option("--tf-topic", options->tf_topic, "DDS name of the TF topic")->capture_default_str();
   cmd->callback([options] {
     int code = 0;
     try {
       code = runListen(*options);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "rilo listen: %s\n", e.what());
+      spdlog::error("{}", e.what());
       code = kExitSetupError;
     }
     if (code != 0) throw CLI::RuntimeError(code);

@@ -1,7 +1,7 @@
 #pragma once
-// `rilo listen`: subscribe to rilod's DDS topics (odometry, pose, status) and
-// print what arrives: poses, per-topic rate and latency, one line per sample
-// (or one JSON object per line with --json).
+// `rilo listen`: subscribe to rilod's DDS topics (odometry, pose, status, or
+// TF) and print what arrives: poses, per-topic rate and latency, one line per
+// sample (or one JSON object per line with --json).
 #include <cstdint>
 #include <string>
 
@@ -12,7 +12,7 @@ class App;
 namespace rilo::tool {
 
 struct ListenOptions {
-  std::string topic = "all";  ///< odometry | pose | status | all
+  std::string topic = "all";  ///< odometry | pose | status | tf | all (odometry, pose and status)
   std::uint64_t count = 0;    ///< stop after this many samples (0 = until interrupted)
   bool json = false;          ///< one JSON object per line
   std::uint32_t domain = 0;   ///< DDS domain id
@@ -21,6 +21,7 @@ struct ListenOptions {
   std::string odometry_topic = "rt/rilo/odometry";
   std::string pose_topic = "rt/rilo/pose";
   std::string status_topic = "rt/rilo/status";
+  std::string tf_topic = "rt/tf";
 };
 
 /// Runs the listener; returns the process exit code (0 done or interrupted,

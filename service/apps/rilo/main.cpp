@@ -1,6 +1,7 @@
 // rilo: the tool for people (simulate, replay, evaluate, listen, probe).
 // Subcommands arrive with their issues: demo, listen, ...
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <cstdio>
 #include <exception>
@@ -15,6 +16,7 @@
 #include "replay_command.h"
 #include "report_command.h"
 #include "sim_command.h"
+#include "tool_log.h"
 #include "unsigned_option.h"
 
 int main(int argc, char** argv) {
@@ -39,11 +41,18 @@ int main(int argc, char** argv) {
   rilo::tool::addProbeCommand(app);
   rilo::tool::addRecordCommand(app);
 
+  // Messages go through spdlog as rilod's do, named after the subcommand
+  // ("rilo replay: warning: ..."), chosen once the command line is parsed and
+  // before any subcommand runs.
+  rilo::tool::setUpToolLogging("");
+  app.parse_complete_callback([&app] {
+    for (const CLI::App* sub : app.get_subcommands()) rilo::tool::setUpToolLogging(sub->get_name());
+  });
   CLI11_PARSE(app, argc, argv);
   try {
     if (*demo_cmd) return rilo::tool::runDemo(demo);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "rilo: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
   return 0;

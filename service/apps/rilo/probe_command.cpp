@@ -1,6 +1,7 @@
 #include "probe_command.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <atomic>
 #include <csignal>
@@ -29,7 +30,7 @@ int runProbeCommand(const ProbeCommandOptions& options) {
     }
     hardware = requireHardwareSection(loadServiceConfig(options.config));
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "rilo probe: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
 
@@ -66,7 +67,7 @@ int runProbeCommand(const ProbeCommandOptions& options) {
   } catch (const std::exception& e) {
     std::signal(SIGINT, SIG_DFL);
     std::signal(SIGTERM, SIG_DFL);
-    std::fprintf(stderr, "rilo probe: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
   std::signal(SIGINT, SIG_DFL);
@@ -77,7 +78,7 @@ int runProbeCommand(const ProbeCommandOptions& options) {
   std::fflush(stdout);
   const int code = report.exitCode();
   if (code != 0) {
-    for (const std::string& p : report.problems()) std::fprintf(stderr, "rilo probe: %s\n", p.c_str());
+    for (const std::string& p : report.problems()) spdlog::error("{}", p);
   }
   return code;
 }

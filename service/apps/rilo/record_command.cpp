@@ -1,6 +1,7 @@
 #include "record_command.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <atomic>
 #include <chrono>
@@ -51,7 +52,7 @@ int runRecordCommand(const RecordCommandOptions& options) {
     config = loadServiceConfig(options.config);
     (void)requireHardwareSection(config);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "rilo record: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
   const HardwareSourceConfig& hardware = config.sources.hardware;
@@ -60,7 +61,7 @@ int runRecordCommand(const RecordCommandOptions& options) {
   try {
     hw.openAll(hardware, "rilo-record");
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "rilo record: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 2;
   }
   std::vector<std::unique_ptr<SampleSource>> sources;
@@ -73,14 +74,13 @@ int runRecordCommand(const RecordCommandOptions& options) {
     setup.meta.description = "hardware session recorded by rilo record, config " + config.file.string();
     recorder = std::make_unique<Recorder>(options.out, setup, sources.size(), recorder_options);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "rilo record: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
 
-  std::fprintf(stderr, "rilo record: recording to %s (flushed every %lld ms)%s\n", options.out.c_str(),
-               static_cast<long long>(recorder_options.flush_interval_ns / 1'000'000),
+  spdlog::info("recording to {} (flushed every {} ms){}", options.out, recorder_options.flush_interval_ns / 1'000'000,
                options.seconds > 0.0 ? "" : "; Ctrl-C or SIGTERM stops");
-  for (const auto& s : sources) std::fprintf(stderr, "  source: %s\n", s->describe().c_str());
+  for (const auto& s : sources) spdlog::info("source: {}", s->describe());
 
   g_record_stop.store(false);
   std::signal(SIGINT, onRecordSignal);
@@ -104,7 +104,11 @@ int runRecordCommand(const RecordCommandOptions& options) {
   session_options.progress_period_ns = 1'000'000'000;
   RecordSessionCallbacks callbacks;
   callbacks.on_fault = [](const SourceFault& f) {
-    std::fprintf(stderr, "rilo record: %s%s: %s\n", f.fatal ? "[fatal] " : "", f.device.c_str(), f.what.c_str());
+    if (f.fatal) {
+      spdlog::error("{}: {}", f.device, f.what);
+    } else {
+      spdlog::warn("{}: {}", f.device, f.what);
+    }
   };
   const auto t0 = std::chrono::steady_clock::now();
   callbacks.on_progress = [t0](const std::vector<SourceTally>& tallies, const RecorderCounters& c) {
@@ -117,7 +121,7 @@ int runRecordCommand(const RecordCommandOptions& options) {
     result = runRecordSession(raw, *recorder, g_record_stop, session_options, callbacks);
     code = result.exitCode();
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "rilo record: %s\n", e.what());
+    spdlog::error("{}", e.what());
     code = 1;
   }
   timer_done.store(true);
@@ -153,7 +157,7 @@ void addRecordCommand(CLI::App& app) {
       ->check(CLI::Range(0.0, 1e7));
   cmd->footer(
       "Writes meta.yaml (IMU noise model and rate, lever arm, ranging ss-twr), anchors.csv from the configuration,\n"
-      "imu.csv and range.csv as samples arrive, flushed every recording.flush_interval_ns (a crash loses at most\n"
+      "imu.csv and range.csv as samples arrive, flushed every recording.flush_interval_s (a crash loses at most\n"
       "that). Replay it with `rilo replay DIR` or rilod's replay source. Exit code 0 clean stop, 1 bad input or a\n"
       "source / disk failure (the recording so far is kept), 2 a device could not be opened.");
   cmd->callback([options] {

@@ -2,6 +2,7 @@
 #include "shipped_config.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -10,11 +11,11 @@
 #include <limits>
 #include <map>
 #include <optional>
-#include <sstream>
 #include <stdexcept>
 #include <vector>
 
-#include "evaluation/json_text.h"
+#include <nlohmann/json.hpp>
+
 #include "evaluation/replay_run.h"
 #include "evaluation/tum.h"
 #include "hal/recording/recording_reader.h"
@@ -26,50 +27,33 @@ namespace rilo::tool {
 
 namespace {
 
-std::string statsJson(const PositionErrorStats& s) {
+using Json = nlohmann::ordered_json;
+
+Json statsJson(const PositionErrorStats& s) {
   // No poses, no error: nulls, never zeros a script would read as perfect (issue 37).
-  if (s.ape_3d.count == 0) {
-    return "{\"poses\": 0, \"mean_m\": null, \"median_m\": null, \"rmse_m\": null, \"max_m\": null, "
-           "\"horizontal_mean_m\": null, \"vertical_mean_m\": null, \"vertical_bias_m\": null}";
-  }
-  char buf[320];
-  std::snprintf(buf, sizeof buf,
-                "{\"poses\": %zu, \"mean_m\": %.4f, \"median_m\": %.4f, \"rmse_m\": %.4f, \"max_m\": %.4f, "
-                "\"horizontal_mean_m\": %.4f, \"vertical_mean_m\": %.4f, \"vertical_bias_m\": %.4f}",
-                s.ape_3d.count, s.ape_3d.mean, s.ape_3d.median, s.ape_3d.rmse, s.ape_3d.max, s.ape_horizontal.mean,
-                s.ape_vertical.mean, s.vertical_bias_m);
-  return buf;
+  const bool any = s.ape_3d.count > 0;
+  const auto fig = [&](double v) { return any ? Json(v) : Json(nullptr); };
+  return Json{{"poses", s.ape_3d.count},
+              {"mean_m", fig(s.ape_3d.mean)},
+              {"median_m", fig(s.ape_3d.median)},
+              {"rmse_m", fig(s.ape_3d.rmse)},
+              {"max_m", fig(s.ape_3d.max)},
+              {"horizontal_mean_m", fig(s.ape_horizontal.mean)},
+              {"vertical_mean_m", fig(s.ape_vertical.mean)},
+              {"vertical_bias_m", fig(s.vertical_bias_m)}};
 }
 
-/// {"mean": ., "p99": ., "max": .} of the smoother updates; nulls without any.
-std::string updateMsJson(bool none, double mean_ms, double p99_ms, double max_ms) {
-  if (none) return "{\"mean\": null, \"p99\": null, \"max\": null}";
-  std::ostringstream out;
-  out << "{\"mean\": " << mean_ms << ", \"p99\": " << p99_ms << ", \"max\": " << max_ms << "}";
-  return out.str();
-}
-
-/// A figure, or null when there is none.
-std::string optionalJson(const std::optional<double>& v) {
-  if (!v || !std::isfinite(*v)) return "null";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", *v);
-  return buf;
-}
-
-/// The configuration the replay ran: a file, the built-in one, or none.
-std::string configJson(const ReplayOptions& o) {
-  if (o.library_defaults) return "null";
-  return jsonString(o.config.empty() ? std::string(kShippedConfigName) : o.config);
-}
+/// A figure, or null when there is none (nlohmann writes NaN and inf as null too).
+Json optionalJson(const std::optional<double>& v) { return v ? Json(*v) : Json(nullptr); }
 
 /// {"not_finite": n, ..., "time_jumps": n}: the physical screen's counts.
-std::string inputDroppedJson(const InputDropCounts& d) {
-  std::string out = "{";
+Json inputDroppedJson(const InputDropCounts& d) {
+  Json out = Json::object();
   for (int r = 0; r < static_cast<int>(InputDrop::kCount); ++r) {
-    out += '"' + std::string(inputDropName(static_cast<InputDrop>(r))) + "\": " + std::to_string(d.by_reason[r]) + ", ";
+    out[std::string(inputDropName(static_cast<InputDrop>(r)))] = d.by_reason[r];
   }
-  return out + "\"time_jumps\": " + std::to_string(d.time_jumps) + "}";
+  out["time_jumps"] = d.time_jumps;
+  return out;
 }
 
 /// "far_future 1, out_of_bounds 3" (reasons with a count only).
@@ -83,17 +67,14 @@ std::string inputDroppedText(const InputDropCounts& d) {
   return out;
 }
 
-std::string countJson(const MeasurementCount& c, bool with_flags = false) {
-  char buf[224];
-  std::snprintf(buf, sizeof buf, "{\"recorded\": %zu, \"used\": %zu, \"dropped\": %zu, \"selected\": %s", c.recorded,
-                c.used, c.dropped, c.selected ? "true" : "false");
-  std::string out = buf;
+Json countJson(const MeasurementCount& c, bool with_flags = false) {
+  Json out{{"recorded", c.recorded}, {"used", c.used}, {"dropped", c.dropped}, {"selected", c.selected}};
   if (with_flags) {
-    std::snprintf(buf, sizeof buf, ", \"flagged_one\": %zu, \"flagged_both\": %zu, \"deep_nlos\": %zu", c.flagged_one,
-                  c.flagged_both, c.deep_nlos);
-    out += buf;
+    out["flagged_one"] = c.flagged_one;
+    out["flagged_both"] = c.flagged_both;
+    out["deep_nlos"] = c.deep_nlos;
   }
-  return out + "}";
+  return out;
 }
 
 }  // namespace
@@ -125,7 +106,7 @@ int runReplay(const ReplayOptions& o) {
   const Recording rec = readRecording(o.recording, &read_report);
   // What the reader accepted with a remark (a duplicate row skipped, an
   // unknown meta.yaml key, a cut-off last line): each once, with its file and line.
-  for (const ReadWarning& w : read_report.warnings) std::fprintf(stderr, "rilo replay: warning: %s\n", w.message.c_str());
+  for (const ReadWarning& w : read_report.warnings) spdlog::warn("{}", w.message);
   const ReplayResult run = replayRecording(rec, o.settings);
 
   const std::filesystem::path dir(o.out);
@@ -161,52 +142,60 @@ int runReplay(const ReplayOptions& o) {
   const double p99_ms = sorted.empty() ? 0.0 : sorted[static_cast<std::size_t>(0.99 * static_cast<double>(sorted.size() - 1))];
   const double max_ms = sorted.empty() ? 0.0 : sorted.back();
 
-  std::ofstream summary(dir / "summary.json");
-  summary << "{\n  \"recording\": " << jsonString(o.recording)
-          << ",\n  \"config\": " << configJson(o)
-          << ",\n  \"device_from\": \"" << (o.settings.device_from_recording ? "recording" : "config") << '"'
-          << ",\n  \"smoother\": " << jsonString(o.settings.smoother)
-          << ",\n  \"noise\": " << jsonString(o.settings.noise) << ",\n  \"lag_s\": " << o.settings.lag_s
-          << ",\n  \"range_hz\": " << o.settings.range_hz
-          << ",\n  \"thinning\": " << jsonString(rangeThinningName(o.settings.thinning))
-          << ",\n  \"ranges_used\": " << run.ranges_used
-          << ",\n  \"measurements\": {\"selected\": " << jsonString(toString(o.settings.measurements))
-          << ", \"reception\": " << o.settings.reception << ", \"reception_seed\": " << o.settings.reception_seed
-          << ",\n    \"range\": " << countJson(run.measurements.range)
-          << ",\n    \"tdoa\": " << countJson(run.measurements.tdoa, true)
-          << ",\n    \"ultrasonic\": " << countJson(run.measurements.ultrasonic) << "}"
-          << ",\n  \"dynamic_covariance\": " << (run.dynamic_covariance ? "true" : "false")
-          << ",\n  \"updates\": " << run.updates.size() << ",\n  \"update_ms\": " << updateMsJson(sorted.empty(), mean_ms, p99_ms, max_ms)
-          << ",\n  \"realtime_factor\": " << run.realtimeFactor()
-          << ",\n  \"online_tracked_share\": " << run.online_tracked_share
-          << ",\n  \"initializations\": " << run.initializations
-          << ",\n  \"reinitializations\": " << run.reinitializations
-          << ",\n  \"standstill_priors\": " << run.standstill_priors
-          << ",\n  \"input_dropped\": " << inputDroppedJson(run.input_dropped)
-          << ",\n  \"init_attempts\": " << run.init_attempts << ",\n  \"init_status\": " << jsonString(run.init_status)
-          << ",\n  \"last_failure\": " << jsonString(run.last_failure)
-          << ",\n  \"position_only_poses\": " << run.position_only.size()
-          << ",\n  \"first_position_s\": " << optionalJson(run.first_position_s)
-          << ",\n  \"first_full_state_s\": " << optionalJson(run.first_full_state_s)
-          << ",\n  \"height_band_in_use\": " << (run.height_band_in_use ? "true" : "false")
-          << ",\n  \"height_band_note\": " << jsonString(run.height_band_note)
-          << ",\n  \"flagged_nlos_excess_m\": " << run.flagged_excess_m
-          << ",\n  \"flagged_nlos_scale_m\": " << run.flagged_scale_m << ",\n  \"nlos_gap_db\": ";
-  if (std::isfinite(run.nlos_gap_db)) summary << run.nlos_gap_db;
-  else summary << "null";
+  Json j;
+  j["recording"] = o.recording;
+  // The configuration the replay ran: a file, the built-in one, or none.
+  j["config"] = o.library_defaults ? Json(nullptr) : Json(o.config.empty() ? std::string(kShippedConfigName) : o.config);
+  j["device_from"] = o.settings.device_from_recording ? "recording" : "config";
+  j["smoother"] = o.settings.smoother;
+  j["noise"] = o.settings.noise;
+  j["lag_s"] = o.settings.lag_s;
+  j["range_hz"] = o.settings.range_hz;
+  j["thinning"] = rangeThinningName(o.settings.thinning);
+  j["ranges_used"] = run.ranges_used;
+  j["measurements"] = Json{{"selected", toString(o.settings.measurements)},
+                           {"reception", o.settings.reception},
+                           {"reception_seed", o.settings.reception_seed},
+                           {"range", countJson(run.measurements.range)},
+                           {"tdoa", countJson(run.measurements.tdoa, true)},
+                           {"ultrasonic", countJson(run.measurements.ultrasonic)}};
+  j["dynamic_covariance"] = run.dynamic_covariance;
+  j["updates"] = run.updates.size();
+  j["update_ms"] = sorted.empty() ? Json{{"mean", nullptr}, {"p99", nullptr}, {"max", nullptr}}
+                                  : Json{{"mean", mean_ms}, {"p99", p99_ms}, {"max", max_ms}};
+  j["realtime_factor"] = run.realtimeFactor();
+  j["online_tracked_share"] = run.online_tracked_share;
+  j["initializations"] = run.initializations;
+  j["reinitializations"] = run.reinitializations;
+  j["standstill_priors"] = run.standstill_priors;
+  j["input_dropped"] = inputDroppedJson(run.input_dropped);
+  j["init_attempts"] = run.init_attempts;
+  j["init_status"] = run.init_status;
+  j["last_failure"] = run.last_failure;
+  j["position_only_poses"] = run.position_only.size();
+  j["first_position_s"] = optionalJson(run.first_position_s);
+  j["first_full_state_s"] = optionalJson(run.first_full_state_s);
+  j["height_band_in_use"] = run.height_band_in_use;
+  j["height_band_note"] = run.height_band_note;
+  j["flagged_nlos_excess_m"] = run.flagged_excess_m;
+  j["flagged_nlos_scale_m"] = run.flagged_scale_m;
+  j["nlos_gap_db"] = run.nlos_gap_db;  // NaN (none learnt) dumps as null
   const NlosClassification& n = run.nlos;
-  summary << ",\n  \"nlos\": {\"ranges\": " << n.ranges << ", \"downweighted\": " << n.downweighted
-          << ", \"downweighted_fraction\": " << n.downweightedFraction();
+  Json nlos{{"ranges", n.ranges}, {"downweighted", n.downweighted}, {"downweighted_fraction", n.downweightedFraction()}};
   if (n.labelled()) {
-    summary << ", \"labelled_nlos\": " << n.labelled_nlos << ", \"nlos_caught\": " << n.nlosCaught()
-            << ", \"labelled_los\": " << n.labelled_los << ", \"los_lost\": " << n.losLost();
+    nlos["labelled_nlos"] = n.labelled_nlos;
+    nlos["nlos_caught"] = n.nlosCaught();
+    nlos["labelled_los"] = n.labelled_los;
+    nlos["los_lost"] = n.losLost();
   }
-  summary << "}";
+  j["nlos"] = std::move(nlos);
   if (run.ape_online) {
-    summary << ",\n  \"ape_online\": " << statsJson(*run.ape_online)
-            << ",\n  \"ape_smoothed\": " << statsJson(*run.ape_smoothed);
+    j["ape_online"] = statsJson(*run.ape_online);
+    j["ape_smoothed"] = statsJson(*run.ape_smoothed);
   }
-  summary << "\n}\n";
+  std::ofstream summary(dir / "summary.json");
+  // Paths are the user's bytes, not necessarily UTF-8: bad bytes become U+FFFD.
+  summary << j.dump(2, ' ', false, Json::error_handler_t::replace) << '\n';
   if (!summary) throw std::runtime_error("cannot write " + (dir / "summary.json").string());
 
   if (o.library_defaults) {
@@ -437,7 +426,7 @@ void addReplayCommand(CLI::App& app) {
       }
       code = runReplay(*options);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "rilo replay: %s\n", e.what());
+      spdlog::error("{}", e.what());
     }
     if (code != 0) throw CLI::RuntimeError(code);
   });

@@ -2,6 +2,7 @@
 #include "rilo_version.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -58,8 +59,13 @@ class ProgressBar {
     if (done > 0 && done < total) {
       left = ", ~" + formatDuration(elapsed / static_cast<double>(done) * static_cast<double>(total - done)) + " left";
     }
-    std::fprintf(stderr, "%srilo report: [%s] %zu/%zu %s, %s elapsed%s%s", tty_ ? "\r" : "", bar.c_str(), done, total,
-                 what_.c_str(), formatDuration(elapsed).c_str(), left.c_str(), tty_ ? "   " : "\n");
+    if (!tty_) {  // a log line per tenth (a pipe, journald)
+      spdlog::info("[{}] {}/{} {}, {} elapsed{}", bar, done, total, what_, formatDuration(elapsed), left);
+      return;
+    }
+    // A live bar on the terminal, redrawn in place: not a log line.
+    std::fprintf(stderr, "\rrilo report: [%s] %zu/%zu %s, %s elapsed%s   ", bar.c_str(), done, total, what_.c_str(),
+                 formatDuration(elapsed).c_str(), left.c_str());
     std::fflush(stderr);
     printed_ = true;
   }
@@ -84,9 +90,9 @@ std::string commandLine(const ReportCommandOptions& o) {
   if (o.system == "tdoa") cmd += " --system tdoa";
   if (!o.sim_seeds.empty()) {
     cmd += " --sim-seeds " + join(o.sim_seeds, [](std::uint64_t v) { return std::to_string(v); });
-    char minutes[32];
-    std::snprintf(minutes, sizeof minutes, "%g", o.sim_minutes);
-    cmd += std::string(" --sim-minutes ") + minutes + " --sim-plan " + o.sim_plan;
+    char seconds[32];
+    std::snprintf(seconds, sizeof seconds, "%g", o.sim_seconds);
+    cmd += std::string(" --sim-seconds ") + seconds + " --sim-plan " + o.sim_plan;
   }
   const auto number = [](double v) {
     char buf[32];
@@ -142,7 +148,7 @@ int runTdoaReportCommand(const ReportCommandOptions& o) {
     ProgressBar bar("simulated sessions");
     parallelFor(
         dirs.size(), o.jobs,
-        [&](std::size_t i) { simulateTdoaReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i], planKind(o.sim_plan)); },
+        [&](std::size_t i) { simulateTdoaReportRecording(o.sim_seeds[i], o.sim_seconds, dirs[i], planKind(o.sim_plan)); },
         [&bar](std::size_t done, std::size_t total) { bar(done, total); });
     for (const std::filesystem::path& dir : dirs) recordings.push_back(loadReportRecording(dir));
   }
@@ -200,7 +206,7 @@ int runReportCommand(const ReportCommandOptions& o) {
         ProgressBar bar("simulated sessions");
         parallelFor(
             dirs.size(), o.jobs,
-            [&](std::size_t i) { simulateReportRecording(o.sim_seeds[i], o.sim_minutes, dirs[i], planKind(o.sim_plan)); },
+            [&](std::size_t i) { simulateReportRecording(o.sim_seeds[i], o.sim_seconds, dirs[i], planKind(o.sim_plan)); },
             [&bar](std::size_t done, std::size_t total) { bar(done, total); });
       }
       for (const std::filesystem::path& dir : dirs) recordings.push_back(loadReportRecording(dir));
@@ -225,7 +231,7 @@ int runReportCommand(const ReportCommandOptions& o) {
     std::printf("  wrote %s/{%s,%s,%s/}\n", o.out.c_str(), kReportMarkdownFile, kReportCsvFile, kReportFiguresDir);
     return 0;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "rilo report: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
 }
@@ -269,9 +275,9 @@ void addReportCommand(CLI::App& app) {
                   "Simulate office sessions with these seeds (as `rilo sim --seed N`) into OUT/recordings/ and "
                   "evaluate them too (comma separated)")
       ->delimiter(',')->check(cli::notNegative());
-  cmd->add_option("--sim-minutes", o->sim_minutes, "Duration of each simulated session (min)")
+  cmd->add_option("--sim-seconds", o->sim_seconds, "Duration of each simulated session (s)")
       ->capture_default_str()
-      ->check(CLI::Range(0.05, 600.0));
+      ->check(CLI::Range(3.0, 36000.0));
   cmd->add_option("--sim-plan", o->sim_plan, "Plan of the simulated sessions (as rilo sim --plan)")
       ->capture_default_str()
       ->check(CLI::IsMember({"default", "random", "hall"}));

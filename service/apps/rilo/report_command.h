@@ -28,7 +28,7 @@ struct ReportCommandOptions {
   int jobs = 2;
   bool quick = false;  ///< applied by addReportCommand to the lists not given explicitly
   std::vector<std::uint64_t> sim_seeds;
-  double sim_minutes = 2.0;
+  double sim_seconds = 120.0;  ///< duration of each simulated session
   std::string sim_plan = "default";  ///< default | random | hall (as rilo sim --plan)
   double lag_s = 5.0;
   // --system tdoa

@@ -1,6 +1,7 @@
 #include "sim_command.h"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -50,7 +51,7 @@ class ProgressPrinter {
       printed_ = true;
     } else if (percent / 10 > last_decile_) {
       last_decile_ = percent / 10;
-      std::fprintf(stderr, "rilo sim: %3d%% of a %.1f min session (%.0f s)\n", percent, minutes_, elapsed);
+      spdlog::info("{:3d}% of a {:.1f} min session ({:.0f} s)", percent, minutes_, elapsed);
     }
   }
 
@@ -98,7 +99,7 @@ int runSim(const SimOptions& o) {
   try {
     sim::OfficeScenarioParams p;
     p.seed = o.seed;
-    p.duration_s = o.minutes * 60.0;
+    p.duration_s = o.seconds;
     p.range_rate_hz = o.range_hz;
     p.anchors.count = o.anchors;
     p.channel.nlos_severity = o.nlos_severity;
@@ -140,8 +141,8 @@ int runSim(const SimOptions& o) {
     if (std::filesystem::exists(out) && !std::filesystem::is_directory(out)) {
       throw std::invalid_argument(o.out + " exists and is not a folder");
     }
-    if (!o.force && std::filesystem::exists(out) && holdsRecording(out)) {
-      throw std::invalid_argument(o.out + " already holds a recording (use --force to replace it)");
+    if (!o.overwrite && std::filesystem::exists(out) && holdsRecording(out)) {
+      throw std::invalid_argument(o.out + " already holds a recording (use --overwrite to replace it)");
     }
 
     sim::ScenarioRecordingOptions ro;
@@ -156,7 +157,7 @@ int runSim(const SimOptions& o) {
     std::snprintf(description, sizeof(description),
                   "rilo sim: %s, seed %llu, %d anchors, %.1f min walk%s, ranging %.1f Hz (%d per cycle), "
                   "packet loss %.2f, NLOS severity %.2f",
-                  plan_text, static_cast<unsigned long long>(o.seed), o.anchors, o.minutes,
+                  plan_text, static_cast<unsigned long long>(o.seed), o.anchors, o.seconds / 60.0,
                   o.start_moving ? " (moving at start)" : "", o.range_hz, o.ranges_per_cycle, o.packet_loss,
                   o.nlos_severity);
     ro.description = description;
@@ -177,7 +178,7 @@ int runSim(const SimOptions& o) {
       ro.description += description;
     }
     ro.truth_rate_hz = o.truth_hz;
-    ro.writer.overwrite = o.force;
+    ro.writer.overwrite = o.overwrite;
 
     // Anchor heights for the summary (the plan is cheap to rebuild).
     const sim::OfficePlan plan = sim::officePlanOf(p);
@@ -190,7 +191,7 @@ int runSim(const SimOptions& o) {
 
     sim::OfficeStats st;
     {
-      ProgressPrinter printer(o.minutes);
+      ProgressPrinter printer(o.seconds / 60.0);
       ro.progress = [&printer](double f) { printer(f); };
       st = sim::writeOfficeRecording(p, out, ro);
     }
@@ -226,7 +227,7 @@ int runSim(const SimOptions& o) {
     if (o.ultrasonic) printUltrasonicStats(st.ultrasonic, plan, p);
     return 0;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "rilo sim: %s\n", e.what());
+    spdlog::error("{}", e.what());
     return 1;
   }
 }
@@ -239,9 +240,9 @@ void addSimCommand(CLI::App& app) {
   cmd->add_option("OUT", o->out, "Recording folder to create")->required();
   cmd->add_option("--seed", o->seed, "Seed of the walk, the noise and (with --plan random) the plan")
       ->capture_default_str()->check(cli::notNegative());
-  cmd->add_option("--minutes", o->minutes, "Duration of the session (min)")
+  cmd->add_option("--seconds", o->seconds, "Duration of the session (s)")
       ->capture_default_str()
-      ->check(CLI::Range(0.05, 600.0));
+      ->check(CLI::Range(3.0, 36000.0));
   cmd->add_option("--range-hz", o->range_hz, "Total ranging rate over all anchors, before packet loss (Hz)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 1000.0));
@@ -283,7 +284,7 @@ void addSimCommand(CLI::App& app) {
                   "it): about 1.25 for a chest-worn tag, 1.6 for glasses, 0.95 for a belt")
       ->capture_default_str()
       ->check(CLI::Range(0.3, 2.0));
-  cmd->add_flag("--force", o->force, "Replace a recording already in OUT");
+  cmd->add_flag("--overwrite", o->overwrite, "Replace a recording already in OUT");
   CLI::Option* tdoa =
       cmd->add_flag("--tdoa", o->tdoa,
                     "UWB TDoA instead of SS-TWR: the anchors transmit in turn, the tag writes range differences "

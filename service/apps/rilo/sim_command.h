@@ -20,7 +20,7 @@ namespace rilo::tool {
 struct SimOptions {
   std::string out;               ///< recording folder to create
   std::uint64_t seed = 1;
-  double minutes = 2.0;
+  double seconds = 120.0;        ///< duration of the session
   double range_hz = 40.0;        ///< total ranging rate (all anchors)
   int anchors = 8;
   double nlos_severity = 1.0;
@@ -34,7 +34,7 @@ struct SimOptions {
   bool start_moving = false;
   bool first_path = true;        ///< the receiver reports first-path power (false: --no-first-path)
   double body_height_m = sim::WalkParams{}.body_height_m;  ///< IMU height of the standing wearer (m); the tag sits 0.1 m above it
-  bool force = false;            ///< replace a recording already in `out`
+  bool overwrite = false;        ///< replace a recording already in `out`
 
   // Second system (IMU-Ultrasonic-UWB paper): UWB TDoA and ultrasonic beacons, off by default.
   bool tdoa = false;             ///< TDoA instead of SS-TWR (meta ranging: tdoa)

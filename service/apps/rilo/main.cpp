@@ -18,6 +18,7 @@
 #include "sim_command.h"
 #include "tool_log.h"
 #include "unsigned_option.h"
+#include "view_command.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"rilo: Ranging-Inertial LOcalization tools"};
@@ -40,6 +41,7 @@ int main(int argc, char** argv) {
   rilo::tool::addListenCommand(app);
   rilo::tool::addProbeCommand(app);
   rilo::tool::addRecordCommand(app);
+  rilo::tool::addViewCommand(app);
 
   // Messages go through spdlog as rilod's do, named after the subcommand
   // ("rilo replay: warning: ..."), chosen once the command line is parsed and

@@ -21,6 +21,7 @@
 #include "hal/recording/recording_reader.h"
 #include "rilod/config.h"
 #include "rilod/service_setup.h"
+#include "replay_view.h"
 #include "unsigned_option.h"
 
 namespace rilo::tool {
@@ -267,7 +268,16 @@ void addReplayCommand(CLI::App& app) {
   auto options = std::make_shared<ReplayOptions>();
   CLI::App* cmd = app.add_subcommand("replay", "Run the online pipeline over a recording (as fast as possible) and write its trajectories and timing");
   cmd->add_option("REC", options->recording, "Recording folder")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("--out", options->out, "Output folder")->required();
+  cmd->add_option("--out", options->out, "Output folder (required unless --view)");
+  auto view = std::make_shared<ReplayViewOptions>();
+  cmd->add_flag("--view", view->enabled,
+                "Replay live through the service instead and serve rilo view's page over it (writes no files)");
+  cmd->add_option("--view-port", view->port, "With --view: TCP port of the page (0: any free port)")
+      ->capture_default_str()
+      ->check(cli::notNegative());
+  cmd->add_option("--view-speed", view->speed, "With --view: recording seconds per second")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 100.0));
   cmd->add_option("--config", options->config,
                   "rilod configuration (YAML) whose estimator the replay runs: what the service would have published "
                   "on the recording's device (default: the shipped config/rilod.yaml, built in). Options given with "
@@ -411,7 +421,7 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--dynamic-covariance", options->settings.dynamic_covariance,
                   "Per-link TDoA/ultrasonic sigmas from their residuals (true/false; default: on once the data hold TDoA "
                   "rows; the configuration's tdoa.dynamic_covariance)");
-  cmd->callback([options, smoother, noise, lag] {
+  cmd->callback([options, smoother, noise, lag, view] {
     int code = 1;
     try {
       const GivenOptions given{smoother->count() > 0, noise->count() > 0, lag->count() > 0};
@@ -424,7 +434,12 @@ void addReplayCommand(CLI::App& app) {
       } else {
         applyServiceConfig(options->config, given, options->settings);
       }
-      code = runReplay(*options);
+      if (view->enabled) {
+        code = runReplayView(*options, *view);
+      } else {
+        if (options->out.empty()) throw std::invalid_argument("--out is required (unless --view)");
+        code = runReplay(*options);
+      }
     } catch (const std::exception& e) {
       spdlog::error("{}", e.what());
     }

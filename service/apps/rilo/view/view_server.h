@@ -1,0 +1,43 @@
+#pragma once
+// The HTTP side of `rilo view` (cpp-httplib, Debian's libcpp-httplib-dev):
+//   GET /         the page (view_page.html, one file, no build step)
+//   GET /state    the current picture as JSON (ViewState::json)
+//   GET /events   server-sent events: the picture again on every change, at
+//                 most every 100 ms, a comment line every 10 s otherwise (so a
+//                 proxy or a dead peer is noticed)
+// Bound to one address (127.0.0.1 by default: the page has no access control).
+#include <atomic>
+#include <memory>
+#include <string>
+
+#include "view_state.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace rilo::tool {
+
+class ViewServer {
+ public:
+  ViewServer(ViewState& state, std::string page_html);
+  ~ViewServer();
+  ViewServer(const ViewServer&) = delete;
+  ViewServer& operator=(const ViewServer&) = delete;
+
+  /// Binds `host`:`port` (0: any free port); returns the port, throws
+  /// std::runtime_error naming the address when it cannot bind.
+  int bind(const std::string& host, int port);
+  /// Serves until stop(); call after bind().
+  void run();
+  /// Ends run() and every open event stream (any thread).
+  void stop();
+
+ private:
+  ViewState& state_;
+  std::string page_html_;
+  std::unique_ptr<httplib::Server> server_;
+  std::atomic<bool> stopping_{false};
+};
+
+}  // namespace rilo::tool

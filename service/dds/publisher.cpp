@@ -1,6 +1,7 @@
 #include "dds/publisher.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <utility>
@@ -97,8 +98,15 @@ Publisher::Publisher(const Participant& participant, PublisherOptions options)
 Publisher::~Publisher() = default;
 
 void Publisher::refreshStampOffset() noexcept {
-  if (options_.stamp_clock == StampClock::kSystem) {
-    stamp_offset_ns_.store(systemMinusMonotonicNs(), std::memory_order_relaxed);
+  if (options_.stamp_clock != StampClock::kSystem) return;
+  // The two clocks only part at a step of the wall clock (NTP slews both
+  // rates alike); each reading carries tens of ns of noise. Keeping the offset
+  // until it really moved keeps one sample's odometry and TF stamps equal and
+  // the stamps free of that jitter.
+  const std::int64_t measured = systemMinusMonotonicNs();
+  const std::int64_t current = stamp_offset_ns_.load(std::memory_order_relaxed);
+  if (current == 0 || std::llabs(measured - current) > kStampStepNs) {
+    stamp_offset_ns_.store(measured, std::memory_order_relaxed);
   }
 }
 

@@ -66,9 +66,13 @@ class Publisher {
   [[nodiscard]] WriteStatus publishTransform(const NavigationState& state) noexcept;
   [[nodiscard]] WriteStatus publishStatus(const ServiceStatus& status) noexcept;
 
+  /// A change of the offset smaller than this is reading noise, not a step of
+  /// the wall clock, and is not taken.
+  static constexpr std::int64_t kStampStepNs = 100'000;
   /// Re-reads system time minus CLOCK_MONOTONIC (stamp_clock.h; no-op with
-  /// StampClock::kMonotonic). Any thread; the publish calls pick the new
-  /// offset up at their next write.
+  /// StampClock::kMonotonic) and takes it when it moved by more than
+  /// kStampStepNs. Any thread; the publish calls pick the new offset up at
+  /// their next write.
   void refreshStampOffset() noexcept;
   /// What the publish calls add to t_ns for header stamps (0 when monotonic).
   std::int64_t stampOffsetNs() const noexcept { return stamp_offset_ns_.load(std::memory_order_relaxed); }

@@ -6,8 +6,9 @@
 // ROS 2 stamps are system time: rviz2 and tf2 compare them with their own
 // wall clock and drop "stale" data. So the publisher adds a tracked offset,
 // system time minus CLOCK_MONOTONIC, to every stamp it writes, and only
-// there. The offset is re-read every status-loop pass (20 ms): a wall-clock
-// step shows in the stamps within one pass, and never in the estimator.
+// there. The offset is re-read every status-loop pass (20 ms) and taken when
+// it moved by more than 0.1 ms: a wall-clock step shows in the stamps within
+// one pass, and never in the estimator.
 //
 // With `monotonic` the stamps are rilo's clock unchanged (the replay tests
 // compare stamps with a recording's ground truth that way). The status

@@ -89,7 +89,7 @@ TEST(ImuRatePath, AssembledServiceNeitherAllocatesNorLocksPerImuSampleOutsideCyc
   const std::uint64_t writes = publisher_counts.dds_writes.load();
   const double per_write = writes > 0 ? 1.0 / static_cast<double>(writes) : 0.0;
   std::printf(
-      "IMU-rate path after warm-up: %llu IMU samples in, %llu odometry writes\n"
+      "IMU-rate path after warm-up: %llu IMU samples in, %llu DDS writes (odometry and TF)\n"
       "  source thread:    %llu allocations, %llu locks\n"
       "  publisher thread: %llu allocations, %llu locks in rilo's code; inside dds_write_ts (Cyclone) %llu allocations "
       "(%.2f per write), %llu locks (%.2f per write)\n"

@@ -105,7 +105,7 @@ TEST(RiloReplay, ImpossibleRowsAreDroppedAndCountedUnderAMemoryCap) {
   }
   ASSERT_EQ(runRilo({"replay", rec.string(), "--out", (dir / "out").string()}, RunOptions{"", "", true}), 0)
       << "killed, or out of memory under the 4 GB cap";
-  const nlohmann::json summary = testing::readJsonFile(dir / "out" / "summary.json");
+  nlohmann::json summary = testing::readJsonFile(dir / "out" / "summary.json");
   EXPECT_EQ(summary["input_dropped"]["far_future"], 1) << summary;
   EXPECT_EQ(summary["input_dropped"]["out_of_bounds"], 3) << summary;
   EXPECT_EQ(summary["input_dropped"]["beyond_full_scale"], 1) << summary;
@@ -134,7 +134,7 @@ TEST(RiloReplay, NothingEstimatedIsNullInTheSummaryAndNotAvailableOnTheConsole) 
   ASSERT_EQ(runRilo({"replay", rec.string(), "--out", (dir / "out").string()}, RunOptions{console, "", false}), 0);
   std::stringstream text;
   text << std::ifstream(console).rdbuf();
-  const nlohmann::json summary = testing::readJsonFile(dir / "out" / "summary.json");
+  nlohmann::json summary = testing::readJsonFile(dir / "out" / "summary.json");
   EXPECT_EQ(summary["ape_online"]["poses"], 0) << summary;
   for (const char* figure : {"mean_m", "median_m", "rmse_m", "max_m", "vertical_bias_m"}) {
     EXPECT_TRUE(summary["ape_online"][figure].is_null()) << figure << ": " << summary;
@@ -206,7 +206,7 @@ TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
     const double qn = row[4] * row[4] + row[5] * row[5] + row[6] * row[6] + row[7] * row[7];
     ASSERT_NEAR(qn, 1.0, 1e-6);
   }
-  const nlohmann::json text = testing::readJsonFile(out / "summary.json");
+  nlohmann::json text = testing::readJsonFile(out / "summary.json");
   EXPECT_TRUE(text.contains("ape_online"));
   EXPECT_TRUE(text.contains("ape_smoothed"));
   EXPECT_EQ(text["reinitializations"], 0) << text;
@@ -241,8 +241,8 @@ TEST(RiloReplay, MeasurementKindsAndReceptionAreCountedInTheSummary) {
   ASSERT_EQ(runRilo({"replay", rec, "--out", out.path().string(), "--measurements", "range", "--reception", "0.7",
                      "--reception-seed", "3", "--smoother", "ekf"}),
             0);
-  const nlohmann::json summary = testing::readJsonFile(out / "summary.json");
-  const nlohmann::json& m = summary["measurements"];
+  nlohmann::json summary = testing::readJsonFile(out / "summary.json");
+  nlohmann::json& m = summary["measurements"];
   EXPECT_EQ(m["selected"], "range") << summary;
   EXPECT_EQ(m["reception"], 0.7) << summary;
   EXPECT_EQ(m["reception_seed"], 3) << summary;

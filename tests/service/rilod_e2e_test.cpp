@@ -66,9 +66,8 @@ TEST(RilodEndToEnd, ReplayPublishesOdometryPoseAndStatusOverDds) {
     subscriber.takeOdometry(odometry);
     subscriber.takePose(poses);
     subscriber.takeStatus(status);
-    int st = 0;
-    if (::waitpid(pid, &st, WNOHANG) == pid) {
-      code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    if (const auto exited = testing::exitedCode(pid)) {
+      code = *exited;
       break;
     }
   }
@@ -179,9 +178,8 @@ TEST(RilodEndToEnd, StampsAreSystemTimeAndTfFollowsTheOdometry) {
     for (std::size_t i = before; i < odometry.size(); ++i) odometry_age_ns.push_back(real_ns - odometry[i].stamp_ns);
     subscriber.takeTf(tf);
     subscriber.takeStatus(status);
-    int st = 0;
-    if (::waitpid(pid, &st, WNOHANG) == pid) {
-      code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    if (const auto exited = testing::exitedCode(pid)) {
+      code = *exited;
       break;
     }
   }
@@ -228,7 +226,10 @@ TEST(RilodEndToEnd, StampsAreSystemTimeAndTfFollowsTheOdometry) {
     EXPECT_EQ(t.rotation.coeffs(), o.q_w_b.coeffs());
     ++matched;
   }
-  EXPECT_GT(matched, odometry.size() / 2);
+  // One offset per wall-clock step (publisher.h kStampStepNs), so a sample's
+  // odometry and TF carry the same stamp: nearly every odometry finds its TF
+  // (TF is reliable with depth 100; a few may be past the end of the run).
+  EXPECT_GT(matched, odometry.size() * 9 / 10);
 }
 
 TEST(RilodEndToEnd, SigtermStopsCleanlyWithinOneSecond) {

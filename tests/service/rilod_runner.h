@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -52,6 +53,13 @@ inline pid_t startRilod(const std::filesystem::path& config, double duration_s, 
     ::_exit(127);
   }
   return pid;
+}
+
+/// Exit code of `pid` (128 + signal if killed) if it has exited, else nothing (does not wait).
+inline std::optional<int> exitedCode(pid_t pid) {
+  int status = 0;
+  if (::waitpid(pid, &status, WNOHANG) != pid) return std::nullopt;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
 /// Exit code of `pid` (128 + signal if killed), or -1 after killing it at the timeout.
@@ -99,9 +107,8 @@ inline RilodOutput runRilod(const TempDir& dir, const std::string& config_text, 
     subscriber.takeOdometry(out.odometry);
     subscriber.takePose(out.poses);
     subscriber.takeStatus(out.status);
-    int st = 0;
-    if (::waitpid(pid, &st, WNOHANG) == pid) {
-      out.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    if (const auto exited = exitedCode(pid)) {
+      out.exit_code = *exited;
       break;
     }
   }

@@ -31,14 +31,26 @@ class HeadlessChromium {
  public:
   /// Starts the browser with its profile in `profile_dir` (fresh per test).
   HeadlessChromium(const std::string& exe, const std::filesystem::path& profile_dir) {
+    // A browser that died must fail the test with a message, not kill it with SIGPIPE.
+    ::signal(SIGPIPE, SIG_IGN);
     int to_browser[2], from_browser[2];
-    if (::pipe(to_browser) != 0 || ::pipe(from_browser) != 0) throw std::runtime_error("pipe failed");
+    // Close-on-exec: the browser keeps only the ends dup2'd onto its fds 3 and 4.
+    if (::pipe2(to_browser, O_CLOEXEC) != 0 || ::pipe2(from_browser, O_CLOEXEC) != 0) {
+      throw std::runtime_error("pipe2 failed");
+    }
     const std::string profile = "--user-data-dir=" + profile_dir.string();
     pid_ = ::fork();
+    if (pid_ < 0) throw std::runtime_error("fork failed");
     if (pid_ == 0) {
-      // The browser's fd 3 reads our commands, its fd 4 writes to us.
-      ::dup2(to_browser[0], 3);
-      ::dup2(from_browser[1], 4);
+      // The browser's fd 3 reads our commands, its fd 4 writes to us. Copied
+      // above 10 first: a pipe end may itself be fd 3 or 4 (dup2 onto itself
+      // would keep its close-on-exec flag, and the first dup2 could overwrite
+      // the second end); the copies carry no close-on-exec flag.
+      const int commands = ::fcntl(to_browser[0], F_DUPFD, 10);
+      const int replies = ::fcntl(from_browser[1], F_DUPFD, 10);
+      if (commands < 0 || replies < 0 || ::dup2(commands, 3) < 0 || ::dup2(replies, 4) < 0) ::_exit(126);
+      ::close(commands);
+      ::close(replies);
       const int null_fd = ::open("/dev/null", O_WRONLY);
       ::dup2(null_fd, STDOUT_FILENO);
       ::dup2(null_fd, STDERR_FILENO);  // DBus complaints of a machine without a session bus

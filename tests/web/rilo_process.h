@@ -51,4 +51,25 @@ inline int stopProcess(pid_t pid) {
   return waitExit(pid, std::chrono::milliseconds(5000));
 }
 
+/// A child process stopped when the test leaves its scope, a failed
+/// assertion included (a leftover rilod or rilo would go on publishing on the
+/// test's domain and hold ctest's output pipe open).
+class ChildProcess {
+ public:
+  explicit ChildProcess(pid_t pid) : pid_(pid) {}
+  ~ChildProcess() { stop(); }
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+  pid_t pid() const { return pid_; }
+  /// Stops it now; returns its exit code (stopProcess), -1 if already stopped.
+  int stop() {
+    const int code = stopProcess(pid_);
+    pid_ = -1;
+    return code;
+  }
+
+ private:
+  pid_t pid_;
+};
+
 }  // namespace rilo::testing

@@ -1,6 +1,6 @@
 // `rilo view` in a real browser (ctest -L web): rilod replays the demo office
 // live on a private loopback domain, `rilo view` serves its page, and a
-// headless Chromium (Debian's, installed by cmake/debian-packages.txt) opens
+// headless Chromium (Debian's, installed by cmake/debian-test-packages.txt) opens
 // it and is asked what a person would see: the anchors drawn, the state, a
 // pose that moves. A screenshot is kept in build/web-artifacts/.
 #include <gtest/gtest.h>
@@ -31,7 +31,7 @@ using namespace std::chrono_literals;
 
 TEST(RiloViewInABrowser, ThePageShowsTheAnchorsTheStateAndAMovingPose) {
   const std::string chromium = testing::findChromium();
-  ASSERT_FALSE(chromium.empty()) << "no chromium: the README's test command installs it (cmake/debian-packages.txt)";
+  ASSERT_FALSE(chromium.empty()) << "no chromium: the README's test command installs it (cmake/debian-test-packages.txt)";
   testing::TempDir dir("rilo-view-web");
   const std::filesystem::path rec = testing::sourceDir() / "tests" / "data" / "office-demo";
   const std::size_t anchor_count = readRecording(rec).anchors.size();
@@ -42,15 +42,15 @@ TEST(RiloViewInABrowser, ThePageShowsTheAnchorsTheStateAndAMovingPose) {
                          "estimator:\n  range:\n    lever_arm_m: [0.06, 0.0, 0.10]\n"
                          "dds:\n  domain: " + std::to_string(testing::testDomain()) + "\n  loopback_only: true\n");
 
-  const pid_t view = testing::startRilo({"view", "--config", (dir / "rilod.yaml").string(), "--port", "0", "--seconds", "120"},
-                               dir / "view.out");
-  ASSERT_GT(view, 0);
+  testing::ChildProcess view(testing::startRilo({"view", "--config", (dir / "rilod.yaml").string(), "--port", "0", "--seconds", "120"},
+                               dir / "view.out"));
+  ASSERT_GT(view.pid(), 0);
   const std::string url = testing::waitForUrl(dir / "view.out", 20s);
   ASSERT_FALSE(url.empty()) << "rilo view printed no URL";
-  const pid_t rilod = testing::startRilod(dir / "rilod.yaml", 60.0, dir / "rilod.log");
-  ASSERT_GT(rilod, 0);
+  testing::ChildProcess rilod(testing::startRilod(dir / "rilod.yaml", 60.0, dir / "rilod.log"));
+  ASSERT_GT(rilod.pid(), 0);
 
-  nlohmann::json seen, first_tracking;
+  nlohmann::json seen, first_tracking, stale;
   std::string screenshot;
   {
     testing::HeadlessChromium browser(chromium, dir / "chromium-profile");
@@ -76,11 +76,19 @@ TEST(RiloViewInABrowser, ThePageShowsTheAnchorsTheStateAndAMovingPose) {
     ASSERT_TRUE(seen.is_object()) << "the page never ran its script";
     first_tracking = seen;
     std::this_thread::sleep_for(2s);  // a walking person moves in 2 s
-    seen = nlohmann::json::parse(browser.evaluate(page, probe).get<std::string>());
+    const nlohmann::json later = browser.evaluate(page, probe);
+    ASSERT_TRUE(later.is_string()) << later;
+    seen = nlohmann::json::parse(later.get<std::string>());
     screenshot = browser.screenshotPng(page);
+    // The service stops: within a few seconds the page says it shows the past.
+    rilod.stop();
+    std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(4500 * testing::timeScale())));
+    const nlohmann::json after = browser.evaluate(page, probe);
+    ASSERT_TRUE(after.is_string()) << after;
+    stale = nlohmann::json::parse(after.get<std::string>());
   }
-  testing::stopProcess(rilod);
-  testing::stopProcess(view);
+  rilod.stop();
+  view.stop();
 
   std::printf("page at first tracking: %s\npage 2 s later: %s\n", first_tracking.dump().c_str(), seen.dump().c_str());
   EXPECT_TRUE(first_tracking["state"] == "tracking" || first_tracking["state"] == "degraded") << first_tracking;
@@ -90,6 +98,8 @@ TEST(RiloViewInABrowser, ThePageShowsTheAnchorsTheStateAndAMovingPose) {
   EXPECT_GT(seen["events"].get<int>(), first_tracking["events"].get<int>()) << "the server keeps pushing";
   EXPECT_NE(seen["pose"], first_tracking["pose"]) << "the pose moves";
   EXPECT_EQ(seen["pose"].get<std::string>().rfind("x ", 0), 0u) << seen["pose"];
+  std::printf("page 4.5 s after rilod stopped: %s\n", stale.dump().c_str());
+  EXPECT_EQ(stale["connection"].get<std::string>().rfind("no data for ", 0), 0u) << stale;
 
   // The screenshot, kept for people to look at (a PNG, 1280 x 800).
   ASSERT_GT(screenshot.size(), 10'000u);

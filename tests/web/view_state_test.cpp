@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <numbers>
 #include <string>
 #include <thread>
@@ -49,7 +50,7 @@ dds::OdometryMessage odometryAt(std::int64_t t_ns, double x, double y, double ya
 
 TEST(ViewState, NothingYetIsNullsAndTheConfiguredAnchors) {
   const ViewState state(twoAnchors());
-  const json j = json::parse(state.json());
+  json j = json::parse(state.json());
   ASSERT_EQ(j["anchors"].size(), 2u);
   EXPECT_EQ(j["anchors"][1]["id"], 3);
   EXPECT_EQ(j["anchors"][1]["kind"], "ultrasonic");
@@ -67,9 +68,9 @@ TEST(ViewState, OdometryGivesThePoseHeadingCovarianceAndATrailBrokenAtPauses) {
   for (int i = 0; i < 400; ++i, t += 5'000'000) state.onOdometry(odometryAt(t, 0.005 * i, 1.0, std::numbers::pi / 2));
   t += 3'000'000'000;
   for (int i = 0; i < 200; ++i, t += 5'000'000) state.onOdometry(odometryAt(t, 5.0, 1.0 + 0.005 * i, std::numbers::pi / 2));
-  const json j = json::parse(state.json());
+  json j = json::parse(state.json());
   EXPECT_EQ(j["version"], 600);
-  const json& p = j["pose"];
+  json& p = j["pose"];
   EXPECT_EQ(p["source"], "odometry");
   EXPECT_EQ(p["x"], 5.0);
   EXPECT_NEAR(p["y"].get<double>(), 1.995, 1e-9);
@@ -122,7 +123,7 @@ TEST(ViewState, TheStatusAndTextsThatAreNotUtf8) {
   const std::string reason = "source 0 silent \xff\xfe for 1.2 s";  // bytes off the wire
   std::copy(reason.begin(), reason.end(), m.status.reason.begin());
   state.onStatus(m);
-  const json j = json::parse(state.json());  // still valid JSON
+  json j = json::parse(state.json());  // still valid JSON
   EXPECT_EQ(j["status"]["state"], "degraded");
   EXPECT_EQ(j["status"]["rejected_ranges"], 7);
   EXPECT_NE(j["status"]["reason"].get<std::string>().find("for 1.2 s"), std::string::npos);
@@ -182,6 +183,41 @@ TEST(ViewServer, ServesThePageTheStateAndPushesChangesAsEvents) {
 
   server.stop();
   http.join();
+}
+
+TEST(ViewServer, AnOpenPageGetsThePictureAtOnceBeforeAnyMessage) {
+  ViewState state(twoAnchors());  // no service yet: the floor plan all the same
+  ViewServer server(state, "<html></html>");
+  const int port = server.bind("127.0.0.1", 0);
+  std::thread http([&] { server.run(); });
+  const ServerThread joined{server, http};
+  httplib::Client client("127.0.0.1", port);
+  client.set_read_timeout(10, 0);
+  std::string stream;
+  client.Get("/events", [&](const char* data, std::size_t length) {
+    stream.append(data, length);
+    return stream.find("\n\n") == std::string::npos;  // one event
+  });
+  ASSERT_EQ(stream.rfind("data: ", 0), 0u) << stream;
+  json first = json::parse(stream.substr(6, stream.find("\n\n") - 6));
+  EXPECT_EQ(first["anchors"].size(), 2u);
+  EXPECT_TRUE(first["pose"].is_null());
+  EXPECT_TRUE(first["age_s"]["status"].is_null()) << "nothing received yet";
+}
+
+TEST(ViewServer, AStopBeforeTheServerRunsEndsItAtOnce) {
+  ViewState state(twoAnchors());
+  ViewServer server(state, "<html></html>");
+  server.bind("127.0.0.1", 0);
+  server.stop();  // Ctrl-C right after the URL was printed
+  auto ran = std::async(std::launch::async, [&] { server.run(); });
+  EXPECT_EQ(ran.wait_for(5s), std::future_status::ready) << "run() after stop() must not serve for ever";
+  // And the other order: stop() while run() is just starting.
+  ViewServer second(state, "<html></html>");
+  second.bind("127.0.0.1", 0);
+  auto running = std::async(std::launch::async, [&] { second.run(); });
+  second.stop();
+  EXPECT_EQ(running.wait_for(5s), std::future_status::ready);
 }
 
 TEST(ViewServer, ABusyPortIsAnErrorNamingTheAddress) {

@@ -17,6 +17,7 @@
 #include "hal/recording/recording_reader.h"
 #include "rilod/service.h"
 #include "rilod/service_setup.h"
+#include "view/view_feed.h"
 #include "view/view_page.h"
 #include "view/view_server.h"
 #include "view/view_state.h"
@@ -32,14 +33,22 @@ extern "C" void onReplayViewSignal(int) { g_replay_view_stop.store(true); }
 int runReplayView(const ReplayOptions& o, const ReplayViewOptions& v) {
   if (!(v.speed > 0.0 && v.speed <= 100.0)) throw std::invalid_argument("--view-speed must be in (0, 100]");
   const Recording rec = readRecording(o.recording);
-  // A domain of its own (not a running rilod's), on loopback only.
+  // A domain of its own on loopback, and topic names of this process: no
+  // cross-talk with a running rilod or another replay's page.
   const std::uint32_t domain = 200 + static_cast<std::uint32_t>(::getpid() % 32);
+  dds::TopicNames topics;
+  const std::string suffix = "_view_" + std::to_string(::getpid());
+  topics.odometry += suffix;
+  topics.pose += suffix;
+  topics.status += suffix;
+  topics.tf.clear();  // the page does not draw it
 
   ServiceOptions so;
   so.p_w_anchors = uwbAnchorsById(rec.anchors);
   so.localizer = localizerParamsFor(rec, o.settings);
   so.participant.domain_id = domain;
   so.participant.config_xml = dds::loopbackConfigXml();
+  so.publisher.topics = topics;
   so.on_event = [](const std::string& event) { spdlog::info("{}", event); };
   so.on_fault = [](const SourceFault& f) { spdlog::warn("{}: {}", f.device, f.what); };
   ReplaySourceConfig source;
@@ -56,7 +65,8 @@ int runReplayView(const ReplayOptions& o, const ReplayViewOptions& v) {
   const int port = server.bind(v.bind, v.port);
   const dds::Participant participant(dds::ParticipantOptions{domain, dds::loopbackConfigXml()});
   dds::SubscriberOptions sub;
-  sub.odometry_depth = 64;
+  sub.topics = topics;
+  sub.odometry_depth = 256;  // faster than real time the samples come quicker
   dds::Subscriber subscriber(participant, sub);
 
   spdlog::info("{} live at {}x (DDS domain {} on loopback); Ctrl-C stops", o.recording, v.speed, domain);
@@ -73,25 +83,22 @@ int runReplayView(const ReplayOptions& o, const ReplayViewOptions& v) {
     service_done.store(true);
   });
   std::thread http([&server] { server.run(); });
-  std::vector<dds::OdometryMessage> odometry;
-  std::vector<dds::PoseMessage> poses;
-  std::vector<dds::StatusMessage> statuses;
-  while (!service_done.load()) {
-    if (!subscriber.waitForData(std::chrono::milliseconds(100))) continue;
-    odometry.clear();
-    poses.clear();
-    statuses.clear();
-    subscriber.takeOdometry(odometry);
-    subscriber.takePose(poses);
-    subscriber.takeStatus(statuses);
-    for (const auto& m : poses) state.onPose(m);
-    for (const auto& m : odometry) state.onOdometry(m);  // each: the rate and counts are the topic's
-    for (const auto& m : statuses) state.onStatus(m);
+  bool interrupted = false;
+  {
+    // However this scope ends (a DDS error throws): the service told to stop
+    // and joined, the server stopped and joined.
+    struct ServiceThread {
+      std::thread& thread;
+      ~ServiceThread() {
+        g_replay_view_stop.store(true);
+        if (thread.joinable()) thread.join();
+      }
+    } const joined_service{runner};
+    const ServerThread joined_server{server, http};
+    feedView(subscriber, state, [&] { return !service_done.load(); });
+    interrupted = g_replay_view_stop.load();
   }
-  runner.join();
-  spdlog::info("the recording ended");
-  server.stop();
-  http.join();
+  spdlog::info("{}", interrupted ? "stopped" : "the recording ended");
   return service_code;
 }
 

@@ -11,13 +11,13 @@
 #include <memory>
 #include <string>
 #include <thread>
-#include <vector>
 
 #include "dds/participant.h"
 #include "dds/subscriber.h"
 #include "rilod/config.h"
 #include "rilod/service_setup.h"
 #include "unsigned_option.h"
+#include "view/view_feed.h"
 #include "view/view_page.h"
 #include "view/view_server.h"
 #include "view/view_state.h"
@@ -53,25 +53,13 @@ int runView(const ViewOptions& o) {
     std::signal(SIGINT, onViewSignal);
     std::signal(SIGTERM, onViewSignal);
     std::thread http([&server] { server.run(); });
+    // Stop and join the server however this scope ends (a DDS error throws).
+    const ServerThread joined{server, http};
     const auto t0 = std::chrono::steady_clock::now();
-    std::vector<dds::OdometryMessage> odometry;
-    std::vector<dds::PoseMessage> poses;
-    std::vector<dds::StatusMessage> statuses;
-    while (!g_view_stop.load()) {
-      if (o.seconds > 0.0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() >= o.seconds) break;
-      if (!subscriber.waitForData(std::chrono::milliseconds(100))) continue;
-      odometry.clear();
-      poses.clear();
-      statuses.clear();
-      subscriber.takeOdometry(odometry);
-      subscriber.takePose(poses);
-      subscriber.takeStatus(statuses);
-      for (const auto& m : poses) state.onPose(m);
-      for (const auto& m : odometry) state.onOdometry(m);  // each: the rate and counts are the topic's
-      for (const auto& m : statuses) state.onStatus(m);
-    }
-    server.stop();
-    http.join();
+    feedView(subscriber, state, [&] {
+      return !g_view_stop.load() &&
+             (o.seconds <= 0.0 || std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < o.seconds);
+    });
     return 0;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());

@@ -117,6 +117,7 @@ struct Path {
     if (!imu.tryPop(item)) return;
     const NavigationState& out = predictor.onImu(item.sample);
     if (out.valid && publisher.publishOdometry(out).ok()) {
+      (void)publisher.publishTransform(out);  // TF with the odometry (rt/tf), as the service does
       counters.published_odometry.add();
       atomicMax(latency_max_ns, hal::monotonicNowNs() - item.arrival_ns);
     }

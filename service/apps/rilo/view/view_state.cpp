@@ -26,6 +26,7 @@ double round3(double v) { return std::round(v * 1e3) / 1e3; }
 
 void ViewState::Rate::add(std::int64_t stamp_ns) {
   ++received;
+  arrived = std::chrono::steady_clock::now();
   if (!stamps_ns.empty() && stamp_ns <= stamps_ns.back()) stamps_ns.clear();  // publisher restarted
   stamps_ns.push_back(stamp_ns);
   while (stamps_ns.size() > 2 && stamps_ns.back() - stamps_ns.front() > 1'000'000'000) stamps_ns.pop_front();
@@ -36,18 +37,27 @@ double ViewState::Rate::hz() const {
   return static_cast<double>(stamps_ns.size() - 1) / (static_cast<double>(stamps_ns.back() - stamps_ns.front()) * 1e-9);
 }
 
+double ViewState::Rate::ageS(std::chrono::steady_clock::time_point now) const {
+  return std::chrono::duration<double>(now - arrived).count();
+}
+
 ViewState::ViewState(std::vector<Anchor> anchors) : anchors_(std::move(anchors)) {}
+
+ViewState::PoseView ViewState::PoseView::of(const char* source, const auto& m, const dds::Mat6& covariance) {
+  PoseView p;
+  p.valid = true;
+  p.source = source;
+  p.stamp_ns = m.stamp_ns;
+  p.p_w_b = m.p_w_b;
+  p.q_w_b = m.q_w_b;
+  p.covariance = covariance;
+  return p;
+}
 
 void ViewState::onOdometry(const dds::OdometryMessage& m) {
   std::lock_guard<std::mutex> lock(mutex_);
   odometry_.add(m.stamp_ns);
-  PoseView p;
-  p.valid = true;
-  p.source = "odometry";
-  p.stamp_ns = m.stamp_ns;
-  p.p_w_b = m.p_w_b;
-  p.q_w_b = m.q_w_b;
-  p.covariance = m.pose_covariance;
+  PoseView p = PoseView::of("odometry", m, m.pose_covariance);
   p.v_b = m.v_b;
   takePose(p);
   changed();
@@ -56,13 +66,7 @@ void ViewState::onOdometry(const dds::OdometryMessage& m) {
 void ViewState::onPose(const dds::PoseMessage& m) {
   std::lock_guard<std::mutex> lock(mutex_);
   poses_.add(m.stamp_ns);
-  PoseView p;
-  p.valid = true;
-  p.source = "pose";
-  p.stamp_ns = m.stamp_ns;
-  p.p_w_b = m.p_w_b;
-  p.q_w_b = m.q_w_b;
-  p.covariance = m.covariance;
+  PoseView p = PoseView::of("pose", m, m.covariance);
   p.position_only = m.covariance.bottomRightCorner<3, 3>().diagonal().maxCoeff() > kUnknownOrientationVariance;
   // The odometry (IMU rate, extrapolated from these) is the newer picture
   // while it flows; a smoothed pose only replaces a stale one.
@@ -153,6 +157,9 @@ std::string ViewState::json() const {
                     {"pose_hz", std::round(poses_.hz() * 10.0) / 10.0},
                     {"status_hz", std::round(statuses_.hz() * 10.0) / 10.0}};
   j["received"] = Json{{"odometry", odometry_.received}, {"pose", poses_.received}, {"status", statuses_.received}};
+  const auto now = std::chrono::steady_clock::now();
+  const auto age = [&](const Rate& r) { return r.received > 0 ? Json(std::round(r.ageS(now) * 10.0) / 10.0) : Json(nullptr); };
+  j["age_s"] = Json{{"odometry", age(odometry_)}, {"pose", age(poses_)}, {"status", age(statuses_)}};
   if (have_status_) {
     const ServiceStatus& s = status_.status;
     j["status"] = Json{{"state", status_.state_name},

@@ -38,6 +38,7 @@ class ViewState {
   ///             cov_xx, cov_xy, cov_yy (m^2), sigma_z (m), sigma_yaw_deg, speed_m_s} or null
   ///   trail    [[[x, y], ...], ...]             segments, a new one after each pause
   ///   rates    {odometry_hz, pose_hz, status_hz}, received {odometry, pose, status}
+  ///   age_s    {odometry, pose, status}: seconds since the newest was taken (null: none yet)
   ///   status   {state, reason, last_fault, counters, update and latency figures} or null
   std::string json() const;
   /// Grows with every message taken.
@@ -50,8 +51,11 @@ class ViewState {
   struct Rate {
     std::deque<std::int64_t> stamps_ns;
     std::uint64_t received = 0;
+    std::chrono::steady_clock::time_point arrived;  ///< when the newest one was taken (this machine's clock)
     void add(std::int64_t stamp_ns);
     double hz() const;
+    /// Seconds since the newest one was taken, or null before the first.
+    double ageS(std::chrono::steady_clock::time_point now) const;
   };
   struct PoseView {
     bool valid = false;
@@ -62,6 +66,8 @@ class ViewState {
     Eigen::Quaterniond q_w_b = Eigen::Quaterniond::Identity();
     dds::Mat6 covariance = dds::Mat6::Zero();
     Eigen::Vector3d v_b = Eigen::Vector3d::Zero();
+    /// The stamp and pose of an odometry or pose message.
+    static PoseView of(const char* source, const auto& message, const dds::Mat6& covariance);
   };
 
   void takePose(const PoseView& pose);  // under the mutex

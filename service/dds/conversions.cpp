@@ -262,6 +262,18 @@ StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg) {
   return out;
 }
 
+RangesMessage toRangesMessage(const rilo_msg_dds__Ranges_& msg) {
+  RangesMessage out;
+  out.stamp_ns = fromRosTime(msg.header.stamp);
+  out.frame_id = stringOf(msg.header.frame_id);
+  out.ranges.reserve(msg.ranges._length);
+  for (std::uint32_t i = 0; i < msg.ranges._length; ++i) {
+    const rilo_msg_dds__RangeReading_& r = msg.ranges._buffer[i];
+    out.ranges.push_back({r.anchor_id, r.range_m, r.predicted_m, r.residual_m, r.weight, r.nlos});
+  }
+  return out;
+}
+
 TfMessage toTfMessage(const tf2_msgs_msg_dds__TFMessage_& msg) {
   TfMessage out;
   out.transforms.reserve(msg.transforms._length);

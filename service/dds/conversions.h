@@ -74,6 +74,7 @@ void fillStatus(const ServiceStatus& status, rilo_msg_dds__Status_& msg, std::in
 OdometryMessage toOdometryMessage(const nav_msgs_msg_dds__Odometry_& msg);
 PoseMessage toPoseMessage(const geometry_msgs_msg_dds__PoseWithCovarianceStamped_& msg);
 StatusMessage toStatusMessage(const rilo_msg_dds__Status_& msg);
+RangesMessage toRangesMessage(const rilo_msg_dds__Ranges_& msg);
 TfMessage toTfMessage(const tf2_msgs_msg_dds__TFMessage_& msg);
 
 }  // namespace rilo::dds

@@ -45,6 +45,24 @@ struct StatusMessage {
   std::string state_name;
 };
 
+/// One rilo_msgs/RangeReading.
+struct RangeReading {
+  std::uint32_t anchor_id = 0;
+  double range_m = 0.0;
+  double predicted_m = 0.0;
+  double residual_m = 0.0;
+  double weight = 1.0;
+  bool nlos = false;
+};
+
+/// One rilo_msgs/Ranges: a ranging epoch's ranges as the estimator judged them.
+struct RangesMessage {
+  std::int64_t stamp_ns = 0;
+  std::int64_t source_timestamp_ns = 0;
+  std::string frame_id;
+  std::vector<RangeReading> ranges;
+};
+
 /// One geometry_msgs/TransformStamped: the pose of child_frame_id in frame_id.
 struct TransformMessage {
   std::int64_t stamp_ns = 0;

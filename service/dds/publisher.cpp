@@ -61,6 +61,10 @@ Publisher::Publisher(const Participant& participant, PublisherOptions options)
     tf_topic_ = createTopic(participant_, tf2_msgs_msg_dds__TFMessage__desc, names.tf);
     tf_writer_ = createWriter(participant_, tf_topic_, TopicKind::kTf, names.tf);
   }
+  if (!names.ranges.empty()) {
+    ranges_topic_ = createTopic(participant_, rilo_msg_dds__Ranges__desc, names.ranges);
+    ranges_writer_ = createWriter(participant_, ranges_topic_, TopicKind::kRanges, names.ranges);
+  }
   refreshStampOffset();
 
   // Strings are set once; the publish calls only write numbers.
@@ -77,6 +81,11 @@ Publisher::Publisher(const Participant& participant, PublisherOptions options)
   tf_.transforms._length = 1;
   tf_.transforms._maximum = 1;
   tf_.transforms._release = false;
+  ranges_.header.frame_id = options_.frames.world.data();
+  ranges_.ranges._buffer = range_readings_.data();  // not owned, as the TF sample's
+  ranges_.ranges._maximum = static_cast<std::uint32_t>(kMaxRanges);
+  ranges_.ranges._length = 0;
+  ranges_.ranges._release = false;
 
   // Keyless topics have one instance. Registering it keeps Cyclone's instance
   // entry alive; otherwise a write with no reader holding the instance
@@ -92,6 +101,10 @@ Publisher::Publisher(const Participant& participant, PublisherOptions options)
   if (tf_writer_) {
     checkReturn(dds_register_instance(tf_writer_.get(), &instance, &tf_), "dds_register_instance",
                 "topic '" + names.tf + "'");
+  }
+  if (ranges_writer_) {
+    checkReturn(dds_register_instance(ranges_writer_.get(), &instance, &ranges_), "dds_register_instance",
+                "topic '" + names.ranges + "'");
   }
 }
 
@@ -132,6 +145,20 @@ WriteStatus Publisher::publishTransform(const NavigationState& state) noexcept {
   return {dds_write_ts(tf_writer_.get(), &tf_, state.t_ns + offset_ns)};
 }
 
+WriteStatus Publisher::publishRanges(std::int64_t t_ns, std::span<const RangeReading> ranges) noexcept {
+  if (!ranges_writer_) return {};
+  if (t_ns < 0) return {DDS_RETCODE_BAD_PARAMETER, "negative t_ns"};
+  const std::size_t n = std::min(ranges.size(), kMaxRanges);
+  for (std::size_t i = 0; i < n; ++i) {
+    const RangeReading& r = ranges[i];
+    range_readings_[i] = {r.anchor_id, r.range_m, r.predicted_m, r.residual_m, r.weight, r.nlos};
+  }
+  ranges_.ranges._length = static_cast<std::uint32_t>(n);
+  const std::int64_t offset_ns = stampOffsetNs();
+  toRosTime(t_ns + offset_ns, ranges_.header.stamp);
+  return {dds_write_ts(ranges_writer_.get(), &ranges_, t_ns + offset_ns)};
+}
+
 WriteStatus Publisher::publishStatus(const ServiceStatus& status) noexcept {
   if (status.t_ns < 0) return {DDS_RETCODE_BAD_PARAMETER, "negative t_ns"};
   const std::int64_t offset_ns = stampOffsetNs();
@@ -148,6 +175,7 @@ dds_entity_t Publisher::writerOf(TopicKind kind) const noexcept {
     case TopicKind::kOdometry: return odometry_writer_.get();
     case TopicKind::kPose: return pose_writer_.get();
     case TopicKind::kTf: return tf_writer_.get();
+    case TopicKind::kRanges: return ranges_writer_.get();
     case TopicKind::kStatus: break;
   }
   return status_writer_.get();

@@ -14,9 +14,11 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <span>
 #include <string>
 
 #include "dds/entity.h"
+#include "dds/messages.h"
 #include "dds/participant.h"
 #include "dds/stamp_clock.h"
 #include "dds/topics.h"
@@ -64,6 +66,10 @@ class Publisher {
   /// tf2_msgs/TFMessage with one transform world -> body (the odometry's
   /// pose, same stamp). Without a TF topic: OK, nothing written.
   [[nodiscard]] WriteStatus publishTransform(const NavigationState& state) noexcept;
+  /// rilo_msgs/Ranges of one ranging epoch at `t_ns` (the first kMaxRanges of
+  /// `ranges`). Without a ranges topic: OK, nothing written.
+  static constexpr std::size_t kMaxRanges = 64;
+  [[nodiscard]] WriteStatus publishRanges(std::int64_t t_ns, std::span<const RangeReading> ranges) noexcept;
   [[nodiscard]] WriteStatus publishStatus(const ServiceStatus& status) noexcept;
 
   /// A change of the offset smaller than this is reading noise, not a step of
@@ -77,6 +83,7 @@ class Publisher {
   /// What the publish calls add to t_ns for header stamps (0 when monotonic).
   std::int64_t stampOffsetNs() const noexcept { return stamp_offset_ns_.load(std::memory_order_relaxed); }
   bool publishesTf() const noexcept { return static_cast<bool>(tf_writer_); }
+  bool publishesRanges() const noexcept { return static_cast<bool>(ranges_writer_); }
 
   /// Readers currently matched with the writer of `kind` (throws on DDS error).
   std::uint32_t matchedSubscribers(TopicKind kind) const;
@@ -101,17 +108,21 @@ class Publisher {
   Entity odometry_topic_;
   Entity pose_topic_;
   Entity status_topic_;
-  Entity tf_topic_;  // empty without a TF topic name
+  Entity tf_topic_;      // empty without a TF topic name
+  Entity ranges_topic_;  // empty without a ranges topic name
   Entity odometry_writer_;
   Entity pose_writer_;
   Entity status_writer_;
   Entity tf_writer_;
+  Entity ranges_writer_;
   // Pre-allocated samples; string members point into options_ / the buffers below.
   nav_msgs_msg_dds__Odometry_ odometry_{};
   geometry_msgs_msg_dds__PoseWithCovarianceStamped_ pose_{};
   rilo_msg_dds__Status_ status_{};
   geometry_msgs_msg_dds__TransformStamped_ transform_{};  // the TF sample's one element
   tf2_msgs_msg_dds__TFMessage_ tf_{};
+  std::array<rilo_msg_dds__RangeReading_, kMaxRanges> range_readings_{};  // the ranges sample's sequence
+  rilo_msg_dds__Ranges_ ranges_{};
   std::array<char, 16> state_name_{};
   std::array<char, 128> last_fault_{};
   std::array<char, 160> reason_{};

@@ -24,6 +24,7 @@ QosPtr writerQos(TopicKind kind) {
       dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
       break;
     case TopicKind::kPose:
+    case TopicKind::kRanges:  // one sample per ranging epoch, like the pose
       dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
       dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kPoseHistoryDepth);
       break;
@@ -52,6 +53,7 @@ QosPtr readerQos(TopicKind kind, std::int32_t odometry_depth) {
       dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, odometry_depth);
       break;
     case TopicKind::kPose:
+    case TopicKind::kRanges:  // one sample per ranging epoch, like the pose
       dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
       dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kPoseHistoryDepth);
       break;

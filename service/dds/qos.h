@@ -6,6 +6,7 @@
 //   pose      reliable, volatile, keep-last 10                  reliable, keep-last 10
 //   status    reliable, transient-local, keep-last 1            reliable, transient-local, keep-last 64
 //   tf        reliable, volatile, keep-last 100                 reliable, keep-last 100
+//   ranges    reliable, volatile, keep-last 10                  reliable, keep-last 10
 //
 // Odometry is sensor data at IMU rate: a late sample is worthless, so it is
 // never retransmitted and never blocks (ROS 2 subscribers need the

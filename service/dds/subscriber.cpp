@@ -84,6 +84,12 @@ Subscriber::Subscriber(const Participant& participant, SubscriberOptions options
     if (options_.topics.tf.empty()) throw std::invalid_argument("Subscriber: tf requested but the TF topic name is empty");
     open(tf_, TopicKind::kTf, tf2_msgs_msg_dds__TFMessage__desc);
   }
+  if (options_.ranges) {
+    if (options_.topics.ranges.empty()) {
+      throw std::invalid_argument("Subscriber: ranges requested but the ranges topic name is empty");
+    }
+    open(ranges_, TopicKind::kRanges, rilo_msg_dds__Ranges__desc);
+  }
 }
 
 Subscriber::~Subscriber() {
@@ -122,11 +128,18 @@ std::size_t Subscriber::takeTf(std::vector<TfMessage>& out) {
                                                [](const tf2_msgs_msg_dds__TFMessage_& m) { return toTfMessage(m); });
 }
 
+std::size_t Subscriber::takeRanges(std::vector<RangesMessage>& out) {
+  if (!ranges_.reader) return 0;
+  return takeAll<rilo_msg_dds__Ranges_>(ranges_.reader.get(), options_.topics.ranges, out,
+                                        [](const rilo_msg_dds__Ranges_& m) { return toRangesMessage(m); });
+}
+
 const Subscriber::Endpoint& Subscriber::endpointOf(TopicKind kind) const noexcept {
   switch (kind) {
     case TopicKind::kOdometry: return odometry_;
     case TopicKind::kPose: return pose_;
     case TopicKind::kTf: return tf_;
+    case TopicKind::kRanges: return ranges_;
     case TopicKind::kStatus: break;
   }
   return status_;

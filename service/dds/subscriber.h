@@ -23,6 +23,7 @@ struct SubscriberOptions {
   bool pose = true;
   bool status = true;
   bool tf = false;       ///< subscribe to TF (topics.tf), e.g. to check it against the odometry
+  bool ranges = false;   ///< subscribe to the judged ranges (topics.ranges; rilo view)
   std::int32_t odometry_depth = kDefaultOdometryReaderDepth;  ///< keep-last depth of the odometry reader
 };
 
@@ -43,6 +44,7 @@ class Subscriber {
   std::size_t takePose(std::vector<PoseMessage>& out);
   std::size_t takeStatus(std::vector<StatusMessage>& out);
   std::size_t takeTf(std::vector<TfMessage>& out);
+  std::size_t takeRanges(std::vector<RangesMessage>& out);
 
   bool subscribed(TopicKind kind) const noexcept;
   /// Writers currently matched with the reader of `kind` (0 when not subscribed).
@@ -66,6 +68,7 @@ class Subscriber {
   Endpoint pose_;
   Endpoint status_;
   Endpoint tf_;
+  Endpoint ranges_;
   Entity waitset_;  // declared last: deleted first
 };
 

@@ -8,7 +8,7 @@
 
 namespace rilo::dds {
 
-enum class TopicKind : std::uint8_t { kOdometry = 0, kPose = 1, kStatus = 2, kTf = 3 };
+enum class TopicKind : std::uint8_t { kOdometry = 0, kPose = 1, kStatus = 2, kTf = 3, kRanges = 4 };
 
 inline constexpr std::string_view topicKindName(TopicKind kind) noexcept {
   switch (kind) {
@@ -16,6 +16,7 @@ inline constexpr std::string_view topicKindName(TopicKind kind) noexcept {
     case TopicKind::kPose: return "pose";
     case TopicKind::kStatus: return "status";
     case TopicKind::kTf: return "tf";
+    case TopicKind::kRanges: return "ranges";
   }
   return "unknown";
 }
@@ -26,12 +27,15 @@ struct TopicNames {
   std::string status = "rt/rilo/status";      ///< rilo_msgs/Status
   /// tf2_msgs/TFMessage world -> body at the odometry rate (ROS 2 /tf); empty: no TF.
   std::string tf = "rt/tf";
+  /// rilo_msgs/Ranges: each ranging epoch's ranges as the estimator judged them.
+  std::string ranges = "rt/rilo/ranges";
 
   const std::string& of(TopicKind kind) const noexcept {
     switch (kind) {
       case TopicKind::kOdometry: return odometry;
       case TopicKind::kPose: return pose;
       case TopicKind::kTf: return tf;
+      case TopicKind::kRanges: return ranges;
       case TopicKind::kStatus: break;
     }
     return status;

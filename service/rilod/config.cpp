@@ -436,16 +436,21 @@ DdsConfig readDds(const ConfigField& field) {
     if (c.loopback_only) f->fail("give either loopback_only: true or cyclone_config_file, not both");
   }
   if (auto f = m.get("topics")) {
-    const ConfigMap t = f->map({"odometry", "pose", "status", "tf"});
+    const ConfigMap t = f->map({"odometry", "pose", "status", "tf", "ranges"});
     t.read("odometry", c.topics.odometry, readTopicName);
     t.read("pose", c.topics.pose, readTopicName);
     t.read("status", c.topics.status, readTopicName);
     t.read("tf", c.topics.tf, readOptionalTopicName);
-    const std::string& tf = c.topics.tf;
-    if (c.topics.odometry == c.topics.pose || c.topics.odometry == c.topics.status ||
-        c.topics.pose == c.topics.status ||
-        (!tf.empty() && (tf == c.topics.odometry || tf == c.topics.pose || tf == c.topics.status))) {
-      f->fail("the odometry, pose, status and tf topics must have different names");
+    t.read("ranges", c.topics.ranges, readOptionalTopicName);
+    // Pairwise (tf and ranges may be empty: not published).
+    const std::string* names[] = {&c.topics.odometry, &c.topics.pose, &c.topics.status, &c.topics.tf,
+                                  &c.topics.ranges};
+    for (std::size_t i = 0; i < std::size(names); ++i) {
+      for (std::size_t j = i + 1; j < std::size(names); ++j) {
+        if (!names[i]->empty() && *names[i] == *names[j]) {
+          f->fail("the odometry, pose, status, tf and ranges topics must have different names");
+        }
+      }
     }
   }
   if (auto f = m.get("frames")) {

@@ -13,6 +13,7 @@ RangeTrustMonitor::RangeTrustMonitor(std::vector<Vec3> p_w_anchors, const RangeI
       p_b_tag_(graph.p_b_tag),
       group_window_ns_(graph.same_state_window_ns) {
   pending_.reserve(kMaxPending);
+  verdicts_.reserve(kMaxPending);
 }
 
 void RangeTrustMonitor::onRange(const RangeSample& range) noexcept {
@@ -27,15 +28,23 @@ void RangeTrustMonitor::onRange(const RangeSample& range) noexcept {
   pending_.push_back(range);  // within the reserved capacity
 }
 
+namespace {
+
+double predictedRange(const Vec3& p_w_anchor, const Vec3& p_b_tag, const Pose3& T_w_b) noexcept {
+  return (T_w_b.p + T_w_b.R * p_b_tag - p_w_anchor).norm();
+}
+
+}  // namespace
+
 double RangeTrustMonitor::weight(const RangeSample& range, const Pose3& T_w_b) const noexcept {
-  const Vec3 p_w_tag = T_w_b.p + T_w_b.R * p_b_tag_;
-  const double predicted_m = (p_w_tag - p_w_anchors_[range.anchor_id]).norm();
+  const double predicted_m = predictedRange(p_w_anchors_[range.anchor_id], p_b_tag_, T_w_b);
   return loss_->weight((range.range_m - predicted_m) / sigma_m_);
 }
 
 std::uint64_t RangeTrustMonitor::judge(const StateEstimate& latest) noexcept {
   std::uint64_t rejected_now = 0;
   std::size_t kept = 0;
+  verdicts_.clear();
   for (const RangeSample& r : pending_) {
     if (r.t_ns > latest.t_ns + group_window_ns_) {
       pending_[kept++] = r;  // a later state's: wait for its update
@@ -43,7 +52,10 @@ std::uint64_t RangeTrustMonitor::judge(const StateEstimate& latest) noexcept {
       ++unjudged_;  // an older state's, absorbed in the same update
     } else {
       ++judged_;
-      if (!(weight(r, latest.T_w_b) >= kTrustedWeight)) ++rejected_now;
+      const double predicted_m = predictedRange(p_w_anchors_[r.anchor_id], p_b_tag_, latest.T_w_b);
+      const double w = loss_->weight((r.range_m - predicted_m) / sigma_m_);
+      if (!(w >= kTrustedWeight)) ++rejected_now;
+      verdicts_.push_back({r.anchor_id, r.range_m, predicted_m, w});  // within the reserved capacity
     }
   }
   pending_.resize(kept);

@@ -25,6 +25,14 @@
 
 namespace rilo {
 
+/// One judged range (published on rt/rilo/ranges).
+struct RangeVerdict {
+  std::uint32_t anchor_id = 0;
+  double range_m = 0.0;
+  double predicted_m = 0.0;  ///< from the state's pose, the lever arm and the surveyed anchor
+  double weight = 1.0;       ///< the range model's robust weight
+};
+
 class RangeTrustMonitor {
  public:
   static constexpr double kTrustedWeight = 0.5;  ///< below: the range counts as rejected
@@ -37,8 +45,14 @@ class RangeTrustMonitor {
   /// After an update whose newest state is `latest`: judges the pending
   /// ranges of that state's ranging group. Returns how many were rejected.
   std::uint64_t judge(const StateEstimate& latest) noexcept;
+  /// The ranges the last judge() judged, in arrival order (no allocation: the
+  /// storage is reserved at construction).
+  const std::vector<RangeVerdict>& lastVerdicts() const noexcept { return verdicts_; }
   /// Tracking ended: forget the pending ranges.
-  void reset() noexcept { pending_.clear(); }
+  void reset() noexcept {
+    pending_.clear();
+    verdicts_.clear();
+  }
   /// The tracker's state window (ns; Localizer::trackingStateWindowNs).
   void setStateWindow(std::int64_t same_state_window_ns) noexcept { group_window_ns_ = same_state_window_ns; }
 
@@ -57,6 +71,7 @@ class RangeTrustMonitor {
   Vec3 p_b_tag_;
   std::int64_t group_window_ns_;
   std::vector<RangeSample> pending_;
+  std::vector<RangeVerdict> verdicts_;
   std::uint64_t rejected_ = 0, judged_ = 0, unjudged_ = 0;
 };
 

@@ -191,6 +191,7 @@ Service::Service(ServiceOptions options, std::vector<std::unique_ptr<SampleSourc
             checkedTimeoutNs(options_.ranging_silence_s, "ranging_silence_s")),
       trust_(options_.p_w_anchors, localizer_.params().graph) {
   if (sources_.empty()) throw std::invalid_argument("Service: no sample source configured");
+  judged_ranges_.reserve(dds::Publisher::kMaxRanges);
   if (!(options_.status_period_s > 0.0)) throw std::invalid_argument("Service: status_period_s must be > 0");
   if (!(options_.init_log_interval_s >= 0.0)) throw std::invalid_argument("Service: init_log_interval_s must be >= 0");
   // Initialization attempts off the estimator thread, which keeps draining
@@ -432,7 +433,10 @@ void Service::estimatorLoop() {
     // might come only after it is over: a 30 s blackout takes a few ms in a
     // fast replay).
     if (request_status) publishStatus(hal::monotonicNowNs());
-    if (updates > 0 && localizer_.tracking()) trust_.judge(localizer_.latest());
+    if (updates > 0 && localizer_.tracking()) {
+      trust_.judge(localizer_.latest());
+      publishJudgedRanges(localizer_.latest().t_ns);
+    }
     if (trust_.rejected() != rejected_reported) {
       counters_.rejected_ranges.add(trust_.rejected() - rejected_reported);
       rejected_reported = trust_.rejected();
@@ -514,6 +518,18 @@ void Service::publishProvisional() {
     position_only_ = true;
   }
   if (first && options_.on_event) options_.on_event("publishing position only while initializing: " + initPositionText(*fix));
+}
+
+void Service::publishJudgedRanges(std::int64_t t_ns) {
+  const std::vector<RangeVerdict>& verdicts = trust_.lastVerdicts();
+  if (verdicts.empty()) return;
+  judged_ranges_.clear();
+  for (const RangeVerdict& v : verdicts) {
+    if (judged_ranges_.size() == judged_ranges_.capacity()) break;  // never grows: reserved in the constructor
+    judged_ranges_.push_back({v.anchor_id, v.range_m, v.predicted_m, v.range_m - v.predicted_m, v.weight,
+                              !(v.weight >= RangeTrustMonitor::kTrustedWeight)});
+  }
+  (void)publisher_.publishRanges(t_ns, judged_ranges_);
 }
 
 void Service::publishSmoothed(const NavigationState& state) {

@@ -144,6 +144,9 @@ class Service {
   OutputPredictor predictor_;
   SensorGapMonitor gaps_;       // estimator thread
   RangeTrustMonitor trust_;     // estimator thread
+  std::vector<dds::RangeReading> judged_ranges_;  // estimator thread: the last epoch's, for rt/rilo/ranges (reserved)
+  /// The ranges trust_ judged last, out on the ranges topic (estimator thread).
+  void publishJudgedRanges(std::int64_t t_ns);
   InputDropCounts screened_;    // estimator thread: the screen's counts already in counters_
   /// Moves what the Localizer's physical screen dropped since the last call
   /// into the status counters; true when it dropped anything (estimator thread).

@@ -38,6 +38,7 @@ inline TopicNames uniqueTopicNames(const std::string& test_name) {
   names.pose += suffix;
   names.status += suffix;
   names.tf += suffix;
+  names.ranges += suffix;
   return names;
 }
 

@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <new>
 #include <random>
+#include <vector>
 
 #include "dds/conversions.h"
 #include "dds/publisher.h"
@@ -178,12 +179,13 @@ TEST_F(DdsPublishAllocation, RejectedSamplesNeverAllocate) {
   EXPECT_EQ(c.reallocs, 0u);
 }
 
-enum class Writes { kOdometry, kPose, kTransform, kStatus };
+enum class Writes { kOdometry, kPose, kTransform, kRanges, kStatus };
 
 /// Publishes kWarmUp then kWrites (counted) samples of one topic.
 Counts countWrites(Publisher& pub, Writes what, std::mt19937& rng) {
   NavigationState state = testing::randomState(rng, 1'000'000'000);
   ServiceStatus status = testing::sampleStatus(1'000'000'000);
+  const std::vector<RangeReading> ranges(8, RangeReading{2, 5.0, 4.9, 0.1, 0.9, false});  // an epoch of 8 anchors
   const auto publish = [&]() noexcept {
     state.t_ns += kImuPeriodNs;
     status.t_ns = state.t_ns;
@@ -191,6 +193,7 @@ Counts countWrites(Publisher& pub, Writes what, std::mt19937& rng) {
       case Writes::kOdometry: return pub.publishOdometry(state).ok();
       case Writes::kPose: return pub.publishPose(state).ok();
       case Writes::kTransform: return pub.publishTransform(state).ok();
+      case Writes::kRanges: return pub.publishRanges(state.t_ns, ranges).ok();
       case Writes::kStatus: break;
     }
     return pub.publishStatus(status).ok();
@@ -237,9 +240,10 @@ TEST_F(DdsPublishAllocation, AllTopicsWithInProcessSubscriber) {
   SubscriberOptions so;
   so.topics = po.topics;
   so.tf = true;
+  so.ranges = true;
   so.odometry_depth = 1;  // the reader keeps one sample: steady state from the first write
   Subscriber sub(sub_participant, so);
-  for (TopicKind kind : {TopicKind::kOdometry, TopicKind::kPose, TopicKind::kTf, TopicKind::kStatus}) {
+  for (TopicKind kind : {TopicKind::kOdometry, TopicKind::kPose, TopicKind::kTf, TopicKind::kRanges, TopicKind::kStatus}) {
     ASSERT_TRUE(pub.waitForSubscribers(kind, 1, testing::kMatchTimeout));
   }
   std::mt19937 rng(34);
@@ -252,6 +256,9 @@ TEST_F(DdsPublishAllocation, AllTopicsWithInProcessSubscriber) {
   const Counts transform = countWrites(pub, Writes::kTransform, rng);
   EXPECT_EQ(transform.news, 0u);
   report("TF writes, in-process subscriber", transform);
+  const Counts ranges = countWrites(pub, Writes::kRanges, rng);
+  EXPECT_EQ(ranges.news, 0u);
+  report("ranges writes (8 per epoch), in-process subscriber", ranges);
   const Counts status = countWrites(pub, Writes::kStatus, rng);
   EXPECT_EQ(status.news, 0u);
   report("status writes, in-process subscriber", status);

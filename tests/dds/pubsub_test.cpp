@@ -389,6 +389,37 @@ TEST_F(DdsPubSub, TfCarriesTheOdometryPoseUnderTheConfiguredFrames) {
   }
 }
 
+// rt/rilo/ranges: a ranging epoch's ranges as the estimator judged them.
+TEST_F(DdsPubSub, RangesArriveWithEveryReadingUpToTheCapacity) {
+  PublisherOptions po = publisherOptions();
+  Publisher pub(pub_participant_, po);
+  EXPECT_TRUE(pub.publishesRanges());
+  SubscriberOptions so;
+  so.topics = names_;
+  so.odometry = so.pose = so.status = false;
+  so.ranges = true;
+  Subscriber sub(sub_participant_, so);
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kRanges, 1, kMatchTimeout));
+  const std::vector<RangeReading> epoch{{0, 4.25, 4.2, 0.05, 0.98, false}, {3, 7.9, 6.1, 1.8, 0.02, true}};
+  ASSERT_TRUE(pub.publishRanges(12'000'000'000, epoch).ok());
+  std::vector<RangeReading> many(Publisher::kMaxRanges + 5, RangeReading{5, 1.0, 1.0, 0.0, 1.0, false});
+  ASSERT_TRUE(pub.publishRanges(12'025'000'000, many).ok());
+  EXPECT_EQ(pub.publishRanges(-1, epoch).code, DDS_RETCODE_BAD_PARAMETER);
+  const auto got = receive<RangesMessage>(sub, 2, [&](auto& out) { sub.takeRanges(out); });
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(got[0].stamp_ns, 12'000'000'000);
+  EXPECT_EQ(got[0].frame_id, "map");
+  ASSERT_EQ(got[0].ranges.size(), 2u);
+  EXPECT_EQ(got[0].ranges[1].anchor_id, 3u);
+  EXPECT_EQ(got[0].ranges[1].range_m, 7.9);
+  EXPECT_EQ(got[0].ranges[1].predicted_m, 6.1);
+  EXPECT_EQ(got[0].ranges[1].residual_m, 1.8);
+  EXPECT_EQ(got[0].ranges[1].weight, 0.02);
+  EXPECT_TRUE(got[0].ranges[1].nlos);
+  EXPECT_FALSE(got[0].ranges[0].nlos);
+  EXPECT_EQ(got[1].ranges.size(), Publisher::kMaxRanges) << "the first kMaxRanges of an epoch";
+}
+
 TEST_F(DdsPubSub, AnEmptyTfTopicNamePublishesNoTf) {
   PublisherOptions po = publisherOptions();
   po.topics.tf.clear();

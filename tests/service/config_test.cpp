@@ -137,6 +137,7 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_EQ(c.dds.domain_id, 0u);
   EXPECT_EQ(c.dds.topics.odometry, "rt/rilo/odometry");
   EXPECT_EQ(c.dds.topics.tf, "rt/tf");
+  EXPECT_EQ(c.dds.topics.ranges, "rt/rilo/ranges");
   EXPECT_EQ(c.dds.stamp_clock, dds::StampClock::kSystem);
   EXPECT_EQ(c.dds.frames.world, "map");
   EXPECT_FALSE(c.recording.enabled);
@@ -181,7 +182,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "  domain: 42\n"
       "  cyclone_config_file: cyclone.xml\n"
       "  stamp_clock: monotonic\n"
-      "  topics: {odometry: rt/a/odom, pose: rt/a/pose, status: rt/a/status, tf: ''}\n"
+      "  topics: {odometry: rt/a/odom, pose: rt/a/pose, status: rt/a/status, tf: '', ranges: rt/a/ranges}\n"
       "  frames: {world: odom_world, body: imu_link}\n"
       "recording: {enabled: true, directory: recs, flush_interval_s: 0.05, sync: true}\n"
       "realtime:\n"
@@ -272,6 +273,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_EQ(c.dds.topics.pose, "rt/a/pose");
   EXPECT_EQ(c.dds.topics.status, "rt/a/status");
   EXPECT_EQ(c.dds.topics.tf, "") << "no TF";
+  EXPECT_EQ(c.dds.topics.ranges, "rt/a/ranges");
   EXPECT_EQ(c.dds.stamp_clock, dds::StampClock::kMonotonic);
   EXPECT_EQ(c.dds.frames.world, "odom_world");
   EXPECT_EQ(c.dds.frames.body, "imu_link");
@@ -855,6 +857,7 @@ std::vector<BadCase> badCases() {
       {"empty_topic", valid("dds:\n  topics: {status: ''}\n"), "dds.topics.status", "expected a non-empty string", 11},
       {"tf_same_as_odometry", valid("dds:\n  topics: {odometry: rt/tf}\n"), "dds.topics", "must have different names", 11},
       {"tf_with_space", valid("dds:\n  topics: {tf: rt/t f}\n"), "dds.topics.tf", "expected a DDS topic name", 11},
+      {"ranges_same_as_pose", valid("dds:\n  topics: {ranges: rt/rilo/pose}\n"), "dds.topics", "must have different names", 11},
       {"stamp_clock_unknown", valid("dds:\n  stamp_clock: wall\n"), "dds.stamp_clock",
        "expected one of system, monotonic, got 'wall'", 11},
       // recording, realtime, status, watchdog

@@ -64,6 +64,34 @@ TEST(RangeTrustMonitor, CountsRangesDownWeightedAtTheNewestState) {
   EXPECT_EQ(m.judged(), 4u);
 }
 
+// What rt/rilo/ranges publishes: each judged range with its prediction and weight.
+TEST(RangeTrustMonitor, TheLastJudgedRangesKeepTheirPredictionAndWeight) {
+  RangeTrustMonitor m(kAnchors, graphParams());
+  const StateEstimate s = stateAt(1000 * kMs);
+  const RangeSample los = rangeFrom(s, 0, 0.02, 1000 * kMs);
+  const RangeSample nlos = rangeFrom(s, 1, 1.50, 1002 * kMs);
+  m.onRange(los);
+  m.onRange(nlos);
+  m.onRange(rangeFrom(s, 3, 2.00, 1030 * kMs));  // the next state's: not in this epoch
+  m.judge(s);
+  ASSERT_EQ(m.lastVerdicts().size(), 2u);
+  const RangeVerdict& a = m.lastVerdicts()[0];
+  const RangeVerdict& b = m.lastVerdicts()[1];
+  EXPECT_EQ(a.anchor_id, 0u);
+  EXPECT_EQ(a.range_m, los.range_m);
+  EXPECT_NEAR(a.range_m - a.predicted_m, 0.02, 1e-9);
+  EXPECT_NEAR(a.weight, m.weight(los, s.T_w_b), 1e-12);
+  EXPECT_GE(a.weight, RangeTrustMonitor::kTrustedWeight);
+  EXPECT_EQ(b.anchor_id, 1u);
+  EXPECT_NEAR(b.range_m - b.predicted_m, 1.50, 1e-9);
+  EXPECT_LT(b.weight, RangeTrustMonitor::kTrustedWeight);
+  m.judge(stateAt(1030 * kMs));
+  ASSERT_EQ(m.lastVerdicts().size(), 1u);
+  EXPECT_EQ(m.lastVerdicts()[0].anchor_id, 3u);
+  m.reset();
+  EXPECT_TRUE(m.lastVerdicts().empty());
+}
+
 TEST(RangeTrustMonitor, TheLossDecidesAboutShortRangesToo) {
   RangeTrustMonitor asymmetric(kAnchors, graphParams("asymmetric"));
   RangeTrustMonitor huber(kAnchors, graphParams("huber"));

@@ -158,12 +158,14 @@ TEST(RilodEndToEnd, StampsAreSystemTimeAndTfFollowsTheOdometry) {
   dds::Participant participant(po);
   dds::SubscriberOptions so;
   so.tf = true;
+  so.ranges = true;
   dds::Subscriber subscriber(participant, so);
 
   const pid_t pid = startRilod(dir / "rilod.yaml", 16.0);
   ASSERT_GT(pid, 0);
   std::vector<dds::OdometryMessage> odometry;
   std::vector<dds::TfMessage> tf;
+  std::vector<dds::RangesMessage> ranges;
   std::vector<dds::StatusMessage> status;
   std::vector<std::int64_t> odometry_age_ns;  // wall clock at take minus stamp
   int code = -2;
@@ -177,6 +179,7 @@ TEST(RilodEndToEnd, StampsAreSystemTimeAndTfFollowsTheOdometry) {
     const std::int64_t real_ns = real.tv_sec * 1'000'000'000LL + real.tv_nsec;
     for (std::size_t i = before; i < odometry.size(); ++i) odometry_age_ns.push_back(real_ns - odometry[i].stamp_ns);
     subscriber.takeTf(tf);
+    subscriber.takeRanges(ranges);
     subscriber.takeStatus(status);
     if (const auto exited = testing::exitedCode(pid)) {
       code = *exited;
@@ -230,6 +233,25 @@ TEST(RilodEndToEnd, StampsAreSystemTimeAndTfFollowsTheOdometry) {
   // odometry and TF carry the same stamp: nearly every odometry finds its TF
   // (TF is reliable with depth 100; a few may be past the end of the run).
   EXPECT_GT(matched, odometry.size() * 9 / 10);
+
+  // rt/rilo/ranges: each tracked epoch's ranges with the estimator's verdict.
+  ASSERT_GT(ranges.size(), 50u);
+  std::size_t readings = 0, nlos = 0;
+  for (const dds::RangesMessage& m : ranges) {
+    EXPECT_EQ(m.frame_id, "map");
+    for (const dds::RangeReading& r : m.ranges) {
+      ++readings;
+      EXPECT_LT(r.anchor_id, 8u);
+      EXPECT_NEAR(r.residual_m, r.range_m - r.predicted_m, 1e-9);
+      EXPECT_GT(r.weight, 0.0);
+      EXPECT_LE(r.weight, 1.0);
+      EXPECT_EQ(r.nlos, r.weight < 0.5);
+      nlos += r.nlos ? 1 : 0;
+    }
+  }
+  // The demo office is 74 % NLOS; the robust model down-weights a share of the ranges.
+  EXPECT_GT(nlos, readings / 20) << nlos << " of " << readings;
+  EXPECT_LT(nlos, readings / 2) << nlos << " of " << readings;
 }
 
 TEST(RilodEndToEnd, SigtermStopsCleanlyWithinOneSecond) {

@@ -62,7 +62,8 @@ TEST(RiloViewInABrowser, ThePageShowsTheAnchorsTheStateAndAMovingPose) {
         " pose: document.getElementById('pose-text').textContent,"
         " connection: document.getElementById('connection').textContent,"
         " anchors: window.riloView.anchorsDrawn, poseDrawn: window.riloView.poseDrawn,"
-        " events: window.riloView.events})";
+        " events: window.riloView.events, ranges: window.riloView.rangesShown,"
+        " verdicts: Array.from(document.querySelectorAll('#anchors td.nlos, #anchors td.los')).map(td => td.textContent)})";
     // Tracking within the demo's first seconds (the initializer needs ~10 s of data).
     const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(static_cast<int>(45 * testing::timeScale()));
     while (std::chrono::steady_clock::now() < end) {
@@ -98,6 +99,13 @@ TEST(RiloViewInABrowser, ThePageShowsTheAnchorsTheStateAndAMovingPose) {
   EXPECT_GT(seen["events"].get<int>(), first_tracking["events"].get<int>()) << "the server keeps pushing";
   EXPECT_NE(seen["pose"], first_tracking["pose"]) << "the pose moves";
   EXPECT_EQ(seen["pose"].get<std::string>().rfind("x ", 0), 0u) << seen["pose"];
+  // Per anchor: its newest range, residual and the estimator's verdict.
+  EXPECT_GE(seen["ranges"].get<int>(), 4) << "most anchors ranged within the walk's first seconds";
+  EXPECT_EQ(seen["verdicts"].size(), seen["ranges"].get<std::size_t>());
+  for (const auto& v : seen["verdicts"]) {
+    const std::string text = v.get<std::string>();
+    EXPECT_TRUE(text.rfind("LOS", 0) == 0 || text.rfind("NLOS", 0) == 0) << text;
+  }
   std::printf("page 4.5 s after rilod stopped: %s\n", stale.dump().c_str());
   EXPECT_EQ(stale["connection"].get<std::string>().rfind("no data for ", 0), 0u) << stale;
 

@@ -129,6 +129,29 @@ TEST(ViewState, TheStatusAndTextsThatAreNotUtf8) {
   EXPECT_NE(j["status"]["reason"].get<std::string>().find("for 1.2 s"), std::string::npos);
 }
 
+TEST(ViewState, EachAnchorKeepsItsNewestJudgedRange) {
+  ViewState state(twoAnchors());
+  dds::RangesMessage first;
+  first.stamp_ns = 1'000'000'000;
+  first.ranges = {{0, 4.0, 3.9, 0.1, 0.9, false}, {3, 9.0, 7.0, 2.0, 0.01, true}};
+  state.onRanges(first);
+  dds::RangesMessage second;
+  second.stamp_ns = 1'025'000'000;
+  second.ranges = {{0, 4.1, 4.08, 0.02, 0.99, false}};
+  state.onRanges(second);
+  json j = json::parse(state.json());
+  ASSERT_EQ(j["ranges"].size(), 2u);
+  EXPECT_EQ(j["ranges"][0]["anchor_id"], 0);
+  EXPECT_EQ(j["ranges"][0]["range_m"], 4.1) << "the newest";
+  EXPECT_EQ(j["ranges"][0]["residual_m"], 0.02);
+  EXPECT_EQ(j["ranges"][0]["nlos"], false);
+  EXPECT_EQ(j["ranges"][1]["anchor_id"], 3);
+  EXPECT_EQ(j["ranges"][1]["nlos"], true);
+  EXPECT_EQ(j["ranges"][1]["weight"], 0.01);
+  EXPECT_GE(j["ranges"][1]["age_s"].get<double>(), 0.0);
+  EXPECT_FALSE(j["age_s"]["ranges"].is_null());
+}
+
 TEST(ViewState, WaitNewerReturnsOnAMessageOrAtTheTimeout) {
   ViewState state(twoAnchors());
   const auto t0 = std::chrono::steady_clock::now();

@@ -41,6 +41,7 @@ int runReplayView(const ReplayOptions& o, const ReplayViewOptions& v) {
   topics.odometry += suffix;
   topics.pose += suffix;
   topics.status += suffix;
+  topics.ranges += suffix;
   topics.tf.clear();  // the page does not draw it
 
   ServiceOptions so;
@@ -67,6 +68,7 @@ int runReplayView(const ReplayOptions& o, const ReplayViewOptions& v) {
   dds::SubscriberOptions sub;
   sub.topics = topics;
   sub.odometry_depth = 256;  // faster than real time the samples come quicker
+  sub.ranges = true;
   dds::Subscriber subscriber(participant, sub);
 
   spdlog::info("{} live at {}x (DDS domain {} on loopback); Ctrl-C stops", o.recording, v.speed, domain);

@@ -42,7 +42,8 @@ int runView(const ViewOptions& o) {
     const dds::Participant participant(so.participant);
     dds::SubscriberOptions sub;
     sub.topics = so.publisher.topics;
-    sub.odometry_depth = 64;  // the page shows the newest; a slow take loses only older ones
+    sub.odometry_depth = 64;
+    sub.ranges = !sub.topics.ranges.empty();  // a service configured without it: the page shows no ranges  // the page shows the newest; a slow take loses only older ones
     dds::Subscriber subscriber(participant, sub);
 
     spdlog::info("domain {}, {} anchors from {}; Ctrl-C stops", cfg.dds.domain_id, cfg.anchors.size(), o.config);

@@ -4,8 +4,9 @@
 // and topic names from the same configuration the service runs, its anchors
 // from that configuration's anchors file) and serves the page on
 // http://ADDR:N/ (view/view_server.h): the anchors' floor plan, the pose with
-// its covariance ellipse and heading, a trail, the status and its counters,
-// pushed as they change. Prints the URL on stdout; runs until Ctrl-C.
+// its covariance ellipse and heading, a trail, each anchor's newest range with
+// its residual and NLOS verdict (rt/rilo/ranges), the status and its
+// counters, pushed as they change. Prints the URL on stdout; runs until Ctrl-C.
 #include <cstdint>
 #include <string>
 

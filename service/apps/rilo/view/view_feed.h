@@ -8,7 +8,7 @@
 
 namespace rilo::tool {
 
-/// Odometry, pose and status from `subscriber` into `state` while
+/// Odometry, pose, status and ranges from `subscriber` into `state` while
 /// `keep_going()` (asked at least every 100 ms). Throws what the subscriber throws.
 void feedView(dds::Subscriber& subscriber, ViewState& state, const std::function<bool()>& keep_going);
 

@@ -84,6 +84,13 @@ void ViewState::onStatus(const dds::StatusMessage& m) {
   changed();
 }
 
+void ViewState::onRanges(const dds::RangesMessage& m) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ranges_.add(m.stamp_ns);
+  for (const dds::RangeReading& r : m.ranges) newest_range_[r.anchor_id] = {r, ranges_.arrived};
+  changed();
+}
+
 void ViewState::takePose(const PoseView& pose) {
   if (pose_.valid && pose.stamp_ns < pose_.stamp_ns - 2'000'000'000) trail_.clear();  // the service restarted
   pose_ = pose;
@@ -159,7 +166,19 @@ std::string ViewState::json() const {
   j["received"] = Json{{"odometry", odometry_.received}, {"pose", poses_.received}, {"status", statuses_.received}};
   const auto now = std::chrono::steady_clock::now();
   const auto age = [&](const Rate& r) { return r.received > 0 ? Json(std::round(r.ageS(now) * 10.0) / 10.0) : Json(nullptr); };
-  j["age_s"] = Json{{"odometry", age(odometry_)}, {"pose", age(poses_)}, {"status", age(statuses_)}};
+  j["age_s"] = Json{{"odometry", age(odometry_)}, {"pose", age(poses_)}, {"status", age(statuses_)}, {"ranges", age(ranges_)}};
+  Json ranges = Json::array();
+  for (const auto& [id, a] : newest_range_) {
+    const dds::RangeReading& r = a.reading;
+    ranges.push_back(Json{{"anchor_id", id},
+                          {"range_m", round3(r.range_m)},
+                          {"predicted_m", round3(r.predicted_m)},
+                          {"residual_m", round3(r.residual_m)},
+                          {"weight", std::round(r.weight * 1e3) / 1e3},
+                          {"nlos", r.nlos},
+                          {"age_s", std::round(std::chrono::duration<double>(now - a.arrived).count() * 10.0) / 10.0}});
+  }
+  j["ranges"] = std::move(ranges);
   if (have_status_) {
     const ServiceStatus& s = status_.status;
     j["status"] = Json{{"state", status_.state_name},

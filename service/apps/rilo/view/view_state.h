@@ -8,6 +8,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <map>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -30,6 +31,7 @@ class ViewState {
   void onOdometry(const dds::OdometryMessage& m);
   void onPose(const dds::PoseMessage& m);
   void onStatus(const dds::StatusMessage& m);
+  void onRanges(const dds::RangesMessage& m);
 
   /// Everything the page draws, as one JSON object:
   ///   anchors  [{id, kind, x, y, z}]            from the configuration (m, world)
@@ -38,7 +40,9 @@ class ViewState {
   ///             cov_xx, cov_xy, cov_yy (m^2), sigma_z (m), sigma_yaw_deg, speed_m_s} or null
   ///   trail    [[[x, y], ...], ...]             segments, a new one after each pause
   ///   rates    {odometry_hz, pose_hz, status_hz}, received {odometry, pose, status}
-  ///   age_s    {odometry, pose, status}: seconds since the newest was taken (null: none yet)
+  ///   age_s    {odometry, pose, status, ranges}: seconds since the newest was taken (null: none yet)
+  ///   ranges   [{anchor_id, range_m, predicted_m, residual_m, weight, nlos, age_s}]: each
+  ///            anchor's newest judged range (the estimator's verdict), by anchor id
   ///   status   {state, reason, last_fault, counters, update and latency figures} or null
   std::string json() const;
   /// Grows with every message taken.
@@ -84,7 +88,12 @@ class ViewState {
   };
   std::deque<TrailPoint> trail_;
   std::int64_t trail_last_ns_ = 0;
-  Rate odometry_, poses_, statuses_;
+  Rate odometry_, poses_, statuses_, ranges_;
+  struct AnchorRange {
+    dds::RangeReading reading;
+    std::chrono::steady_clock::time_point arrived;
+  };
+  std::map<std::uint32_t, AnchorRange> newest_range_;  ///< by anchor id
   bool have_status_ = false;
   dds::StatusMessage status_;
 };

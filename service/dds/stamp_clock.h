@@ -15,6 +15,7 @@
 // message carries both: header.stamp on the chosen clock, monotonic_ns on
 // rilo's.
 #include <cstdint>
+#include <ctime>
 
 namespace rilo::dds {
 
@@ -25,6 +26,9 @@ enum class StampClock : std::uint8_t {
 
 /// "system" / "monotonic".
 const char* stampClockName(StampClock clock) noexcept;
+/// `clock` now (ns).
+std::int64_t clockNowNs(clockid_t clock) noexcept;
+
 /// CLOCK_REALTIME minus CLOCK_MONOTONIC now (ns): the realtime reading
 /// between two monotonic ones, taken against their midpoint (a preemption
 /// between the reads is caught by retrying the tightest of three tries).

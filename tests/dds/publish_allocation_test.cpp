@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <new>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "dds/conversions.h"
@@ -247,21 +248,15 @@ TEST_F(DdsPublishAllocation, AllTopicsWithInProcessSubscriber) {
     ASSERT_TRUE(pub.waitForSubscribers(kind, 1, testing::kMatchTimeout));
   }
   std::mt19937 rng(34);
-  const Counts odometry = countWrites(pub, Writes::kOdometry, rng);
-  EXPECT_EQ(odometry.news, 0u);
-  report("odometry writes, in-process subscriber", odometry);
-  const Counts pose = countWrites(pub, Writes::kPose, rng);
-  EXPECT_EQ(pose.news, 0u);
-  report("pose writes, in-process subscriber", pose);
-  const Counts transform = countWrites(pub, Writes::kTransform, rng);
-  EXPECT_EQ(transform.news, 0u);
-  report("TF writes, in-process subscriber", transform);
-  const Counts ranges = countWrites(pub, Writes::kRanges, rng);
-  EXPECT_EQ(ranges.news, 0u);
-  report("ranges writes (8 per epoch), in-process subscriber", ranges);
-  const Counts status = countWrites(pub, Writes::kStatus, rng);
-  EXPECT_EQ(status.news, 0u);
-  report("status writes, in-process subscriber", status);
+  for (const auto& [what, label] : {std::pair{Writes::kOdometry, "odometry writes, in-process subscriber"},
+                                    std::pair{Writes::kPose, "pose writes, in-process subscriber"},
+                                    std::pair{Writes::kTransform, "TF writes, in-process subscriber"},
+                                    std::pair{Writes::kRanges, "ranges writes (8 per epoch), in-process subscriber"},
+                                    std::pair{Writes::kStatus, "status writes, in-process subscriber"}}) {
+    const Counts c = countWrites(pub, what, rng);
+    EXPECT_EQ(c.news, 0u) << label;
+    report(label, c);
+  }
 
   std::vector<OdometryMessage> got;
   sub.takeOdometry(got);

@@ -20,6 +20,7 @@
 
 #include "dds/conversions.h"
 #include "dds/participant.h"
+#include "dds/stamp_clock.h"
 #include "dds/subscriber.h"
 #include "unsigned_option.h"
 
@@ -265,18 +266,12 @@ void printTransform(const dds::TransformMessage& m, double rate_hz, double laten
   std::fflush(stdout);
 }
 
-std::int64_t nowNs(clockid_t clock) {
-  timespec ts{};
-  clock_gettime(clock, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 /// now - stamp (ms) on the stamps' own clock: system time (the service's
 /// dds.stamp_clock: system, the default) or CLOCK_MONOTONIC (monotonic). The
 /// two clocks are decades apart, so the one nearer the stamp is its clock.
 double latencyMs(std::int64_t stamp_ns) {
-  const std::int64_t system_ns = nowNs(CLOCK_REALTIME);
-  const std::int64_t monotonic_ns = nowNs(CLOCK_MONOTONIC);
+  const std::int64_t system_ns = dds::clockNowNs(CLOCK_REALTIME);
+  const std::int64_t monotonic_ns = dds::clockNowNs(CLOCK_MONOTONIC);
   const std::int64_t now_ns =
       std::llabs(system_ns - stamp_ns) <= std::llabs(monotonic_ns - stamp_ns) ? system_ns : monotonic_ns;
   return static_cast<double>(now_ns - stamp_ns) * 1e-6;

@@ -3,10 +3,8 @@
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -19,64 +17,11 @@
 #include "evaluation/report_markdown.h"
 #include "evaluation/tdoa_report.h"
 #include "evaluation/tdoa_report_markdown.h"
+#include "progress_bar.h"
 #include "unsigned_option.h"
 
 namespace rilo::tool {
 namespace {
-
-std::string formatDuration(double s) {
-  const long total = static_cast<long>(s + 0.5);
-  char buf[32];
-  if (total >= 3600) {
-    std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", total / 3600, (total / 60) % 60, total % 60);
-  } else {
-    std::snprintf(buf, sizeof buf, "%ld:%02ld", total / 60, total % 60);
-  }
-  return buf;
-}
-
-/// "[#####.....] 12/64 runs, 1:05 elapsed, ~2:10 left" on stderr: rewritten in
-/// place on a terminal, one line per 10 % otherwise (logs).
-class ProgressBar {
- public:
-  explicit ProgressBar(std::string what) : what_(std::move(what)), tty_(::isatty(STDERR_FILENO) == 1) {}
-  ~ProgressBar() {
-    if (tty_ && printed_) std::fputc('\n', stderr);
-  }
-  ProgressBar(const ProgressBar&) = delete;
-  ProgressBar& operator=(const ProgressBar&) = delete;
-
-  void operator()(std::size_t done, std::size_t total) {
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    const int decile = total ? static_cast<int>(10 * done / total) : 10;
-    if (!tty_ && decile <= last_decile_) return;
-    last_decile_ = decile;
-    constexpr int kWidth = 30;
-    const int filled = total ? static_cast<int>(kWidth * done / total) : kWidth;
-    std::string bar(static_cast<std::size_t>(filled), '#');
-    bar.append(static_cast<std::size_t>(kWidth - filled), '.');
-    std::string left;
-    if (done > 0 && done < total) {
-      left = ", ~" + formatDuration(elapsed / static_cast<double>(done) * static_cast<double>(total - done)) + " left";
-    }
-    if (!tty_) {  // a log line per tenth (a pipe, journald)
-      spdlog::info("[{}] {}/{} {}, {} elapsed{}", bar, done, total, what_, formatDuration(elapsed), left);
-      return;
-    }
-    // A live bar on the terminal, redrawn in place: not a log line.
-    std::fprintf(stderr, "\rrilo report: [%s] %zu/%zu %s, %s elapsed%s   ", bar.c_str(), done, total, what_.c_str(),
-                 formatDuration(elapsed).c_str(), left.c_str());
-    std::fflush(stderr);
-    printed_ = true;
-  }
-
- private:
-  std::string what_;
-  bool tty_;
-  bool printed_ = false;
-  int last_decile_ = -1;
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-};
 
 std::string commandLine(const ReportCommandOptions& o) {
   std::string cmd = "rilo report";
@@ -145,7 +90,7 @@ int runTdoaReportCommand(const ReportCommandOptions& o) {
     for (std::uint64_t seed : o.sim_seeds) {
       dirs.push_back(out / "recordings" / ("sim-tdoa-" + o.sim_plan + "-seed-" + std::to_string(seed)));
     }
-    ProgressBar bar("simulated sessions");
+    ProgressBar bar("report", "simulated sessions");
     parallelFor(
         dirs.size(), o.jobs,
         [&](std::size_t i) { simulateTdoaReportRecording(o.sim_seeds[i], o.sim_seconds, dirs[i], planKind(o.sim_plan)); },
@@ -156,7 +101,7 @@ int runTdoaReportCommand(const ReportCommandOptions& o) {
 
   TdoaReportResults results;
   {
-    ProgressBar bar("runs");
+    ProgressBar bar("report", "runs");
     options.progress = [&bar](std::size_t done, std::size_t total) { bar(done, total); };
     results = runTdoaReport(recordings, options);
   }
@@ -203,7 +148,7 @@ int runReportCommand(const ReportCommandOptions& o) {
       std::vector<std::filesystem::path> dirs;
       for (std::uint64_t seed : o.sim_seeds) dirs.push_back(out / "recordings" / ("sim-seed-" + std::to_string(seed)));
       {
-        ProgressBar bar("simulated sessions");
+        ProgressBar bar("report", "simulated sessions");
         parallelFor(
             dirs.size(), o.jobs,
             [&](std::size_t i) { simulateReportRecording(o.sim_seeds[i], o.sim_seconds, dirs[i], planKind(o.sim_plan)); },
@@ -215,7 +160,7 @@ int runReportCommand(const ReportCommandOptions& o) {
 
     ReportResults results;
     {
-      ProgressBar bar("runs");
+      ProgressBar bar("report", "runs");
       options.progress = [&bar](std::size_t done, std::size_t total) { bar(done, total); };
       results = runReport(recordings, options);
     }

@@ -22,11 +22,9 @@
 //
 // Thread safety (checked for this runner): a Localizer owns all its state
 // (smoother, CHOLMOD context with its workspace, noise models). The range
-// losses build their tables per instance (AsymmetricLoss tabulates its
-// convolved density in the constructor, no cache); the only function-local
-// static in estimation/noise is the constant list of loss names
-// (initialised thread-safely); CHOLMOD's error handler finds its context
-// through a thread_local. Recordings are shared read-only.
+// losses are immutable and shared through the factory's cache, which a
+// mutex guards (noise_model_factory.cpp); CHOLMOD's error handler finds its
+// context through a thread_local. Recordings are shared read-only.
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>

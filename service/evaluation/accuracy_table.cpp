@@ -1,0 +1,373 @@
+#include "evaluation/accuracy_table.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+namespace rilo {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+const std::vector<std::string> kCsvHeader = {
+    "set",           "recording",    "started",        "online_mean_m",      "online_max_m",
+    "smoothed_mean_m", "height_offset_m", "first_position_s", "first_full_state_s", "tracked_share",
+    "update_mean_ms", "update_max_ms", "error"};
+
+std::string rateLabel(double rate_hz, const AccuracyOptions& o) {
+  if (rate_hz >= o.full_rate_hz) return "all ranges";
+  char text[32];
+  std::snprintf(text, sizeof text, "%g Hz", rate_hz);
+  return text;
+}
+
+AccuracyRow rowOf(const ReplayResult& run) {
+  AccuracyRow row;
+  row.started = !run.online.empty() || !run.position_only.empty();
+  row.online_mean_m = row.online_max_m = row.smoothed_mean_m = row.height_offset_m = kNaN;
+  if (run.ape_online && run.ape_online->ape_3d.count > 0) {
+    row.online_mean_m = run.ape_online->ape_3d.mean;
+    row.online_max_m = run.ape_online->ape_3d.max;
+    row.height_offset_m = run.ape_online->vertical_bias_m;
+  }
+  if (run.ape_smoothed && run.ape_smoothed->ape_3d.count > 0) row.smoothed_mean_m = run.ape_smoothed->ape_3d.mean;
+  row.first_position_s = run.first_position_s;
+  row.first_full_state_s = run.first_full_state_s;
+  row.tracked_share = run.online_tracked_share;
+  double sum = 0.0, max = 0.0;
+  for (const ReplayUpdate& u : run.updates) {
+    sum += u.stats.time_s * 1e3;
+    max = std::max(max, u.stats.time_s * 1e3);
+  }
+  row.update_mean_ms = run.updates.empty() ? kNaN : sum / static_cast<double>(run.updates.size());
+  row.update_max_ms = run.updates.empty() ? kNaN : max;
+  return row;
+}
+
+// --- CSV ---------------------------------------------------------------------
+
+std::string csvField(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string out = "\"";
+  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
+std::string csvNumber(double v) {
+  if (!std::isfinite(v)) return "";
+  char text[40];
+  std::snprintf(text, sizeof text, "%.6g", v);
+  return text;
+}
+
+std::string csvNumber(const std::optional<double>& v) { return v ? csvNumber(*v) : std::string(); }
+
+/// Splits one CSV line (quoted fields with "" for a quote). nullopt: an unterminated quote.
+std::optional<std::vector<std::string>> splitCsv(const std::string& line) {
+  std::vector<std::string> fields(1);
+  bool quoted = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        fields.back() += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        fields.back() += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      fields.emplace_back();
+    } else {
+      fields.back() += c;
+    }
+  }
+  if (quoted) return std::nullopt;
+  return fields;
+}
+
+// --- Markdown ------------------------------------------------------------------
+
+std::string fixed(double v, int decimals) {
+  if (!std::isfinite(v)) return "-";
+  char text[40];
+  std::snprintf(text, sizeof text, "%.*f", decimals, v);
+  return text;
+}
+
+std::string signedFixed(double v) {
+  if (!std::isfinite(v)) return "-";
+  char text[40];
+  std::snprintf(text, sizeof text, "%+.2f", v);
+  return text;
+}
+
+std::string seconds(const std::optional<double>& v) { return v ? fixed(*v, 1) + " s" : std::string("-"); }
+
+/// "before -> after" when a before figure exists and differs in print, else the figure.
+std::string change(const std::string& before, const std::string& after) {
+  if (before.empty() || before == after) return after;
+  return before + " -> " + after;
+}
+
+struct SetSummary {
+  std::size_t recordings = 0, started = 0, with_online = 0, with_smoothed = 0;
+  double online_sum = 0.0, smoothed_sum = 0.0, offset_sum = 0.0;
+  double onlineMean() const { return with_online ? online_sum / static_cast<double>(with_online) : kNaN; }
+  double smoothedMean() const { return with_smoothed ? smoothed_sum / static_cast<double>(with_smoothed) : kNaN; }
+  double offsetMean() const { return with_online ? offset_sum / static_cast<double>(with_online) : kNaN; }
+};
+
+/// Per set, in the order the sets first appear.
+std::vector<std::pair<std::string, SetSummary>> summarize(const std::vector<AccuracyRow>& rows) {
+  std::vector<std::pair<std::string, SetSummary>> sets;
+  for (const AccuracyRow& r : rows) {
+    auto it = std::find_if(sets.begin(), sets.end(), [&](const auto& s) { return s.first == r.set; });
+    if (it == sets.end()) it = sets.insert(sets.end(), {r.set, SetSummary{}});
+    SetSummary& s = it->second;
+    ++s.recordings;
+    if (r.started) ++s.started;
+    if (std::isfinite(r.online_mean_m)) {
+      ++s.with_online;
+      s.online_sum += r.online_mean_m;
+      s.offset_sum += std::isfinite(r.height_offset_m) ? r.height_offset_m : 0.0;
+    }
+    if (std::isfinite(r.smoothed_mean_m)) {
+      ++s.with_smoothed;
+      s.smoothed_sum += r.smoothed_mean_m;
+    }
+  }
+  return sets;
+}
+
+}  // namespace
+
+Recording withoutFirstPath(const Recording& rec) {
+  Recording out = rec;
+  for (RangeSample& r : out.ranges) r.fp_power_dbm = kNaN;
+  return out;
+}
+
+bool hasFirstPath(const Recording& rec) {
+  return std::any_of(rec.ranges.begin(), rec.ranges.end(), [](const RangeSample& r) { return std::isfinite(r.fp_power_dbm); });
+}
+
+void AccuracyOptions::validate() const {
+  if (rates_hz.empty()) throw std::invalid_argument("accuracy: --rates is empty");
+  for (double r : rates_hz) {
+    if (!(std::isfinite(r) && r > 0.0)) throw std::invalid_argument("accuracy: --rates must be finite and > 0 (Hz)");
+  }
+  if (!(full_rate_hz > 0.0)) throw std::invalid_argument("accuracy: full_rate_hz must be > 0");
+  if (jobs < 1) throw std::invalid_argument("accuracy: --jobs must be >= 1");
+}
+
+std::vector<AccuracyRow> runAccuracyTable(const std::vector<AccuracyRecording>& recordings,
+                                          const ReplaySettings& settings, const AccuracyOptions& options) {
+  options.validate();
+  if (recordings.empty()) throw std::invalid_argument("accuracy: no recordings");
+  // The variants, recording-major within a group; the first-path-free copies made once, shared read-only.
+  std::vector<Recording> stripped(recordings.size());
+  struct Run {
+    std::size_t recording;
+    double rate_hz;
+    bool strip;
+    std::string set;
+  };
+  std::vector<std::string> groups;
+  for (const AccuracyRecording& r : recordings) {
+    if (std::find(groups.begin(), groups.end(), r.group) == groups.end()) groups.push_back(r.group);
+  }
+  std::vector<Run> runs;
+  for (const std::string& group : groups) {
+    for (double rate : options.rates_hz) {
+      for (bool strip : {false, true}) {
+        for (std::size_t i = 0; i < recordings.size(); ++i) {
+          const AccuracyRecording& r = recordings[i];
+          if (r.group != group) continue;
+          if (strip && !(options.without_first_path && hasFirstPath(r.recording.data))) continue;
+          if (strip && stripped[i].imu.empty()) stripped[i] = withoutFirstPath(r.recording.data);
+          runs.push_back({i, rate, strip, group + ", " + rateLabel(rate, options) + (strip ? ", first path removed" : "")});
+        }
+      }
+    }
+  }
+  std::vector<AccuracyRow> rows(runs.size());
+  std::mutex progress_mutex;
+  std::size_t done = 0;
+  parallelFor(runs.size(), options.jobs, [&](std::size_t k) {
+    const Run& run = runs[k];
+    ReplaySettings s = settings;
+    s.progress = nullptr;
+    s.range_hz = run.rate_hz >= options.full_rate_hz ? 0.0 : run.rate_hz;
+    AccuracyRow row;
+    try {
+      row = rowOf(replayRecording(run.strip ? stripped[run.recording] : recordings[run.recording].recording.data, s));
+    } catch (const std::exception& e) {
+      row = AccuracyRow{};
+      row.online_mean_m = row.online_max_m = row.smoothed_mean_m = row.height_offset_m = kNaN;
+      row.update_mean_ms = row.update_max_ms = kNaN;
+      row.error = e.what();
+    }
+    row.set = run.set;
+    row.recording = recordings[run.recording].recording.label;
+    rows[k] = std::move(row);
+    if (options.progress) {
+      const std::lock_guard<std::mutex> lock(progress_mutex);
+      options.progress(++done, runs.size());
+    }
+  });
+  return rows;
+}
+
+void writeAccuracyCsv(const std::filesystem::path& file, const std::vector<AccuracyRow>& rows) {
+  std::ofstream out(file);
+  for (std::size_t i = 0; i < kCsvHeader.size(); ++i) out << (i ? "," : "") << kCsvHeader[i];
+  out << '\n';
+  for (const AccuracyRow& r : rows) {
+    out << csvField(r.set) << ',' << csvField(r.recording) << ',' << (r.started ? 1 : 0) << ','
+        << csvNumber(r.online_mean_m) << ',' << csvNumber(r.online_max_m) << ',' << csvNumber(r.smoothed_mean_m) << ','
+        << csvNumber(r.height_offset_m) << ',' << csvNumber(r.first_position_s) << ','
+        << csvNumber(r.first_full_state_s) << ',' << csvNumber(r.tracked_share) << ',' << csvNumber(r.update_mean_ms)
+        << ',' << csvNumber(r.update_max_ms) << ',' << csvField(r.error) << '\n';
+  }
+  out.flush();
+  if (!out) throw std::runtime_error("cannot write " + file.string());
+}
+
+std::vector<AccuracyRow> readAccuracyCsv(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error("cannot open " + file.string());
+  const auto fail = [&](std::size_t line, const std::string& what) {
+    return std::runtime_error(file.string() + ":" + std::to_string(line) + ": " + what);
+  };
+  std::string line;
+  if (!std::getline(in, line) || splitCsv(line) != kCsvHeader) {
+    throw fail(1, "not an accuracy.csv (expected the header " + kCsvHeader.front() + ",...," + kCsvHeader.back() + ")");
+  }
+  std::vector<AccuracyRow> rows;
+  for (std::size_t n = 2; std::getline(in, line); ++n) {
+    if (line.empty()) continue;
+    const std::optional<std::vector<std::string>> f = splitCsv(line);
+    if (!f) throw fail(n, "unterminated quote");
+    if (f->size() != kCsvHeader.size()) {
+      throw fail(n, std::to_string(f->size()) + " fields, expected " + std::to_string(kCsvHeader.size()));
+    }
+    const auto number = [&](std::size_t i) -> std::optional<double> {
+      const std::string& s = (*f)[i];
+      if (s.empty()) return std::nullopt;
+      std::size_t used = 0;
+      double v = kNaN;
+      try {
+        v = std::stod(s, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != s.size() || !std::isfinite(v)) throw fail(n, "field " + kCsvHeader[i] + ": not a number: '" + s + "'");
+      return v;
+    };
+    AccuracyRow r;
+    r.set = (*f)[0];
+    r.recording = (*f)[1];
+    if ((*f)[2] != "0" && (*f)[2] != "1") throw fail(n, "field started: expected 0 or 1, got '" + (*f)[2] + "'");
+    r.started = (*f)[2] == "1";
+    r.online_mean_m = number(3).value_or(kNaN);
+    r.online_max_m = number(4).value_or(kNaN);
+    r.smoothed_mean_m = number(5).value_or(kNaN);
+    r.height_offset_m = number(6).value_or(kNaN);
+    r.first_position_s = number(7);
+    r.first_full_state_s = number(8);
+    r.tracked_share = number(9).value_or(0.0);
+    r.update_mean_ms = number(10).value_or(kNaN);
+    r.update_max_ms = number(11).value_or(kNaN);
+    r.error = (*f)[12];
+    rows.push_back(std::move(r));
+  }
+  return rows;
+}
+
+std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::vector<AccuracyRow>* before,
+                             const std::string& header) {
+  std::map<std::pair<std::string, std::string>, const AccuracyRow*> old_rows;
+  if (before) {
+    for (const AccuracyRow& r : *before) old_rows[{r.set, r.recording}] = &r;
+  }
+  // A set is compared over the recordings both runs hold: the same rows before and after.
+  std::vector<AccuracyRow> matched_after, matched_before;
+  for (const AccuracyRow& r : rows) {
+    const auto it = old_rows.find({r.set, r.recording});
+    if (it == old_rows.end()) continue;
+    matched_after.push_back(r);
+    matched_before.push_back(*it->second);
+  }
+  std::map<std::string, SetSummary> old_sets, new_sets;
+  for (const auto& [name, s] : summarize(matched_before)) old_sets[name] = s;
+  for (const auto& [name, s] : summarize(matched_after)) new_sets[name] = s;
+
+  std::ostringstream md;
+  md << header << "\n\n";
+  md << "Per set: mean over the recordings that published poses (online: every published pose, position-only "
+        "fixes included; smoothed: the final estimate of every state)";
+  if (before) md << "; \"before -> after\" over the recordings both runs hold (compared), where the figures differ";
+  md << ".\n\n";
+  md << "| set | recordings | " << (before ? "compared | " : "")
+     << "started | online mean (m) | smoothed mean (m) | height offset (m) |\n";
+  md << "|---|---|" << (before ? "---|" : "") << "---|---|---|---|\n";
+  for (const auto& [name, s] : summarize(rows)) {
+    md << "| " << name << " | " << s.recordings << " | ";
+    const auto o = old_sets.find(name);
+    if (!before) {
+      md << s.started << " | " << fixed(s.onlineMean(), 4) << " | " << fixed(s.smoothedMean(), 4) << " | "
+         << signedFixed(s.offsetMean()) << " |\n";
+      continue;
+    }
+    if (o == old_sets.end()) {
+      md << "0 | " << s.started << " | " << fixed(s.onlineMean(), 4) << " | " << fixed(s.smoothedMean(), 4) << " | "
+         << signedFixed(s.offsetMean()) << " |\n";
+      continue;
+    }
+    const SetSummary& b = o->second;
+    const SetSummary& a = new_sets.at(name);
+    md << a.recordings << " | " << change(std::to_string(b.started), std::to_string(a.started)) << " | "
+       << change(fixed(b.onlineMean(), 4), fixed(a.onlineMean(), 4)) << " | "
+       << change(fixed(b.smoothedMean(), 4), fixed(a.smoothedMean(), 4)) << " | "
+       << change(signedFixed(b.offsetMean()), signedFixed(a.offsetMean())) << " |\n";
+  }
+  md << "\nPer run:\n\n";
+  md << "| set | recording | online mean (m) | smoothed mean (m) | online max (m) | height offset (m) | "
+        "first position / full state | tracked |\n";
+  md << "|---|---|---|---|---|---|---|---|\n";
+  for (const AccuracyRow& r : rows) {
+    const auto it = old_rows.find({r.set, r.recording});
+    const AccuracyRow* o = it == old_rows.end() ? nullptr : it->second;
+    md << "| " << r.set << " | " << r.recording << " | ";
+    if (!r.error.empty()) {
+      md << "failed: " << r.error << " | | | | | |\n";
+      continue;
+    }
+    if (!r.started) {
+      md << change(o && o->started ? fixed(o->online_mean_m, 3) : "", "never started") << " | | | | | 0 % |\n";
+      continue;
+    }
+    const auto starts = [](const AccuracyRow& x) { return seconds(x.first_position_s) + " / " + seconds(x.first_full_state_s); };
+    md << change(o ? (o->started ? fixed(o->online_mean_m, 3) : "never started") : "", fixed(r.online_mean_m, 3))
+       << " | " << change(o ? fixed(o->smoothed_mean_m, 3) : "", fixed(r.smoothed_mean_m, 3)) << " | "
+       << change(o ? fixed(o->online_max_m, 2) : "", fixed(r.online_max_m, 2)) << " | "
+       << change(o ? signedFixed(o->height_offset_m) : "", signedFixed(r.height_offset_m)) << " | "
+       << change(o ? starts(*o) : "", starts(r)) << " | "
+       << change(o ? fixed(100.0 * o->tracked_share, 0) + " %" : "", fixed(100.0 * r.tracked_share, 0) + " %")
+       << " |\n";
+  }
+  return md.str();
+}
+
+}  // namespace rilo

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <exception>
 
+#include "accuracy_command.h"
 #include "demo.h"
 #include "rilo_version.h"
 #include "eval_command.h"
@@ -36,6 +37,7 @@ int main(int argc, char** argv) {
   rilo::tool::addSimCommand(app);
   rilo::tool::addReplayCommand(app);
   rilo::tool::addReportCommand(app);
+  rilo::tool::addAccuracyCommand(app);
   rilo::tool::addEvalCommand(app);
   rilo::tool::addImportUtilCommand(app);
   rilo::tool::addListenCommand(app);

@@ -6,10 +6,11 @@
 #include <fstream>
 #include <limits>
 #include <map>
-#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+
+#include "evaluation/report_text.h"
 
 namespace rilo {
 namespace {
@@ -22,10 +23,7 @@ const std::vector<std::string> kCsvHeader = {
     "update_mean_ms", "update_max_ms", "error"};
 
 std::string rateLabel(double rate_hz, const AccuracyOptions& o) {
-  if (rate_hz >= o.full_rate_hz) return "all ranges";
-  char text[32];
-  std::snprintf(text, sizeof text, "%g Hz", rate_hz);
-  return text;
+  return rate_hz >= o.full_rate_hz ? std::string("all ranges") : strf("%g Hz", rate_hz);
 }
 
 AccuracyRow rowOf(const ReplayResult& run) {
@@ -53,19 +51,8 @@ AccuracyRow rowOf(const ReplayResult& run) {
 
 // --- CSV ---------------------------------------------------------------------
 
-std::string csvField(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string out = "\"";
-  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return out + "\"";
-}
-
-std::string csvNumber(double v) {
-  if (!std::isfinite(v)) return "";
-  char text[40];
-  std::snprintf(text, sizeof text, "%.6g", v);
-  return text;
-}
+/// 10 significant digits: a run compared with its own CSV prints no change.
+std::string csvNumber(double v) { return std::isfinite(v) ? strf("%.10g", v) : std::string(); }
 
 std::string csvNumber(const std::optional<double>& v) { return v ? csvNumber(*v) : std::string(); }
 
@@ -98,19 +85,9 @@ std::optional<std::vector<std::string>> splitCsv(const std::string& line) {
 
 // --- Markdown ------------------------------------------------------------------
 
-std::string fixed(double v, int decimals) {
-  if (!std::isfinite(v)) return "-";
-  char text[40];
-  std::snprintf(text, sizeof text, "%.*f", decimals, v);
-  return text;
-}
+std::string fixed(double v, int decimals) { return std::isfinite(v) ? strf("%.*f", decimals, v) : std::string("-"); }
 
-std::string signedFixed(double v) {
-  if (!std::isfinite(v)) return "-";
-  char text[40];
-  std::snprintf(text, sizeof text, "%+.2f", v);
-  return text;
-}
+std::string signedFixed(double v) { return std::isfinite(v) ? strf("%+.2f", v) : std::string("-"); }
 
 std::string seconds(const std::optional<double>& v) { return v ? fixed(*v, 1) + " s" : std::string("-"); }
 
@@ -168,6 +145,14 @@ void AccuracyOptions::validate() const {
     if (!(std::isfinite(r) && r > 0.0)) throw std::invalid_argument("accuracy: --rates must be finite and > 0 (Hz)");
   }
   if (!(full_rate_hz > 0.0)) throw std::invalid_argument("accuracy: full_rate_hz must be > 0");
+  // One run per set and recording: a rate given twice, or two that both replay every range, would repeat a set.
+  const auto full = std::count_if(rates_hz.begin(), rates_hz.end(), [this](double r) { return r >= full_rate_hz; });
+  std::vector<double> sorted = rates_hz;
+  std::sort(sorted.begin(), sorted.end());
+  if (full > 1 || std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
+    throw std::invalid_argument("accuracy: --rates repeats a rate (every rate from " + strf("%g", full_rate_hz) +
+                                " Hz on replays all ranges)");
+  }
   if (jobs < 1) throw std::invalid_argument("accuracy: --jobs must be >= 1");
 }
 
@@ -176,7 +161,7 @@ std::vector<AccuracyRow> runAccuracyTable(const std::vector<AccuracyRecording>& 
   options.validate();
   if (recordings.empty()) throw std::invalid_argument("accuracy: no recordings");
   // The variants, recording-major within a group; the first-path-free copies made once, shared read-only.
-  std::vector<Recording> stripped(recordings.size());
+  std::vector<std::optional<Recording>> stripped(recordings.size());
   struct Run {
     std::size_t recording;
     double rate_hz;
@@ -195,37 +180,37 @@ std::vector<AccuracyRow> runAccuracyTable(const std::vector<AccuracyRecording>& 
           const AccuracyRecording& r = recordings[i];
           if (r.group != group) continue;
           if (strip && !(options.without_first_path && hasFirstPath(r.recording.data))) continue;
-          if (strip && stripped[i].imu.empty()) stripped[i] = withoutFirstPath(r.recording.data);
+          if (strip && !stripped[i]) stripped[i] = withoutFirstPath(r.recording.data);
           runs.push_back({i, rate, strip, group + ", " + rateLabel(rate, options) + (strip ? ", first path removed" : "")});
         }
       }
     }
   }
   std::vector<AccuracyRow> rows(runs.size());
-  std::mutex progress_mutex;
-  std::size_t done = 0;
+  // Each run writes its own row; the recordings and their copies are only read.
   parallelFor(runs.size(), options.jobs, [&](std::size_t k) {
     const Run& run = runs[k];
     ReplaySettings s = settings;
     s.progress = nullptr;
     s.range_hz = run.rate_hz >= options.full_rate_hz ? 0.0 : run.rate_hz;
     AccuracyRow row;
-    try {
-      row = rowOf(replayRecording(run.strip ? stripped[run.recording] : recordings[run.recording].recording.data, s));
-    } catch (const std::exception& e) {
+    const auto failed = [&row](std::string what) {
       row = AccuracyRow{};
       row.online_mean_m = row.online_max_m = row.smoothed_mean_m = row.height_offset_m = kNaN;
       row.update_mean_ms = row.update_max_ms = kNaN;
-      row.error = e.what();
+      row.error = std::move(what);
+    };
+    try {
+      row = rowOf(replayRecording(run.strip ? *stripped[run.recording] : recordings[run.recording].recording.data, s));
+    } catch (const std::exception& e) {
+      failed(e.what());
+    } catch (...) {
+      failed("unknown exception");
     }
     row.set = run.set;
     row.recording = recordings[run.recording].recording.label;
     rows[k] = std::move(row);
-    if (options.progress) {
-      const std::lock_guard<std::mutex> lock(progress_mutex);
-      options.progress(++done, runs.size());
-    }
-  });
+  }, options.progress);
   return rows;
 }
 
@@ -251,11 +236,16 @@ std::vector<AccuracyRow> readAccuracyCsv(const std::filesystem::path& file) {
     return std::runtime_error(file.string() + ":" + std::to_string(line) + ": " + what);
   };
   std::string line;
-  if (!std::getline(in, line) || splitCsv(line) != kCsvHeader) {
+  const auto getLine = [&in](std::string& text) {
+    if (!std::getline(in, text)) return false;
+    if (!text.empty() && text.back() == '\r') text.pop_back();  // a file saved with CRLF
+    return true;
+  };
+  if (!getLine(line) || splitCsv(line) != kCsvHeader) {
     throw fail(1, "not an accuracy.csv (expected the header " + kCsvHeader.front() + ",...," + kCsvHeader.back() + ")");
   }
   std::vector<AccuracyRow> rows;
-  for (std::size_t n = 2; std::getline(in, line); ++n) {
+  for (std::size_t n = 2; getLine(line); ++n) {
     if (line.empty()) continue;
     const std::optional<std::vector<std::string>> f = splitCsv(line);
     if (!f) throw fail(n, "unterminated quote");
@@ -301,13 +291,20 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
   if (before) {
     for (const AccuracyRow& r : *before) old_rows[{r.set, r.recording}] = &r;
   }
-  // A set is compared over the recordings both runs hold: the same rows before and after.
+  // A set is compared over the recordings both runs hold, and each mean
+  // over those with the figure in both runs: a recording that stopped
+  // starting must not improve its set's mean.
   std::vector<AccuracyRow> matched_after, matched_before;
   for (const AccuracyRow& r : rows) {
     const auto it = old_rows.find({r.set, r.recording});
     if (it == old_rows.end()) continue;
-    matched_after.push_back(r);
-    matched_before.push_back(*it->second);
+    AccuracyRow a = r, b = *it->second;
+    if (!std::isfinite(a.online_mean_m) || !std::isfinite(b.online_mean_m)) {
+      a.online_mean_m = b.online_mean_m = a.height_offset_m = b.height_offset_m = kNaN;
+    }
+    if (!std::isfinite(a.smoothed_mean_m) || !std::isfinite(b.smoothed_mean_m)) a.smoothed_mean_m = b.smoothed_mean_m = kNaN;
+    matched_after.push_back(std::move(a));
+    matched_before.push_back(std::move(b));
   }
   std::map<std::string, SetSummary> old_sets, new_sets;
   for (const auto& [name, s] : summarize(matched_before)) old_sets[name] = s;
@@ -315,15 +312,19 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
 
   std::ostringstream md;
   md << header << "\n\n";
-  md << "Per set: mean over the recordings that published poses (online: every published pose, position-only "
+  md << "Per set: mean over the recordings with an error figure (online: every published pose, position-only "
         "fixes included; smoothed: the final estimate of every state)";
-  if (before) md << "; \"before -> after\" over the recordings both runs hold (compared), where the figures differ";
+  if (before) {
+    md << "; \"before -> after\" where the figures differ, over the recordings both runs hold (compared) and, "
+          "for each mean, those with the figure in both";
+  }
   md << ".\n\n";
   md << "| set | recordings | " << (before ? "compared | " : "")
      << "started | online mean (m) | smoothed mean (m) | height offset (m) |\n";
   md << "|---|---|" << (before ? "---|" : "") << "---|---|---|---|\n";
-  for (const auto& [name, s] : summarize(rows)) {
-    md << "| " << name << " | " << s.recordings << " | ";
+  const std::vector<std::pair<std::string, SetSummary>> sets = summarize(rows);
+  for (const auto& [name, s] : sets) {
+    md << "| " << cellText(name) << " | " << s.recordings << " | ";
     const auto o = old_sets.find(name);
     if (!before) {
       md << s.started << " | " << fixed(s.onlineMean(), 4) << " | " << fixed(s.smoothedMean(), 4) << " | "
@@ -342,6 +343,17 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
        << change(fixed(b.smoothedMean(), 4), fixed(a.smoothedMean(), 4)) << " | "
        << change(signedFixed(b.offsetMean()), signedFixed(a.offsetMean())) << " |\n";
   }
+  std::string only_before;
+  if (before) {
+    std::vector<std::string> named;
+    for (const AccuracyRow& r : *before) {
+      const bool here = std::any_of(sets.begin(), sets.end(), [&r](const auto& x) { return x.first == r.set; });
+      if (here || std::find(named.begin(), named.end(), r.set) != named.end()) continue;
+      named.push_back(r.set);
+      only_before += (only_before.empty() ? "" : ", ") + cellText(r.set);
+    }
+  }
+  if (!only_before.empty()) md << "\nOnly in the earlier run: " << only_before << ".\n";
   md << "\nPer run:\n\n";
   md << "| set | recording | online mean (m) | smoothed mean (m) | online max (m) | height offset (m) | "
         "first position / full state | tracked |\n";
@@ -349,9 +361,9 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
   for (const AccuracyRow& r : rows) {
     const auto it = old_rows.find({r.set, r.recording});
     const AccuracyRow* o = it == old_rows.end() ? nullptr : it->second;
-    md << "| " << r.set << " | " << r.recording << " | ";
+    md << "| " << cellText(r.set) << " | " << cellText(r.recording) << " | ";
     if (!r.error.empty()) {
-      md << "failed: " << r.error << " | | | | | |\n";
+      md << "failed: " << cellText(r.error) << " | | | | | |\n";
       continue;
     }
     if (!r.started) {

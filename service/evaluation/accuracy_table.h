@@ -53,7 +53,7 @@ struct AccuracyRecording {
 /// One run's figures, as accuracy.csv holds them. NaN / nullopt where the
 /// run has none (no pose, no ground truth).
 struct AccuracyRow {
-  std::string set;        ///< group, rate and variant: "own, 40 Hz, first path removed"
+  std::string set;        ///< group, rate and variant: "own, all ranges, first path removed", "own, 1 Hz"
   std::string recording;  ///< label
   bool started = false;   ///< published at least one pose
   double online_mean_m = 0.0, online_max_m = 0.0, smoothed_mean_m = 0.0;
@@ -66,6 +66,7 @@ struct AccuracyRow {
 
 /// Runs every recording in every variant. Throws std::invalid_argument for
 /// bad options or no recordings; a failing run is a row with `error`.
+/// options.progress gets (0, total) first (report.h parallelFor).
 std::vector<AccuracyRow> runAccuracyTable(const std::vector<AccuracyRecording>& recordings,
                                           const ReplaySettings& settings, const AccuracyOptions& options);
 
@@ -75,9 +76,11 @@ void writeAccuracyCsv(const std::filesystem::path& file, const std::vector<Accur
 /// file, line and field of the first thing it cannot read.
 std::vector<AccuracyRow> readAccuracyCsv(const std::filesystem::path& file);
 
-/// The Markdown tables: per set (mean of the started recordings, how many
-/// started) and per run; with `before`, each figure as "before -> after"
-/// where the same set and recording is in it.
+/// The Markdown tables: per set (means over the recordings with an error
+/// figure, how many started) and per run; with `before`, each figure as
+/// "before -> after" where it differs: a set over the recordings both runs
+/// hold (each mean over those with the figure in both), a run where the
+/// same set and recording is in `before`. Sets only `before` holds are named.
 std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::vector<AccuracyRow>* before,
                              const std::string& header);
 

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,13 @@ TEST_F(RiloAccuracy, WritesTheTableAndComparesWithAnEarlierRun) {
   const std::string compared = testing::readFile(dir_ / "second" / "accuracy.md");
   EXPECT_NE(compared.find("| set | recordings | compared | started |"), std::string::npos) << compared;
   EXPECT_NE(compared.find("| data, all ranges | 1 | 1 | 1 |"), std::string::npos) << compared;
+  // The same estimator on the same recording: no figure changed in print.
+  std::istringstream lines(compared);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("|", 0) == 0) {
+      EXPECT_EQ(line.find("->"), std::string::npos) << line;
+    }
+  }
   EXPECT_EQ(readAccuracyCsv(dir_ / "second" / "accuracy.csv").size(), 1u);
 }
 

@@ -114,9 +114,16 @@ int runAccuracyCommand(const AccuracyCommandOptions& o) {
     for (const std::string& dir : o.recordings) {
       if (!std::filesystem::is_directory(dir)) throw std::invalid_argument("REC " + dir + " is not a folder");
       const std::filesystem::path path = std::filesystem::absolute(dir).lexically_normal();
-      const std::filesystem::path folder = path.has_filename() ? path : path.parent_path();
+      const std::filesystem::path folder = path.has_filename() ? path : path.parent_path();  // "f11/" -> "f11"
       const std::string group = folder.parent_path().filename().string();
-      recordings.push_back({group.empty() ? "given" : group, loadReportRecording(dir)});
+      recordings.push_back({group.empty() ? "given" : group, loadReportRecording(folder)});
+    }
+    {
+      // One row per set and recording: the same folder name twice gets "-2" (report.h makeLabelsUnique).
+      std::vector<ReportRecording> labelled;
+      for (AccuracyRecording& r : recordings) labelled.push_back(std::move(r.recording));
+      makeLabelsUnique(labelled);
+      for (std::size_t i = 0; i < recordings.size(); ++i) recordings[i].recording = std::move(labelled[i]);
     }
 
     std::vector<AccuracyRow> rows;

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -29,7 +30,6 @@ std::string rateLabel(double rate_hz, const AccuracyOptions& o) {
 AccuracyRow rowOf(const ReplayResult& run) {
   AccuracyRow row;
   row.started = !run.online.empty() || !run.position_only.empty();
-  row.online_mean_m = row.online_max_m = row.smoothed_mean_m = row.height_offset_m = kNaN;
   if (run.ape_online && run.ape_online->ape_3d.count > 0) {
     row.online_mean_m = run.ape_online->ape_3d.mean;
     row.online_max_m = run.ape_online->ape_3d.max;
@@ -39,13 +39,14 @@ AccuracyRow rowOf(const ReplayResult& run) {
   row.first_position_s = run.first_position_s;
   row.first_full_state_s = run.first_full_state_s;
   row.tracked_share = run.online_tracked_share;
+  if (run.updates.empty()) return row;
   double sum = 0.0, max = 0.0;
   for (const ReplayUpdate& u : run.updates) {
     sum += u.stats.time_s * 1e3;
     max = std::max(max, u.stats.time_s * 1e3);
   }
-  row.update_mean_ms = run.updates.empty() ? kNaN : sum / static_cast<double>(run.updates.size());
-  row.update_max_ms = run.updates.empty() ? kNaN : max;
+  row.update_mean_ms = sum / static_cast<double>(run.updates.size());
+  row.update_max_ms = max;
   return row;
 }
 
@@ -193,19 +194,13 @@ std::vector<AccuracyRow> runAccuracyTable(const std::vector<AccuracyRecording>& 
     ReplaySettings s = settings;
     s.progress = nullptr;
     s.range_hz = run.rate_hz >= options.full_rate_hz ? 0.0 : run.rate_hz;
-    AccuracyRow row;
-    const auto failed = [&row](std::string what) {
-      row = AccuracyRow{};
-      row.online_mean_m = row.online_max_m = row.smoothed_mean_m = row.height_offset_m = kNaN;
-      row.update_mean_ms = row.update_max_ms = kNaN;
-      row.error = std::move(what);
-    };
+    AccuracyRow row;  // a run that throws keeps no figure, only its error
     try {
       row = rowOf(replayRecording(run.strip ? *stripped[run.recording] : recordings[run.recording].recording.data, s));
     } catch (const std::exception& e) {
-      failed(e.what());
+      row.error = e.what();
     } catch (...) {
-      failed("unknown exception");
+      row.error = "unknown exception";
     }
     row.set = run.set;
     row.recording = recordings[run.recording].recording.label;
@@ -323,34 +318,24 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
      << "started | online mean (m) | smoothed mean (m) | height offset (m) |\n";
   md << "|---|---|" << (before ? "---|" : "") << "---|---|---|---|\n";
   const std::vector<std::pair<std::string, SetSummary>> sets = summarize(rows);
-  for (const auto& [name, s] : sets) {
-    md << "| " << cellText(name) << " | " << s.recordings << " | ";
+  for (const auto& [name, all] : sets) {
+    // Compared: both sides over the matched recordings; else this run's set alone.
     const auto o = old_sets.find(name);
-    if (!before) {
-      md << s.started << " | " << fixed(s.onlineMean(), 4) << " | " << fixed(s.smoothedMean(), 4) << " | "
-         << signedFixed(s.offsetMean()) << " |\n";
-      continue;
-    }
-    if (o == old_sets.end()) {
-      md << "0 | " << s.started << " | " << fixed(s.onlineMean(), 4) << " | " << fixed(s.smoothedMean(), 4) << " | "
-         << signedFixed(s.offsetMean()) << " |\n";
-      continue;
-    }
-    const SetSummary& b = o->second;
-    const SetSummary& a = new_sets.at(name);
-    md << a.recordings << " | " << change(std::to_string(b.started), std::to_string(a.started)) << " | "
-       << change(fixed(b.onlineMean(), 4), fixed(a.onlineMean(), 4)) << " | "
-       << change(fixed(b.smoothedMean(), 4), fixed(a.smoothedMean(), 4)) << " | "
-       << change(signedFixed(b.offsetMean()), signedFixed(a.offsetMean())) << " |\n";
+    const SetSummary* b = o == old_sets.end() ? nullptr : &o->second;
+    const SetSummary& a = b ? new_sets.at(name) : all;
+    md << "| " << cellText(name) << " | " << all.recordings << " | ";
+    if (before) md << (b ? a.recordings : 0) << " | ";
+    md << change(b ? std::to_string(b->started) : "", std::to_string(a.started)) << " | "
+       << change(b ? fixed(b->onlineMean(), 4) : "", fixed(a.onlineMean(), 4)) << " | "
+       << change(b ? fixed(b->smoothedMean(), 4) : "", fixed(a.smoothedMean(), 4)) << " | "
+       << change(b ? signedFixed(b->offsetMean()) : "", signedFixed(a.offsetMean())) << " |\n";
   }
   std::string only_before;
   if (before) {
-    std::vector<std::string> named;
+    std::set<std::string> named;  // this run's sets, then those already listed
+    for (const auto& [name, s] : sets) named.insert(name);
     for (const AccuracyRow& r : *before) {
-      const bool here = std::any_of(sets.begin(), sets.end(), [&r](const auto& x) { return x.first == r.set; });
-      if (here || std::find(named.begin(), named.end(), r.set) != named.end()) continue;
-      named.push_back(r.set);
-      only_before += (only_before.empty() ? "" : ", ") + cellText(r.set);
+      if (named.insert(r.set).second) only_before += (only_before.empty() ? "" : ", ") + cellText(r.set);
     }
   }
   if (!only_before.empty()) md << "\nOnly in the earlier run: " << only_before << ".\n";

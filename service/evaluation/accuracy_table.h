@@ -14,6 +14,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -51,16 +52,17 @@ struct AccuracyRecording {
 };
 
 /// One run's figures, as accuracy.csv holds them. NaN / nullopt where the
-/// run has none (no pose, no ground truth).
+/// run has none (no pose, no ground truth, no update, a run that threw).
 struct AccuracyRow {
+  static constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
   std::string set;        ///< group, rate and variant: "own, all ranges, first path removed", "own, 1 Hz"
   std::string recording;  ///< label
   bool started = false;   ///< published at least one pose
-  double online_mean_m = 0.0, online_max_m = 0.0, smoothed_mean_m = 0.0;
-  double height_offset_m = 0.0;  ///< mean signed vertical error of the online poses (m)
+  double online_mean_m = kNone, online_max_m = kNone, smoothed_mean_m = kNone;
+  double height_offset_m = kNone;  ///< mean signed vertical error of the online poses (m)
   std::optional<double> first_position_s, first_full_state_s;
   double tracked_share = 0.0;
-  double update_mean_ms = 0.0, update_max_ms = 0.0;
+  double update_mean_ms = kNone, update_max_ms = kNone;
   std::string error;  ///< what() when the run threw (then started is false)
 };
 

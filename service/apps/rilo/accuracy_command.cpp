@@ -24,16 +24,23 @@ namespace {
 constexpr const char* kAccuracyMarkdownFile = "accuracy.md";
 constexpr const char* kAccuracyCsvFile = "accuracy.csv";
 
-sim::OfficePlanKind planOf(const std::string& plan) {
-  return plan == "hall" ? sim::OfficePlanKind::kHall
-         : plan == "random" ? sim::OfficePlanKind::kRandom
-                            : sim::OfficePlanKind::kDefault;
-}
+/// One session --own-sims simulates, named as in docs/accuracy.md (office1-4, rnd1-4, hall1-3).
+struct OwnSim {
+  sim::OfficePlanKind plan;
+  const char* name;
+  unsigned seed;
+};
 
-/// docs/accuracy.md's names: office1-4, rnd1-4, hall1-3.
-std::string ownSimName(const OwnSim& s) {
-  const std::string plan(s.plan);
-  return (plan == "default" ? "office" : plan == "random" ? "rnd" : plan) + std::to_string(s.seed);
+const std::vector<OwnSim>& ownSims() {
+  using sim::OfficePlanKind;
+  static const std::vector<OwnSim> kSims = {
+      {OfficePlanKind::kDefault, "office", 1}, {OfficePlanKind::kDefault, "office", 2},
+      {OfficePlanKind::kDefault, "office", 3}, {OfficePlanKind::kDefault, "office", 4},
+      {OfficePlanKind::kRandom, "rnd", 1},     {OfficePlanKind::kRandom, "rnd", 2},
+      {OfficePlanKind::kRandom, "rnd", 3},     {OfficePlanKind::kRandom, "rnd", 4},
+      {OfficePlanKind::kHall, "hall", 1},      {OfficePlanKind::kHall, "hall", 2},
+      {OfficePlanKind::kHall, "hall", 3}};
+  return kSims;
 }
 
 std::string number(double v) {
@@ -67,13 +74,6 @@ std::string headerText(const ReportHeader& h, const std::string& config) {
 
 }  // namespace
 
-const std::vector<OwnSim>& ownSims() {
-  static const std::vector<OwnSim> kSims = {{"default", 1}, {"default", 2}, {"default", 3}, {"default", 4},
-                                            {"random", 1},  {"random", 2},  {"random", 3},  {"random", 4},
-                                            {"hall", 1},    {"hall", 2},    {"hall", 3}};
-  return kSims;
-}
-
 int runAccuracyCommand(const AccuracyCommandOptions& o) {
   try {
     if (o.recordings.empty() && !o.own_sims) throw std::invalid_argument("give recordings (REC...) or --own-sims");
@@ -97,34 +97,36 @@ int runAccuracyCommand(const AccuracyCommandOptions& o) {
     }
     std::filesystem::create_directories(out);
 
-    std::vector<AccuracyRecording> recordings;
+    // The recordings and their groups; labels made unique before they name rows.
+    std::vector<ReportRecording> loaded;
+    std::vector<std::string> groups;
     if (o.own_sims) {
       const std::vector<OwnSim>& sims = ownSims();
       std::vector<std::filesystem::path> dirs;
-      for (const OwnSim& s : sims) dirs.push_back(out / "recordings" / ownSimName(s));
+      for (const OwnSim& s : sims) dirs.push_back(out / "recordings" / (s.name + std::to_string(s.seed)));
       {
         ProgressBar bar("accuracy", "simulated sessions");
         parallelFor(
             sims.size(), o.jobs,
-            [&](std::size_t i) { simulateReportRecording(sims[i].seed, o.sim_seconds, dirs[i], planOf(sims[i].plan)); },
+            [&](std::size_t i) { simulateReportRecording(sims[i].seed, o.sim_seconds, dirs[i], sims[i].plan); },
             [&bar](std::size_t done, std::size_t total) { bar(done, total); });
       }
-      for (const std::filesystem::path& dir : dirs) recordings.push_back({"own", loadReportRecording(dir)});
+      for (const std::filesystem::path& dir : dirs) {
+        loaded.push_back(loadReportRecording(dir));
+        groups.push_back("own");
+      }
     }
     for (const std::string& dir : o.recordings) {
       if (!std::filesystem::is_directory(dir)) throw std::invalid_argument("REC " + dir + " is not a folder");
       const std::filesystem::path path = std::filesystem::absolute(dir).lexically_normal();
       const std::filesystem::path folder = path.has_filename() ? path : path.parent_path();  // "f11/" -> "f11"
       const std::string group = folder.parent_path().filename().string();
-      recordings.push_back({group.empty() ? "given" : group, loadReportRecording(folder)});
+      loaded.push_back(loadReportRecording(folder));
+      groups.push_back(group.empty() ? "given" : group);
     }
-    {
-      // One row per set and recording: the same folder name twice gets "-2" (report.h makeLabelsUnique).
-      std::vector<ReportRecording> labelled;
-      for (AccuracyRecording& r : recordings) labelled.push_back(std::move(r.recording));
-      makeLabelsUnique(labelled);
-      for (std::size_t i = 0; i < recordings.size(); ++i) recordings[i].recording = std::move(labelled[i]);
-    }
+    makeLabelsUnique(loaded);  // one row per set and recording: the same folder name twice gets "-2"
+    std::vector<AccuracyRecording> recordings;
+    for (std::size_t i = 0; i < loaded.size(); ++i) recordings.push_back({groups[i], std::move(loaded[i])});
 
     std::vector<AccuracyRow> rows;
     {

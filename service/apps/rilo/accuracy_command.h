@@ -28,13 +28,6 @@ struct AccuracyCommandOptions {
   std::string compare;  ///< an earlier accuracy.csv (empty: none)
 };
 
-/// The sessions --own-sims simulates: "plan seed" pairs (office 1-4, random 1-4, hall 1-3).
-struct OwnSim {
-  const char* plan;
-  unsigned seed;
-};
-const std::vector<OwnSim>& ownSims();
-
 /// Returns the process exit code (0: table written, even if some runs failed; 1: bad input or I/O failure).
 int runAccuracyCommand(const AccuracyCommandOptions& options);
 

@@ -29,9 +29,15 @@ QosPtr writerQos(TopicKind kind) {
       dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kPoseHistoryDepth);
       break;
     case TopicKind::kStatus:
+      // Keeps the last kStatusWriterDepth until acknowledged, so a status lost
+      // on the wire (a loopback socket full of odometry) is repaired itself,
+      // not replaced by the newest; a late joiner still gets only the newest
+      // (Cyclone keeps durability_service.history.depth for late joiners).
       dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
       dds_qset_durability(qos.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
-      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+      dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kStatusWriterDepth);
+      dds_qset_durability_service(qos.get(), 0, DDS_HISTORY_KEEP_LAST, 1, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED,
+                                  DDS_LENGTH_UNLIMITED);
       break;
     case TopicKind::kTf:
       dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);

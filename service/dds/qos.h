@@ -4,7 +4,8 @@
 //   topic     writer                                            reader (rilo listen, tests)
 //   odometry  best-effort, volatile, keep-last 1                best-effort, keep-last `depth` (default 256)
 //   pose      reliable, volatile, keep-last 10                  reliable, keep-last 10
-//   status    reliable, transient-local, keep-last 1            reliable, transient-local, keep-last 64
+//   status    reliable, transient-local, keep-last 64           reliable, transient-local, keep-last 64
+//             (late joiners get the newest only)
 //   tf        reliable, volatile, keep-last 100                 reliable, keep-last 100
 //   ranges    reliable, volatile, keep-last 10                  reliable, keep-last 10
 //
@@ -14,11 +15,13 @@
 // Pose and status are reliable; their writers use max_blocking_time 0, so a
 // congested link makes dds_write return DDS_RETCODE_TIMEOUT instead of
 // stalling the service. Status is transient-local so a late joiner gets the
-// current status at once (the writer keeps one: the newest). Its readers
-// keep 64, so a subscriber that takes at least once per 64 statuses (a
-// loaded machine, a fast replay whose 30 s ranging blackout lasts a few
-// status periods) still sees every state the service went through, not only
-// the last one (a sample lost on the wire is repaired only with the newest).
+// current status at once (the newest only). Its readers keep 64, so a
+// subscriber that takes at least once per 64 statuses (a loaded machine, a
+// fast replay whose 30 s ranging blackout lasts a few status periods) still
+// sees every state the service went through, not only the last one. The
+// writer keeps 64 unacknowledged too: with one, a status lost on the wire (a
+// loopback socket flooded by 800 Hz odometry) was repaired only with the
+// newest, and a short degraded state never reached the subscriber.
 // TF is what tf2_ros's TransformBroadcaster and TransformListener use
 // (reliable, volatile, depth 100), so rviz2 and every tf2 listener match; its
 // writer does not block either (max_blocking_time 0).
@@ -39,6 +42,7 @@ using QosPtr = std::unique_ptr<dds_qos_t, QosDeleter>;
 inline constexpr std::int32_t kPoseHistoryDepth = 10;
 inline constexpr std::int32_t kDefaultOdometryReaderDepth = 256;
 inline constexpr std::int32_t kStatusReaderDepth = 64;
+inline constexpr std::int32_t kStatusWriterDepth = 64;  ///< kept until acknowledged (1 for late joiners)
 inline constexpr std::int32_t kTfHistoryDepth = 100;  ///< tf2_ros's DynamicBroadcasterQoS / DynamicListenerQoS
 
 QosPtr writerQos(TopicKind kind);

@@ -12,6 +12,7 @@
 
 #include "dds/conversions.h"
 #include "dds/publisher.h"
+#include "dds/qos.h"
 #include "dds/subscriber.h"
 #include "dds_test_support.h"
 
@@ -240,6 +241,30 @@ TEST_F(DdsPubSub, StatusesPublishedBetweenTakesAllArriveInOrder) {
     EXPECT_EQ(got[i].status.t_ns, static_cast<std::int64_t>(i + 1) * 1'000) << "status " << i;
     EXPECT_EQ(got[i].status.state, states[i]) << "status " << i;
   }
+}
+
+// A status lost on the wire is repaired itself, not replaced by the newest:
+// the writer keeps as many unacknowledged as a reader keeps, yet serves late
+// joiners only the newest (the test below).
+TEST(DdsQos, StatusWriterKeepsUnacknowledgedStatusesForRepair) {
+  const QosPtr qos = writerQos(TopicKind::kStatus);
+  dds_history_kind_t kind{};
+  std::int32_t depth = 0;
+  ASSERT_TRUE(dds_qget_history(qos.get(), &kind, &depth));
+  EXPECT_EQ(kind, DDS_HISTORY_KEEP_LAST);
+  EXPECT_EQ(depth, kStatusReaderDepth);
+  dds_duration_t cleanup = 0;
+  dds_history_kind_t late_kind{};
+  std::int32_t late_depth = 0, max_samples = 0, max_instances = 0, max_per_instance = 0;
+  ASSERT_TRUE(dds_qget_durability_service(qos.get(), &cleanup, &late_kind, &late_depth, &max_samples, &max_instances,
+                                          &max_per_instance));
+  EXPECT_EQ(late_kind, DDS_HISTORY_KEEP_LAST);
+  EXPECT_EQ(late_depth, 1);
+  dds_reliability_kind_t reliability{};
+  dds_duration_t blocking = 1;
+  ASSERT_TRUE(dds_qget_reliability(qos.get(), &reliability, &blocking));
+  EXPECT_EQ(reliability, DDS_RELIABILITY_RELIABLE);
+  EXPECT_EQ(blocking, 0) << "a congested link must not stall the status thread";
 }
 
 // Transient-local: a listener that joins after the last status still gets it.

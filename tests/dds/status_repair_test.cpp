@@ -1,0 +1,154 @@
+// A status subscriber that stalls while odometry floods its socket (a loaded
+// machine: the kernel drops what its full receive buffer cannot hold) still
+// gets every status, in order, once it runs again: the status writer keeps
+// the unacknowledged ones and repairs each, not only the newest (qos.h).
+//
+// The subscriber is this binary re-executed with RILO_DDS_STALLED_READER_DOMAIN
+// set (it runs before main() and exits); the test stops it with SIGSTOP,
+// publishes, and continues it.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <optional>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "dds/publisher.h"
+#include "dds/subscriber.h"
+#include "dds_test_support.h"
+
+extern char** environ;
+
+namespace rilo::dds {
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr int kStatusCount = 12;
+constexpr int kOdometryPerStatus = 800;  // ~0.5 MB between two statuses: more than a socket buffer holds
+constexpr std::int64_t kStatusPeriodNs = 1'000'000;
+
+std::int64_t statusStamp(int i) { return (i + 1) * kStatusPeriodNs; }
+
+TopicNames namesFromEnvironment() {
+  TopicNames names;
+  names.odometry = std::getenv("RILO_DDS_STALLED_READER_ODOMETRY");
+  names.status = std::getenv("RILO_DDS_STALLED_READER_STATUS");
+  return names;
+}
+
+/// The stalled subscriber: exits 0 when it received exactly the statuses
+/// published, in order; prints what it got otherwise.
+int runStalledReader(std::uint32_t domain_id) {
+  try {
+    Participant participant(testing::loopbackOptions(domain_id));
+    SubscriberOptions so;
+    so.topics = namesFromEnvironment();
+    so.pose = false;
+    Subscriber sub(participant, so);
+    std::vector<OdometryMessage> odometry;
+    std::vector<StatusMessage> status;
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    while (std::chrono::steady_clock::now() < deadline &&
+           (status.empty() || status.back().status.t_ns != statusStamp(kStatusCount - 1))) {
+      if (sub.waitForData(50ms)) {
+        odometry.clear();
+        sub.takeOdometry(odometry);
+        sub.takeStatus(status);
+      }
+    }
+    bool exact = status.size() == static_cast<std::size_t>(kStatusCount);
+    for (std::size_t i = 0; exact && i < status.size(); ++i) exact = status[i].status.t_ns == statusStamp(static_cast<int>(i));
+    if (exact) return 0;
+    std::fprintf(stderr, "stalled reader: %zu of %d statuses, stamps (ms):", status.size(), kStatusCount);
+    for (const StatusMessage& m : status) std::fprintf(stderr, " %lld", static_cast<long long>(m.status.t_ns / 1'000'000));
+    std::fprintf(stderr, "\n");
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "stalled reader: %s\n", e.what());
+    return 2;
+  }
+}
+
+// Runs during static initialization of the re-executed binary only.
+const bool g_is_stalled_reader = [] {
+  const char* domain = std::getenv("RILO_DDS_STALLED_READER_DOMAIN");
+  if (domain == nullptr) return false;
+  std::exit(runStalledReader(static_cast<std::uint32_t>(std::stoul(domain))));
+}();
+
+pid_t spawnReader(std::uint32_t domain_id, const TopicNames& names) {
+  std::vector<std::string> env;
+  for (char** e = environ; *e != nullptr; ++e) env.emplace_back(*e);
+  env.push_back("RILO_DDS_STALLED_READER_DOMAIN=" + std::to_string(domain_id));
+  env.push_back("RILO_DDS_STALLED_READER_ODOMETRY=" + names.odometry);
+  env.push_back("RILO_DDS_STALLED_READER_STATUS=" + names.status);
+  std::vector<char*> envp;
+  for (std::string& s : env) envp.push_back(s.data());
+  envp.push_back(nullptr);
+  std::string self = "/proc/self/exe";
+  std::vector<char*> argv{self.data(), nullptr};
+  pid_t pid = -1;
+  if (posix_spawn(&pid, self.c_str(), nullptr, nullptr, argv.data(), envp.data()) != 0) return -1;
+  return pid;
+}
+
+/// The child's exit status, or nullopt after `timeout` (then it is killed).
+std::optional<int> waitChild(pid_t child, std::chrono::seconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  int child_status = 0;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (waitpid(child, &child_status, WNOHANG) == child) {
+      return WIFEXITED(child_status) ? WEXITSTATUS(child_status) : 128 + WTERMSIG(child_status);
+    }
+    std::this_thread::sleep_for(20ms);
+  }
+  kill(child, SIGKILL);
+  waitpid(child, &child_status, 0);
+  return std::nullopt;
+}
+
+TEST(DdsStatusRepair, AStalledSubscriberGetsEveryStatusPublishedWhileOdometryFloodedIt) {
+  ASSERT_FALSE(g_is_stalled_reader);
+  const std::uint32_t domain_id = testing::uniqueDomainId();
+  TopicNames names = testing::uniqueTopicNames("status_repair");
+  Participant participant(testing::loopbackOptions(domain_id));
+  PublisherOptions po;
+  po.topics = names;
+  po.topics.tf.clear();
+  po.stamp_clock = StampClock::kMonotonic;
+  Publisher pub(participant, po);
+
+  const pid_t reader = spawnReader(domain_id, names);
+  ASSERT_GT(reader, 0) << "posix_spawn failed";
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kOdometry, 1, testing::kMatchTimeout));
+  ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kStatus, 1, testing::kMatchTimeout));
+  std::this_thread::sleep_for(300ms);  // the reader side accepts this writer too
+
+  ASSERT_EQ(kill(reader, SIGSTOP), 0);
+  std::mt19937 rng(7);
+  NavigationState state = testing::randomState(rng, 0);
+  for (int i = 0; i < kStatusCount; ++i) {
+    for (int k = 0; k < kOdometryPerStatus; ++k) {
+      state.t_ns += 1'000;
+      (void)pub.publishOdometry(state);  // best effort: most are dropped by the stopped reader's kernel
+    }
+    ASSERT_TRUE(pub.publishStatus(testing::sampleStatus(statusStamp(i))).ok()) << "status " << i;
+  }
+  ASSERT_EQ(kill(reader, SIGCONT), 0);
+  EXPECT_TRUE(pub.waitForAcknowledgments(30s)) << "the reader acknowledged every status";
+  const std::optional<int> code = waitChild(reader, 60s);
+  ASSERT_TRUE(code.has_value()) << "the stalled reader did not finish";
+  EXPECT_EQ(*code, 0) << "the stalled reader missed or reordered statuses (see its stderr)";
+}
+
+}  // namespace
+}  // namespace rilo::dds

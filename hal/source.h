@@ -26,6 +26,15 @@ struct SourceFault {
   bool fatal = false;   ///< the source stopped because of it
 };
 
+/// What a source did that a bring-up engineer wants in the log: a device
+/// started or re-initialized, and what its start-up read and applied. Rare
+/// path: may allocate.
+struct SourceNote {
+  std::int64_t t_ns = 0;
+  std::string device;  ///< "/dev/spidev0.0"
+  std::string what;    ///< "started: XTAL trim 0x2E from OTP; PLL lock 48 us; ..."
+};
+
 class SampleSink {
  public:
   virtual ~SampleSink() = default;
@@ -38,6 +47,8 @@ class SampleSink {
   /// thread beat. Called at least every few hundred milliseconds; wrappers
   /// forward it.
   virtual void idle() noexcept {}
+  /// A note for the log (SourceNote); ignored unless the sink logs. Wrappers forward it.
+  virtual void note(const SourceNote& /*note*/) noexcept {}
 };
 
 enum class SourceEnd { kStopped, kEndOfData, kFailed };

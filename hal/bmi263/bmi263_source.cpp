@@ -94,7 +94,15 @@ bool Bmi263Source::startDevice(const std::atomic<bool>& stop) {
     if (stop.load(std::memory_order_relaxed)) return false;
     const BringUpResult result = driver_.bringUp();
     if (result.ok) {
-      counters_.bring_ups.fetch_add(1, std::memory_order_relaxed);
+      const bool first = counters_.bring_ups.fetch_add(1, std::memory_order_relaxed) == 0;
+      char ids[64];
+      std::snprintf(ids, sizeof ids, "chip id 0x%02X, INTERNAL_STATUS 0x%02X", static_cast<unsigned>(result.chip_id),
+                    static_cast<unsigned>(result.internal_status));
+      const std::string what = std::string(first ? "started: " : "re-initialized: ") + ids + ", config blob '" +
+                               config_.config_blob_path + "' loaded, gyro cross-axis " +
+                               (result.gyro_cross_axis ? "corrected (GYR_CAS " + std::to_string(result.gyro_cas) + ")"
+                                                       : std::string("not corrected"));
+      sink_->note(SourceNote{clock_.nowNs(), i2c_.path(), what});
       resetTiming();
       timeouts_in_row_ = 0;
       read_failures_in_row_ = 0;

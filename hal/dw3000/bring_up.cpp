@@ -93,6 +93,7 @@ std::string describe(const BringUpReport& r) {
   s += "; DGC " + std::string(r.dgc_on ? (r.dgc_from_otp ? "on (table from OTP)" : "on (driver's table)") : "off");
   s += "; PGF calibration " + std::string(r.pgf_done ? "done" : "not done") + " (I " + hex32(r.pgf_result_i) + ", Q " +
        hex32(r.pgf_result_q) + ")";
+  s += "; part " + hex32(r.otp_part_id) + ", lot " + hex32(r.otp_lot_id) + ", OTP revision " + hex8(r.otp_revision);
   if (r.left_out != 0) s += "; steps left out: " + hex32(r.left_out);
   return s;
 }

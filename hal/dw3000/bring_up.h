@@ -68,7 +68,9 @@ struct BringUpReport {
   BringUpSteps left_out = 0;
 };
 
-/// "ldo 0x...; xtal 0x2E (default: OTP empty); ..." in one line, for logs.
+/// "LDO trims ... from OTP; XTAL trim 0x2E (default: OTP empty); PLL lock
+/// ...; DGC ...; PGF calibration ...; part ..., lot ..." in one line, for logs
+/// (rilod and rilo record log it at every start-up of the chip).
 std::string describe(const BringUpReport& report);
 
 }  // namespace rilo::dw3000

@@ -78,6 +78,10 @@ bool Dw3000Source::bringUp(SampleSink& sink, bool at_startup) {
   try {
     device_.bringUp();
     Dw3000Stats::add(stats_.bringups);
+    // What the start-up read and applied (OTP trims, PLL lock, DGC, PGF): the
+    // first thing a board bring-up looks for in the journal.
+    sink.note(SourceNote{clock_.nowNs(), device_.path(),
+                         std::string(at_startup ? "started: " : "re-initialized: ") + ::rilo::dw3000::describe(device_.bringUpReport())});
     return true;
   } catch (const Dw3000Error& e) {
     if (e.kind() == Dw3000Error::Kind::kPllLock) Dw3000Stats::add(stats_.pll_lock_failures);

@@ -175,6 +175,7 @@ class FaultInjectingSource::Injector final : public SampleSink {
 
   void fault(const SourceFault& fault) noexcept override { out_.fault(fault); }
   void idle() noexcept override { out_.idle(); }
+  void note(const SourceNote& note) noexcept override { out_.note(note); }
 
   /// Delivers the samples still held back (end of the wrapped source's data).
   void flush() noexcept {

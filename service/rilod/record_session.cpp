@@ -15,8 +15,8 @@ namespace {
 /// progress from another thread; exact after the thread is joined).
 class TallySink final : public SampleSink {
  public:
-  TallySink(SampleSink& channel, const std::function<void(const SourceFault&)>& on_fault)
-      : channel_(channel), on_fault_(on_fault) {}
+  TallySink(SampleSink& channel, const RecordSessionCallbacks& callbacks)
+      : channel_(channel), on_fault_(callbacks.on_fault), on_note_(callbacks.on_note) {}
 
   void push(const Sample& sample) noexcept override {
     channel_.push(sample);
@@ -42,6 +42,14 @@ class TallySink final : public SampleSink {
     }
   }
 
+  void note(const SourceNote& n) noexcept override {
+    channel_.note(n);
+    try {
+      if (on_note_) on_note_(n);
+    } catch (...) {  // a logging failure must not end the source
+    }
+  }
+
   std::string lastFault() const {
     const std::lock_guard<std::mutex> lock(mutex_);
     return last_fault_;
@@ -54,6 +62,7 @@ class TallySink final : public SampleSink {
  private:
   SampleSink& channel_;
   const std::function<void(const SourceFault&)>& on_fault_;
+  const std::function<void(const SourceNote&)>& on_note_;
   mutable std::mutex mutex_;  // the fault text only (rare path)
   std::string last_fault_;
 };
@@ -102,7 +111,7 @@ RecordSessionResult runRecordSession(const std::vector<SampleSource*>& sources, 
       throw std::invalid_argument("runRecordSession: the recorder has fewer channels than the " +
                                   std::to_string(sources.size()) + " sources");
     }
-    sinks.push_back(std::make_unique<TallySink>(*channel, callbacks.on_fault));
+    sinks.push_back(std::make_unique<TallySink>(*channel, callbacks));
   }
 
   const auto t0 = std::chrono::steady_clock::now();

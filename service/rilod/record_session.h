@@ -53,10 +53,12 @@ struct RecordSessionResult {
   int exitCode() const noexcept;
 };
 
-/// Callbacks from the session (any may be empty). on_fault runs on the
-/// source's thread (rare path; may log); on_progress on the calling thread.
+/// Callbacks from the session (any may be empty). on_fault and on_note run
+/// on the source's thread (rare path; may log); on_progress on the calling
+/// thread.
 struct RecordSessionCallbacks {
   std::function<void(const SourceFault&)> on_fault;
+  std::function<void(const SourceNote&)> on_note;  ///< a device started or re-initialized, and what it read
   std::function<void(const std::vector<SourceTally>&, const RecorderCounters&)> on_progress;
 };
 

@@ -151,6 +151,10 @@ class TeeSink final : public SampleSink {
     a_.fault(fault);
     b_.fault(fault);
   }
+  void note(const SourceNote& note) noexcept override {
+    a_.note(note);
+    b_.note(note);
+  }
 
  private:
   SampleSink& a_;

@@ -90,6 +90,13 @@ class Service::LaneSink final : public SampleSink {
     }
   }
   void idle() noexcept override { lane_.beat.beat(hal::monotonicNowNs()); }
+  void note(const SourceNote& note) noexcept override {
+    try {
+      if (service_.options_.on_event) service_.options_.on_event(note.device + ": " + note.what);
+    } catch (...) {
+      // Logging must never take the source down.
+    }
+  }
   void fault(const SourceFault& fault) noexcept override {
     lane_.beat.beat(hal::monotonicNowNs());
     service_.counters_.sensor_faults.add();

@@ -67,6 +67,11 @@ TEST(Bmi263Faults, PersistentReadFailuresLeadToAReBringUpAndDataResumes) {
   EXPECT_EQ(c.bring_ups, 2u);
   EXPECT_EQ(rig.emulator->softResets(), 2u);
   EXPECT_TRUE(sink.hasFault("10 reads failed in a row: re-initialising the BMI263")) << sink.allFaults();
+  // Each start-up is told for the log, the second as a re-initialization.
+  ASSERT_EQ(sink.notes.size(), 2u);
+  EXPECT_EQ(sink.notes[0].what.rfind("started: chip id 0x24", 0), 0u) << sink.notes[0].what;
+  EXPECT_EQ(sink.notes[1].what.rfind("re-initialized: chip id 0x24", 0), 0u) << sink.notes[1].what;
+  EXPECT_EQ(sink.notes[1].device, sink.notes[0].device);
   for (const auto& f : sink.faults) EXPECT_FALSE(f.fatal);
   EXPECT_GT(last_t, t0 + 1'900'000'000);  // samples again until the end
 }

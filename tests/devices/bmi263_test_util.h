@@ -63,6 +63,7 @@ class RecordingSink final : public SampleSink {
     ++count;
   }
   void fault(const SourceFault& fault) noexcept override { faults.push_back(fault); }
+  void note(const SourceNote& n) noexcept override { notes.push_back(n); }
 
   bool hasFault(const std::string& text) const {
     for (const auto& f : faults) {
@@ -80,6 +81,7 @@ class RecordingSink final : public SampleSink {
   std::function<void(const ImuSample&)> on_sample;
   std::vector<ImuSample> samples;
   std::vector<SourceFault> faults;
+  std::vector<SourceNote> notes;  ///< "started: ...", "re-initialized: ..."
   std::uint64_t count = 0;
 };
 

@@ -111,6 +111,11 @@ TEST(Dw3000Faults, RepeatedCrcErrorsReinitializeAfterBackoff) {
   EXPECT_EQ(f.sink.faultsContaining("retrying in 20 ms"), 1u);
   EXPECT_EQ(f.sink.faultsContaining("3 device fault(s) in a row, re-initializing in 40 ms"), 1u);
   EXPECT_EQ(f.stat(&Dw3000Stats::bringups), 2u);
+  // Each start-up is told for the log, the second as a re-initialization.
+  ASSERT_EQ(f.sink.notes.size(), 2u);
+  EXPECT_EQ(f.sink.notes[0].what.rfind("started: ", 0), 0u) << f.sink.notes[0].what;
+  EXPECT_EQ(f.sink.notes[1].what.rfind("re-initialized: ", 0), 0u) << f.sink.notes[1].what;
+  EXPECT_NE(f.sink.notes[1].what.find("PGF calibration done"), std::string::npos) << f.sink.notes[1].what;
   ASSERT_EQ(f.sink.faults.size(), 3u);
   EXPECT_GE(f.sink.faults[1].t_ns - f.sink.faults[0].t_ns, 10 * kMs);
   EXPECT_GE(f.sink.faults[2].t_ns - f.sink.faults[1].t_ns, 20 * kMs);

@@ -178,6 +178,7 @@ TEST(Dw3000StartUp, AFullBringUpReportsWhatItReadAndApplied) {
   const std::string text = describe(r);
   EXPECT_NE(text.find("XTAL trim 0x1B from OTP"), std::string::npos) << text;
   EXPECT_NE(text.find("PGF calibration done"), std::string::npos) << text;
+  EXPECT_NE(text.find("part 0x1C0A2B17, lot 0x0004F3E1, OTP revision 0x02"), std::string::npos) << text;
   const ExchangeResult range = device.range(rig.config.anchors[0]);
   ASSERT_EQ(range.status, ExchangeStatus::kOk) << toString(range.status);
   EXPECT_TRUE(std::isfinite(range.rx_power.rssi_dbm));

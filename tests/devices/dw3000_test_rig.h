@@ -23,6 +23,7 @@ class CollectingSink final : public SampleSink {
     if (const auto* range = std::get_if<RangeSample>(&sample)) ranges.push_back(*range);
   }
   void fault(const SourceFault& f) noexcept override { faults.push_back(f); }
+  void note(const SourceNote& n) noexcept override { notes.push_back(n); }
 
   std::size_t rangesFrom(std::uint32_t anchor_id, std::int64_t after_ns = 0) const {
     std::size_t n = 0;
@@ -37,6 +38,7 @@ class CollectingSink final : public SampleSink {
 
   std::vector<RangeSample> ranges;
   std::vector<SourceFault> faults;
+  std::vector<SourceNote> notes;
 };
 
 struct Rig {

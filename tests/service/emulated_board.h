@@ -174,6 +174,8 @@ class TimeLimitedSource final : public SampleSource {
       out.fault(f);
       check();
     }
+    void note(const SourceNote& n) noexcept override { out.note(n); }
+    void idle() noexcept override { out.idle(); }
     void check() noexcept {
       if (clock.nowNs() >= end_ns || outer_stop.load()) stop.store(true);
     }

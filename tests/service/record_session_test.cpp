@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <map>
 #include <mutex>
@@ -73,10 +74,27 @@ TEST_F(RecordSessionTest, RecordsTheEmulatedBoardIntoAReadableRecording) {
   EXPECT_EQ(recorder_options.flush_interval_ns, 200'000'000);  // the configuration's recording section
   Recorder recorder(dir_ / "rec", recordingSetup(cfg), sources.size(), recorder_options);
   std::atomic<bool> stop{false};
-  const RecordSessionResult result = runRecordSession(raw(sources), recorder, stop);
+  std::mutex notes_mutex;
+  std::vector<SourceNote> notes;
+  RecordSessionCallbacks callbacks;
+  callbacks.on_note = [&](const SourceNote& n) {
+    const std::lock_guard<std::mutex> lock(notes_mutex);
+    notes.push_back(n);
+  };
+  const RecordSessionResult result = runRecordSession(raw(sources), recorder, stop, {}, callbacks);
 
   EXPECT_EQ(result.exitCode(), 0);
   EXPECT_FALSE(result.interrupted);
+  // Each device said once what its start-up read and applied (rilo record logs it).
+  ASSERT_EQ(notes.size(), 2u);
+  std::sort(notes.begin(), notes.end(), [](const auto& a, const auto& b) { return a.device < b.device; });
+  EXPECT_EQ(notes[0].device, "emu:bmi263@0x68");  // the emulated buses' names
+  EXPECT_EQ(notes[0].what.rfind("started: chip id 0x24", 0), 0u) << notes[0].what;
+  EXPECT_NE(notes[0].what.find("blob.bin' loaded"), std::string::npos) << notes[0].what;
+  EXPECT_EQ(notes[1].device, "emu:spidev0.0");
+  EXPECT_EQ(notes[1].what.rfind("started: ", 0), 0u) << notes[1].what;
+  EXPECT_NE(notes[1].what.find("PGF calibration done"), std::string::npos) << notes[1].what;
+  EXPECT_NE(notes[1].what.find("part 0x"), std::string::npos) << notes[1].what;
   ASSERT_EQ(result.sources.size(), 2u);
   const SourceTally& uwb = result.sources[0];
   const SourceTally& imu = result.sources[1];

@@ -110,6 +110,7 @@ int runRecordCommand(const RecordCommandOptions& options) {
       spdlog::warn("{}: {}", f.device, f.what);
     }
   };
+  callbacks.on_note = [](const SourceNote& n) { spdlog::info("{}: {}", n.device, n.what); };
   const auto t0 = std::chrono::steady_clock::now();
   callbacks.on_progress = [t0](const std::vector<SourceTally>& tallies, const RecorderCounters& c) {
     printTotals(tallies, c, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), stderr);

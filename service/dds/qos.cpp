@@ -31,8 +31,8 @@ QosPtr writerQos(TopicKind kind) {
     case TopicKind::kStatus:
       // Keeps the last kStatusWriterDepth until acknowledged, so a status lost
       // on the wire (a loopback socket full of odometry) is repaired itself,
-      // not replaced by the newest; a late joiner still gets only the newest
-      // (Cyclone keeps durability_service.history.depth for late joiners).
+      // not replaced by the newest; Cyclone keeps
+      // durability_service.history.depth (1) for late joiners (qos.h).
       dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, 0);
       dds_qset_durability(qos.get(), DDS_DURABILITY_TRANSIENT_LOCAL);
       dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, kStatusWriterDepth);

@@ -22,8 +22,6 @@
 #include "dds/subscriber.h"
 #include "dds_test_support.h"
 
-extern char** environ;
-
 namespace rilo::dds {
 namespace {
 
@@ -97,20 +95,9 @@ const bool g_is_child = [] {
 }();
 
 pid_t spawnChild(std::uint32_t domain_id, const TopicNames& names) {
-  std::vector<std::string> env;
-  for (char** e = environ; *e != nullptr; ++e) env.emplace_back(*e);
-  env.push_back("RILO_DDS_CHILD_DOMAIN=" + std::to_string(domain_id));
-  env.push_back("RILO_DDS_CHILD_ODOMETRY=" + names.odometry);
-  env.push_back("RILO_DDS_CHILD_POSE=" + names.pose);
-  env.push_back("RILO_DDS_CHILD_STATUS=" + names.status);
-  std::vector<char*> envp;
-  for (std::string& s : env) envp.push_back(s.data());
-  envp.push_back(nullptr);
-  std::string self = "/proc/self/exe";
-  std::vector<char*> argv{self.data(), nullptr};
-  pid_t pid = -1;
-  if (posix_spawn(&pid, self.c_str(), nullptr, nullptr, argv.data(), envp.data()) != 0) return -1;
-  return pid;
+  return testing::spawnSelf({"RILO_DDS_CHILD_DOMAIN=" + std::to_string(domain_id),
+                             "RILO_DDS_CHILD_ODOMETRY=" + names.odometry, "RILO_DDS_CHILD_POSE=" + names.pose,
+                             "RILO_DDS_CHILD_STATUS=" + names.status});
 }
 
 TEST(DdsCrossProcess, SamplesCrossTheLoopbackInterface) {

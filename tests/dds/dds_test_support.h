@@ -2,6 +2,7 @@
 // Shared set-up of the DDS tests: a private domain on the loopback interface
 // and topic names unique to this process, so concurrent test runs on the same
 // machine (ctest -j, other people's builds) never see each other's samples.
+#include <spawn.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -9,11 +10,14 @@
 #include <cstdint>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "dds/participant.h"
 #include "dds/topics.h"
 #include "runtime/navigation_state.h"
 #include "runtime/service_status.h"
+
+extern char** environ;
 
 namespace rilo::dds::testing {
 
@@ -118,6 +122,23 @@ inline ServiceStatus sampleStatus(std::int64_t t_ns) {
   const std::string reason = "no ranging for 12.4 s (IMU only)";
   reason.copy(s.reason.data(), s.reason.size() - 1);
   return s;
+}
+
+/// Re-executes this test binary with this process's environment plus
+/// `extra_env` ("NAME=value"); the child recognizes its role by one of those
+/// variables before main(). The child's pid, or -1.
+inline pid_t spawnSelf(const std::vector<std::string>& extra_env) {
+  std::vector<std::string> env;
+  for (char** e = environ; *e != nullptr; ++e) env.emplace_back(*e);
+  env.insert(env.end(), extra_env.begin(), extra_env.end());
+  std::vector<char*> envp;
+  for (std::string& s : env) envp.push_back(s.data());
+  envp.push_back(nullptr);
+  std::string self = "/proc/self/exe";
+  std::vector<char*> argv{self.data(), nullptr};
+  pid_t pid = -1;
+  if (posix_spawn(&pid, self.c_str(), nullptr, nullptr, argv.data(), envp.data()) != 0) return -1;
+  return pid;
 }
 
 }  // namespace rilo::dds::testing

@@ -244,15 +244,15 @@ TEST_F(DdsPubSub, StatusesPublishedBetweenTakesAllArriveInOrder) {
 }
 
 // A status lost on the wire is repaired itself, not replaced by the newest:
-// the writer keeps as many unacknowledged as a reader keeps, yet serves late
-// joiners only the newest (the test below).
+// the writer keeps the last kStatusWriterDepth until acknowledged, yet
+// serves late joiners only the newest (the test below).
 TEST(DdsQos, StatusWriterKeepsUnacknowledgedStatusesForRepair) {
   const QosPtr qos = writerQos(TopicKind::kStatus);
   dds_history_kind_t kind{};
   std::int32_t depth = 0;
   ASSERT_TRUE(dds_qget_history(qos.get(), &kind, &depth));
   EXPECT_EQ(kind, DDS_HISTORY_KEEP_LAST);
-  EXPECT_EQ(depth, kStatusReaderDepth);
+  EXPECT_EQ(depth, kStatusWriterDepth);
   dds_duration_t cleanup = 0;
   dds_history_kind_t late_kind{};
   std::int32_t late_depth = 0, max_samples = 0, max_instances = 0, max_per_instance = 0;

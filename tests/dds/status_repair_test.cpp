@@ -8,7 +8,6 @@
 // publishes, and continues it.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -24,8 +23,6 @@
 #include "dds/publisher.h"
 #include "dds/subscriber.h"
 #include "dds_test_support.h"
-
-extern char** environ;
 
 namespace rilo::dds {
 namespace {
@@ -56,15 +53,21 @@ int runStalledReader(std::uint32_t domain_id) {
     Subscriber sub(participant, so);
     std::vector<OdometryMessage> odometry;
     std::vector<StatusMessage> status;
+    std::size_t odometry_count = 0;
     const auto deadline = std::chrono::steady_clock::now() + 60s;
     while (std::chrono::steady_clock::now() < deadline &&
            (status.empty() || status.back().status.t_ns != statusStamp(kStatusCount - 1))) {
       if (sub.waitForData(50ms)) {
         odometry.clear();
-        sub.takeOdometry(odometry);
+        odometry_count += sub.takeOdometry(odometry);
         sub.takeStatus(status);
       }
     }
+    // Informational: on a host whose socket buffers hold the whole flood
+    // nothing is lost and the test does not exercise the repair.
+    std::printf("[ stalled  ] %zu of %d best-effort odometry samples reached the stopped reader\n", odometry_count,
+                kStatusCount * kOdometryPerStatus);
+    std::fflush(stdout);
     bool exact = status.size() == static_cast<std::size_t>(kStatusCount);
     for (std::size_t i = 0; exact && i < status.size(); ++i) exact = status[i].status.t_ns == statusStamp(static_cast<int>(i));
     if (exact) return 0;
@@ -86,22 +89,12 @@ const bool g_is_stalled_reader = [] {
 }();
 
 pid_t spawnReader(std::uint32_t domain_id, const TopicNames& names) {
-  std::vector<std::string> env;
-  for (char** e = environ; *e != nullptr; ++e) env.emplace_back(*e);
-  env.push_back("RILO_DDS_STALLED_READER_DOMAIN=" + std::to_string(domain_id));
-  env.push_back("RILO_DDS_STALLED_READER_ODOMETRY=" + names.odometry);
-  env.push_back("RILO_DDS_STALLED_READER_STATUS=" + names.status);
-  std::vector<char*> envp;
-  for (std::string& s : env) envp.push_back(s.data());
-  envp.push_back(nullptr);
-  std::string self = "/proc/self/exe";
-  std::vector<char*> argv{self.data(), nullptr};
-  pid_t pid = -1;
-  if (posix_spawn(&pid, self.c_str(), nullptr, nullptr, argv.data(), envp.data()) != 0) return -1;
-  return pid;
+  return testing::spawnSelf({"RILO_DDS_STALLED_READER_DOMAIN=" + std::to_string(domain_id),
+                             "RILO_DDS_STALLED_READER_ODOMETRY=" + names.odometry,
+                             "RILO_DDS_STALLED_READER_STATUS=" + names.status});
 }
 
-/// The child's exit status, or nullopt after `timeout` (then it is killed).
+/// The child's exit status, or nullopt after `timeout`.
 std::optional<int> waitChild(pid_t child, std::chrono::seconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   int child_status = 0;
@@ -111,10 +104,21 @@ std::optional<int> waitChild(pid_t child, std::chrono::seconds timeout) {
     }
     std::this_thread::sleep_for(20ms);
   }
-  kill(child, SIGKILL);
-  waitpid(child, &child_status, 0);
   return std::nullopt;
 }
+
+/// Continues, kills and reaps the child unless it was reaped: a failed
+/// assertion between SIGSTOP and SIGCONT must not leave it stopped.
+struct ChildGuard {
+  pid_t pid;
+  bool reaped = false;
+  ~ChildGuard() {
+    if (pid <= 0 || reaped) return;
+    kill(pid, SIGCONT);
+    kill(pid, SIGKILL);
+    waitpid(pid, nullptr, 0);
+  }
+};
 
 TEST(DdsStatusRepair, AStalledSubscriberGetsEveryStatusPublishedWhileOdometryFloodedIt) {
   ASSERT_FALSE(g_is_stalled_reader);
@@ -127,26 +131,30 @@ TEST(DdsStatusRepair, AStalledSubscriberGetsEveryStatusPublishedWhileOdometryFlo
   po.stamp_clock = StampClock::kMonotonic;
   Publisher pub(participant, po);
 
-  const pid_t reader = spawnReader(domain_id, names);
-  ASSERT_GT(reader, 0) << "posix_spawn failed";
+  ChildGuard reader{spawnReader(domain_id, names)};
+  ASSERT_GT(reader.pid, 0) << "posix_spawn failed";
   ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kOdometry, 1, testing::kMatchTimeout));
   ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kStatus, 1, testing::kMatchTimeout));
   std::this_thread::sleep_for(300ms);  // the reader side accepts this writer too
 
-  ASSERT_EQ(kill(reader, SIGSTOP), 0);
+  // Stopped for well under Cyclone's 10 s lease: the writer keeps the reader.
+  ASSERT_EQ(kill(reader.pid, SIGSTOP), 0);
   std::mt19937 rng(7);
   NavigationState state = testing::randomState(rng, 0);
+  bool all_written = true;
   for (int i = 0; i < kStatusCount; ++i) {
     for (int k = 0; k < kOdometryPerStatus; ++k) {
       state.t_ns += 1'000;
       (void)pub.publishOdometry(state);  // best effort: most are dropped by the stopped reader's kernel
     }
-    ASSERT_TRUE(pub.publishStatus(testing::sampleStatus(statusStamp(i))).ok()) << "status " << i;
+    all_written = pub.publishStatus(testing::sampleStatus(statusStamp(i))).ok() && all_written;
   }
-  ASSERT_EQ(kill(reader, SIGCONT), 0);
+  ASSERT_EQ(kill(reader.pid, SIGCONT), 0);
+  ASSERT_TRUE(all_written) << "a status write failed (DDS_RETCODE_TIMEOUT: too much unacknowledged, qos.h)";
   EXPECT_TRUE(pub.waitForAcknowledgments(30s)) << "the reader acknowledged every status";
-  const std::optional<int> code = waitChild(reader, 60s);
+  const std::optional<int> code = waitChild(reader.pid, 60s);
   ASSERT_TRUE(code.has_value()) << "the stalled reader did not finish";
+  reader.reaped = true;
   EXPECT_EQ(*code, 0) << "the stalled reader missed or reordered statuses (see its stderr)";
 }
 

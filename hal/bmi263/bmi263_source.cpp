@@ -88,21 +88,31 @@ void Bmi263Source::resetTiming() noexcept {
 // ---------------------------------------------------------------------------
 // Life cycle
 
-bool Bmi263Source::startDevice(const std::atomic<bool>& stop) {
+void Bmi263Source::noteStartUp(const BringUpResult& result, bool at_startup) noexcept {
+  // What the start-up read and applied, for the log. Only a note: a failure
+  // to build it must not fail the start-up.
+  try {
+    char ids[64];
+    std::snprintf(ids, sizeof ids, "chip id 0x%02X, INTERNAL_STATUS 0x%02X", static_cast<unsigned>(result.chip_id),
+                  static_cast<unsigned>(result.internal_status));
+    const std::string cross_axis = result.gyro_cross_axis
+                                       ? "corrected (GYR_CAS " + std::to_string(result.gyro_cas) + ")"
+                                       : std::string("not corrected");
+    sink_->note(SourceNote{clock_.nowNs(), i2c_.path(),
+                           std::string(at_startup ? "started: " : "re-initialized: ") + ids + ", config blob '" +
+                               config_.config_blob_path + "' loaded, gyro cross-axis " + cross_axis});
+  } catch (...) {
+  }
+}
+
+bool Bmi263Source::startDevice(const std::atomic<bool>& stop, bool at_startup) {
   const int attempts = config_.bring_up_attempts;
   for (int attempt = 1; attempt <= attempts; ++attempt) {
     if (stop.load(std::memory_order_relaxed)) return false;
     const BringUpResult result = driver_.bringUp();
     if (result.ok) {
-      const bool first = counters_.bring_ups.fetch_add(1, std::memory_order_relaxed) == 0;
-      char ids[64];
-      std::snprintf(ids, sizeof ids, "chip id 0x%02X, INTERNAL_STATUS 0x%02X", static_cast<unsigned>(result.chip_id),
-                    static_cast<unsigned>(result.internal_status));
-      const std::string what = std::string(first ? "started: " : "re-initialized: ") + ids + ", config blob '" +
-                               config_.config_blob_path + "' loaded, gyro cross-axis " +
-                               (result.gyro_cross_axis ? "corrected (GYR_CAS " + std::to_string(result.gyro_cas) + ")"
-                                                       : std::string("not corrected"));
-      sink_->note(SourceNote{clock_.nowNs(), i2c_.path(), what});
+      counters_.bring_ups.fetch_add(1, std::memory_order_relaxed);
+      noteStartUp(result, at_startup);
       resetTiming();
       timeouts_in_row_ = 0;
       read_failures_in_row_ = 0;
@@ -146,7 +156,7 @@ void Bmi263Source::discardStaleEdges() {
 
 SourceEnd Bmi263Source::run(SampleSink& sink, const std::atomic<bool>& stop) {
   sink_ = &sink;
-  if (!startDevice(stop)) return stop.load() ? SourceEnd::kStopped : SourceEnd::kFailed;
+  if (!startDevice(stop, true)) return stop.load() ? SourceEnd::kStopped : SourceEnd::kFailed;
   const bool fifo_mode = config_.interrupt_mode == InterruptMode::kFifoWatermark;
   while (!stop.load(std::memory_order_relaxed)) {
     hal::EdgeEvent edge;
@@ -172,7 +182,7 @@ SourceEnd Bmi263Source::run(SampleSink& sink, const std::atomic<bool>& stop) {
     sink.idle();  // the loop went round (the watchdog watches this thread too)
     if (step == Step::kRestart) {
       counters_.recoveries.fetch_add(1, std::memory_order_relaxed);
-      if (!startDevice(stop)) return stop.load() ? SourceEnd::kStopped : SourceEnd::kFailed;
+      if (!startDevice(stop, false)) return stop.load() ? SourceEnd::kStopped : SourceEnd::kFailed;
     }
   }
   return SourceEnd::kStopped;

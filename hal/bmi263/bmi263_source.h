@@ -65,7 +65,10 @@ class Bmi263Source final : public SampleSource {
  private:
   enum class Step { kContinue, kRestart, kFatal };
 
-  bool startDevice(const std::atomic<bool>& stop);
+  /// Brings the part up (retrying); `at_startup` false: a re-initialization.
+  bool startDevice(const std::atomic<bool>& stop, bool at_startup);
+  /// Tells the sink what the start-up read and applied (SourceNote).
+  void noteStartUp(const BringUpResult& result, bool at_startup) noexcept;
   void discardStaleEdges();
   void resetTiming() noexcept;
   Step serviceDataReady(const hal::EdgeEvent* edge);

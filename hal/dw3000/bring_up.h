@@ -69,7 +69,8 @@ struct BringUpReport {
 };
 
 /// "LDO trims ... from OTP; XTAL trim 0x2E (default: OTP empty); PLL lock
-/// ...; DGC ...; PGF calibration ...; part ..., lot ..." in one line, for logs
+/// ...; DGC ...; PGF calibration ...; part ..., lot ..., OTP revision ..." in
+/// one line, for logs
 /// (rilod and rilo record log it at every start-up of the chip).
 std::string describe(const BringUpReport& report);
 

@@ -74,14 +74,22 @@ std::int64_t Dw3000Source::deviceBackoffNs(int faults) const noexcept {
   return std::min(delay, config_.device_backoff_max_ns);
 }
 
+void Dw3000Source::noteStartUp(SampleSink& sink, bool at_startup) noexcept {
+  // What the start-up read and applied (OTP trims, PLL lock, DGC, PGF): the
+  // first thing a board bring-up looks for in the journal. Only a note: a
+  // failure to build it must not count as a failed bring-up.
+  try {
+    const std::string prefix = at_startup ? "started: " : "re-initialized: ";
+    sink.note(SourceNote{clock_.nowNs(), device_.path(), prefix + ::rilo::dw3000::describe(device_.bringUpReport())});
+  } catch (...) {
+  }
+}
+
 bool Dw3000Source::bringUp(SampleSink& sink, bool at_startup) {
   try {
     device_.bringUp();
     Dw3000Stats::add(stats_.bringups);
-    // What the start-up read and applied (OTP trims, PLL lock, DGC, PGF): the
-    // first thing a board bring-up looks for in the journal.
-    sink.note(SourceNote{clock_.nowNs(), device_.path(),
-                         std::string(at_startup ? "started: " : "re-initialized: ") + ::rilo::dw3000::describe(device_.bringUpReport())});
+    noteStartUp(sink, at_startup);
     return true;
   } catch (const Dw3000Error& e) {
     if (e.kind() == Dw3000Error::Kind::kPllLock) Dw3000Stats::add(stats_.pll_lock_failures);

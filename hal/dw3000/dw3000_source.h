@@ -50,6 +50,8 @@ class Dw3000Source final : public SampleSource {
 
  private:
   bool bringUp(SampleSink& sink, bool at_startup);
+  /// Tells the sink what the last bring-up read and applied (SourceNote).
+  void noteStartUp(SampleSink& sink, bool at_startup) noexcept;
   bool reinitialize(SampleSink& sink, const std::atomic<bool>& stop);
   void handleLinkFault(SampleSink& sink, std::size_t index, bool discovery, const ExchangeResult& r);
   /// Returns false if run() must end (re-initialization gave up).

@@ -131,6 +131,7 @@ int runService(const rilo::ServiceConfig& cfg, double max_seconds) {
     }
   };
   so.on_event = [](const std::string& e) { spdlog::info("{}", e); };
+  so.on_note = [](const rilo::SourceNote& n) { spdlog::info("{}: {}", n.device, n.what); };
   // STOPPING=1 as soon as the stop request is seen (issue 37: it went out
   // only after shutdown, so systemd waited without knowing).
   std::atomic<bool> stopping_sent{false};

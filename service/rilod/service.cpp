@@ -92,7 +92,7 @@ class Service::LaneSink final : public SampleSink {
   void idle() noexcept override { lane_.beat.beat(hal::monotonicNowNs()); }
   void note(const SourceNote& note) noexcept override {
     try {
-      if (service_.options_.on_event) service_.options_.on_event(note.device + ": " + note.what);
+      if (service_.options_.on_note) service_.options_.on_note(note);
     } catch (...) {
       // Logging must never take the source down.
     }

@@ -73,6 +73,10 @@ struct ServiceOptions {
   std::function<void(const ServiceStatus&)> on_status;
   /// Called once per fault from the source's thread (rare path; may log).
   std::function<void(const SourceFault&)> on_fault;
+  /// Called when a device started or re-initialized, with what its start-up
+  /// read and applied (SourceNote), from the source's thread (rare path; may
+  /// log). Sources run concurrently: so may these calls.
+  std::function<void(const SourceNote&)> on_note;
   /// Called on notable estimator events: tracking started or lost, ranging
   /// lost and back, initialization progress (rate-limited). Estimator thread.
   std::function<void(const std::string& event)> on_event;

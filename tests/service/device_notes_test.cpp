@@ -1,7 +1,7 @@
 // rilod logs what each device's start-up read and applied (the DW3000's OTP
 // trims, PLL lock, DGC and PGF calibration; the BMI263's chip id and config
 // blob): the first thing a board bring-up looks for in the journal. The real
-// service on the emulated board; its on_event callback is what rilod logs.
+// service on the emulated board; its on_note callback is what rilod logs.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -38,9 +38,9 @@ TEST(DeviceNotes, RilodLogsWhatEachDevicesStartUpReadAndApplied) {
   ServiceOptions options = serviceOptions(cfg);
   std::mutex mutex;
   std::vector<std::string> events;
-  options.on_event = [&](const std::string& e) {
+  options.on_note = [&](const SourceNote& n) {  // from both source threads
     const std::lock_guard<std::mutex> lock(mutex);
-    events.push_back(e);
+    events.push_back(n.device + ": " + n.what);
   };
   auto notesSeen = [&] {
     const std::lock_guard<std::mutex> lock(mutex);
@@ -64,7 +64,7 @@ TEST(DeviceNotes, RilodLogsWhatEachDevicesStartUpReadAndApplied) {
   std::string all;
   for (const std::string& e : events) all += "  " + e + "\n";
   ASSERT_EQ(notesSeen(), 2) << all;
-  std::printf("rilod's events on the emulated board:\n%s", all.c_str());
+  std::printf("rilod's device notes on the emulated board:\n%s", all.c_str());
   for (const std::string& e : events) {
     if (e.rfind("emu:spidev0.0: ", 0) == 0) {
       EXPECT_NE(e.find("XTAL trim"), std::string::npos) << e;

@@ -52,8 +52,10 @@ class CollectingSink final : public SampleSink {
  public:
   void push(const Sample& s) noexcept override { samples.push_back(s); }
   void fault(const SourceFault& f) noexcept override { faults.push_back(f); }
+  void note(const SourceNote& n) noexcept override { notes.push_back(n); }
   std::vector<Sample> samples;
   std::vector<SourceFault> faults;
+  std::vector<SourceNote> notes;
 };
 
 struct Injected {
@@ -259,10 +261,11 @@ TEST(FaultInjection, TimesAreRelativeToTheFirstSampleWhateverItsClock) {
   EXPECT_EQ(r.injected.dropped, 10u);
 }
 
-TEST(FaultInjection, StopPassesThroughAndFaultsAreForwarded) {
+TEST(FaultInjection, StopPassesThroughAndFaultsAndNotesAreForwarded) {
   class FaultySource final : public SampleSource {
    public:
     SourceEnd run(SampleSink& sink, const std::atomic<bool>& stop) override {
+      sink.note(SourceNote{0, "dev", "started: trims from OTP"});
       sink.fault(SourceFault{1, "dev", "broken", false});
       return stop.load() ? SourceEnd::kStopped : SourceEnd::kEndOfData;
     }
@@ -274,6 +277,8 @@ TEST(FaultInjection, StopPassesThroughAndFaultsAreForwarded) {
   EXPECT_EQ(source.run(sink, stop), SourceEnd::kStopped);
   ASSERT_EQ(sink.faults.size(), 1u);
   EXPECT_EQ(sink.faults[0].what, "broken");
+  ASSERT_EQ(sink.notes.size(), 1u);
+  EXPECT_EQ(sink.notes[0].what, "started: trims from OTP");
 }
 
 TEST(FaultInjection, DescribeListsTheFaults) {

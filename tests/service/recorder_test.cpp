@@ -287,18 +287,22 @@ TEST(RecorderTest, EmptyRecordingStillReadsBack) {
 
 TEST(RecorderTest, TeeSinkForwardsToBoth) {
   struct Counting final : SampleSink {
-    int samples = 0, faults = 0;
+    int samples = 0, faults = 0, notes = 0;
     void push(const Sample&) noexcept override { ++samples; }
     void fault(const SourceFault&) noexcept override { ++faults; }
+    void note(const SourceNote&) noexcept override { ++notes; }
   } a, b;
   TeeSink tee(a, b);
   tee.push(imuAt(0));
   tee.push(rangeAt(0));
   tee.fault(SourceFault{});
+  tee.note(SourceNote{});
   EXPECT_EQ(a.samples, 2);
   EXPECT_EQ(b.samples, 2);
   EXPECT_EQ(a.faults, 1);
   EXPECT_EQ(b.faults, 1);
+  EXPECT_EQ(a.notes, 1);  // rilod's recording keeps the device notes in the log
+  EXPECT_EQ(b.notes, 1);
 }
 
 TEST(RecordingDirectoryTest, NamedByUtcTimeAndNeverShared) {

@@ -10,6 +10,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
 
+#include "hal/recording/truth_lookup.h"
 #include "math/so3.h"
 
 namespace rilo::importer {
@@ -26,40 +27,6 @@ double median(std::vector<double> v) {
 }
 
 std::int64_t toNs(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
-
-/// Ground-truth pose at any time inside the ground truth, interpolated
-/// (position linearly, orientation by slerp) between neighbours no further
-/// apart than max_gap_ns.
-class TruthLookup {
- public:
-  TruthLookup(const std::vector<GroundTruthPose>& truth, std::int64_t max_gap_ns)
-      : truth_(truth), max_gap_ns_(max_gap_ns) {}
-
-  bool at(std::int64_t t_ns, Mat3& R_w_b, Vec3& p_w_b) const {
-    if (truth_.empty()) return false;
-    const auto later = std::upper_bound(truth_.begin(), truth_.end(), t_ns,
-                                        [](std::int64_t t, const GroundTruthPose& g) { return t < g.t_ns; });
-    if (later == truth_.begin()) return false;
-    const GroundTruthPose& g0 = *(later - 1);
-    if (g0.t_ns == t_ns) {
-      R_w_b = g0.q_w_b.normalized().toRotationMatrix();
-      p_w_b = g0.p_w_b;
-      return true;
-    }
-    if (later == truth_.end()) return false;
-    const GroundTruthPose& g1 = *later;
-    const std::int64_t gap_ns = g1.t_ns - g0.t_ns;
-    if (gap_ns > max_gap_ns_) return false;
-    const double s = static_cast<double>(t_ns - g0.t_ns) / static_cast<double>(gap_ns);
-    p_w_b = (1.0 - s) * g0.p_w_b + s * g1.p_w_b;
-    R_w_b = g0.q_w_b.normalized().slerp(s, g1.q_w_b.normalized()).toRotationMatrix();
-    return true;
-  }
-
- private:
-  const std::vector<GroundTruthPose>& truth_;
-  std::int64_t max_gap_ns_;
-};
 
 AccelCheck checkAccel(const Recording& rec) {
   AccelCheck out;

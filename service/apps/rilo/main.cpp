@@ -13,6 +13,7 @@
 #include "import_command.h"
 #include "listen.h"
 #include "probe_command.h"
+#include "range_errors_command.h"
 #include "record_command.h"
 #include "replay_command.h"
 #include "report_command.h"
@@ -39,6 +40,7 @@ int main(int argc, char** argv) {
   rilo::tool::addReportCommand(app);
   rilo::tool::addAccuracyCommand(app);
   rilo::tool::addEvalCommand(app);
+  rilo::tool::addRangeErrorsCommand(app);
   rilo::tool::addImportUtilCommand(app);
   rilo::tool::addListenCommand(app);
   rilo::tool::addProbeCommand(app);

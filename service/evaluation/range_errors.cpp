@@ -31,14 +31,23 @@ RangeErrors rangeErrors(const Recording& recording, const RangeErrorOptions& opt
     throw std::invalid_argument("rangeErrors: radial_step_s must be finite and > 0, got " +
                                 std::to_string(options.radial_step_s));
   }
+  if (!std::isfinite(options.truth_shift_s) || std::abs(options.truth_shift_s) > 3600.0) {
+    throw std::invalid_argument("rangeErrors: truth_shift_s must be finite and within +-3600 s, got " +
+                                std::to_string(options.truth_shift_s));
+  }
   if (recording.groundtruth.empty()) {
     throw std::invalid_argument("rangeErrors: the recording has no ground truth (groundtruth.csv)");
   }
   const TruthLookup truth(recording.groundtruth, toNs(options.max_truth_gap_s));
   const std::int64_t step_ns = toNs(options.radial_step_s);
+  const std::int64_t shift_ns = toNs(options.truth_shift_s);
   RangeErrors out;
   out.errors.reserve(recording.ranges.size());
   for (const RangeSample& r : recording.ranges) {
+    if (!std::isfinite(r.range_m)) {
+      ++out.non_finite;
+      continue;
+    }
     const Anchor* anchor = recording.findAnchor(r.anchor_id);
     if (anchor == nullptr) {
       ++out.unknown_anchor;
@@ -58,7 +67,8 @@ RangeErrors rangeErrors(const Recording& recording, const RangeErrorOptions& opt
       return true;
     };
     RangeError e;
-    if (!distanceAt(r.t_ns, e.true_m)) {
+    const std::int64_t t_truth = r.t_ns - shift_ns;
+    if (!distanceAt(t_truth, e.true_m)) {
       ++out.without_truth;
       continue;
     }
@@ -69,7 +79,7 @@ RangeErrors rangeErrors(const Recording& recording, const RangeErrorOptions& opt
     e.error_m = r.range_m - e.true_m;
     e.los = r.los;
     double before = 0.0, after = 0.0;
-    if (distanceAt(r.t_ns - step_ns, before) && distanceAt(r.t_ns + step_ns, after)) {
+    if (distanceAt(t_truth - step_ns, before) && distanceAt(t_truth + step_ns, after)) {
       e.radial_speed_m_s = (after - before) / (2.0 * options.radial_step_s);
     }
     out.errors.push_back(e);

@@ -35,6 +35,10 @@ struct RangeError {
 struct RangeErrorOptions {
   double max_truth_gap_s = 0.1;  ///< no ground truth interpolated across a larger gap (s)
   double radial_step_s = 0.05;   ///< half-width of the radial speed's central difference (s)
+  /// The true distance is taken this long before each range's stamp (s; 0:
+  /// at the stamp). Tests whether ranges were measured before their stamp:
+  /// the right shift takes the radial-speed slope to 0.
+  double truth_shift_s = 0.0;
 };
 
 struct RangeErrors {
@@ -42,6 +46,7 @@ struct RangeErrors {
   std::size_t without_truth = 0;            ///< ranges outside the ground truth or across a gap in it
   std::size_t unknown_anchor = 0;           ///< ranges to an anchor id not in anchors.csv
   std::size_t unknown_tag = 0;              ///< ranges from a tag id not in tags.csv
+  std::size_t non_finite = 0;               ///< ranges whose value is not finite (a recording built in code)
 };
 
 /// The errors of every two-way range of `recording`. Throws

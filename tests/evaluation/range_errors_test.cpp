@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -95,6 +97,13 @@ TEST(RangeErrors, ARangeStampedLateErrsByMinusTheDelayTimesTheRadialSpeed) {
   const RangeErrorStats s = summarizeRangeErrors(rangeErrors(rec).errors);
   EXPECT_NEAR(s.radial_slope_s, -0.4, 0.02);
   EXPECT_LT(s.radial_correlation, -0.99);
+  // The truth taken 0.4 s before each stamp: the errors vanish.
+  RangeErrorOptions shifted;
+  shifted.truth_shift_s = 0.4;
+  const RangeErrors at_shift = rangeErrors(rec, shifted);
+  ASSERT_EQ(at_shift.errors.size(), rec.ranges.size());
+  for (const RangeError& e : at_shift.errors) EXPECT_NEAR(e.error_m, 0.0, 2e-4);
+  EXPECT_LT(std::abs(summarizeRangeErrors(at_shift.errors).mean_m), 1e-4);
 }
 
 TEST(RangeErrors, RangesWithoutTruthAnchorOrTagAreCountedNotGuessed) {
@@ -112,17 +121,25 @@ TEST(RangeErrors, RangesWithoutTruthAnchorOrTagAreCountedNotGuessed) {
   // A hole in the ground truth is not bridged.
   rec.groundtruth.erase(rec.groundtruth.begin() + 500, rec.groundtruth.begin() + 600);  // 5-6 s
   rec.ranges.push_back(range(5'500 * kMs, 0, 0));
+  RangeSample not_finite = range(8'000 * kMs, 0, 0);
+  not_finite.range_m = std::nan("");
+  rec.ranges.push_back(not_finite);
   const RangeErrors out = rangeErrors(rec);
   EXPECT_EQ(out.errors.size(), 1u);
   EXPECT_EQ(out.without_truth, 2u);
   EXPECT_EQ(out.unknown_anchor, 1u);
   EXPECT_EQ(out.unknown_tag, 1u);
-  // At the edge of the ground truth a range has its error but no radial speed.
+  EXPECT_EQ(out.non_finite, 1u);
+  // At the edges of the ground truth (on its first and last sample, and
+  // just inside) a range has its error but no radial speed.
   Recording edge = circleWalk();
-  edge.ranges = {range(20'000 * kMs - kMs, 0, 0)};
+  edge.ranges = {range(0, 0, 0), range(kMs, 3, 0), range(20'000 * kMs - kMs, 0, 0), range(20'000 * kMs, 3, 1)};
   const RangeErrors at_edge = rangeErrors(edge);
-  ASSERT_EQ(at_edge.errors.size(), 1u);
-  EXPECT_TRUE(std::isnan(at_edge.errors[0].radial_speed_m_s));
+  ASSERT_EQ(at_edge.errors.size(), 4u);
+  for (const RangeError& e : at_edge.errors) {
+    EXPECT_NEAR(e.true_m, trueDistance(edge, e.anchor_id, e.tag_id, e.t_ns), 2e-4) << e.t_ns;
+    EXPECT_TRUE(std::isnan(e.radial_speed_m_s)) << e.t_ns;
+  }
 }
 
 TEST(RangeErrors, StatsHaveTheQuantilesAndSharesOfTheErrors) {
@@ -160,6 +177,9 @@ TEST(RangeErrors, ARecordingWithoutGroundTruthOrWithBadOptionsIsRefused) {
   bad.radial_step_s = 0.0;
   EXPECT_THROW(rangeErrors(rec, bad), std::invalid_argument);
   bad = {};
+  bad.truth_shift_s = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(rangeErrors(rec, bad), std::invalid_argument);
+  bad = {};
   bad.max_truth_gap_s = std::nan("");
   EXPECT_THROW(rangeErrors(rec, bad), std::invalid_argument);
   rec.groundtruth.clear();
@@ -193,6 +213,19 @@ TEST(RiloRangeErrors, PrintsTheTablePerLabelAndAnchorAndWritesEveryRange) {
   EXPECT_EQ(text.rfind("recording,t_ns,anchor_id,tag_id,range_m,true_m,error_m,radial_speed_m_s,los\n", 0), 0u);
 }
 
+TEST(RiloRangeErrors, APathWithACommaIsQuotedInTheCsv) {
+  testing::TempDir dir("rilo-range-errors-comma");
+  const std::filesystem::path rec = dir / "office,demo";
+  std::filesystem::create_directory_symlink(testing::officeDemoDir(), rec);
+  const std::string csv = (dir / "errors.csv").string();
+  const testing::ToolRun run = testing::runRilo({"range-errors", rec.string(), "--csv", csv}, dir.path());
+  ASSERT_EQ(run.exit_code, 0) << run.out << run.err;
+  const std::string text = testing::readFile(csv);
+  const std::size_t second_line = text.find('\n') + 1;
+  EXPECT_EQ(text.compare(second_line, rec.string().size() + 3, "\"" + rec.string() + "\","), 0)
+      << text.substr(0, 300);
+}
+
 TEST(RiloRangeErrors, ARecordingWithoutGroundTruthIsBadInputNamingIt) {
   testing::TempDir dir("rilo-range-errors-bad");
   const std::filesystem::path rec = dir / "no-truth";
@@ -200,10 +233,14 @@ TEST(RiloRangeErrors, ARecordingWithoutGroundTruthIsBadInputNamingIt) {
   for (const char* file : {"meta.yaml", "anchors.csv", "imu.csv", "range.csv"}) {
     std::filesystem::copy_file(testing::officeDemoDir() / file, rec / file);
   }
-  const testing::ToolRun run = testing::runRilo({"range-errors", rec.string()}, dir.path());
+  // After a good one: the CSV asked for is not left half-written.
+  const std::string csv = (dir / "errors.csv").string();
+  const testing::ToolRun run = testing::runRilo(
+      {"range-errors", testing::officeDemoDir().string(), rec.string(), "--csv", csv}, dir.path());
   EXPECT_EQ(run.exit_code, 1) << run.out << run.err;
   EXPECT_NE(run.err.find(rec.string()), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("groundtruth.csv"), std::string::npos) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(csv));
 }
 
 }  // namespace

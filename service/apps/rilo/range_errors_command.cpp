@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -13,6 +14,7 @@
 #include <string>
 
 #include "evaluation/range_errors.h"
+#include "evaluation/report_text.h"
 #include "hal/recording/recording_reader.h"
 
 namespace rilo::tool {
@@ -42,8 +44,13 @@ void printRow(const std::string& label, const RangeErrorStats& s) {
 
 void printRecording(const std::string& path, const RangeErrors& r, double threshold_m) {
   std::printf("\n## %s\n\n", path.c_str());
-  std::printf("%zu ranges with ground truth; left out: %zu outside it, %zu to unknown anchors, %zu from unknown tags\n\n",
-              r.errors.size(), r.without_truth, r.unknown_anchor, r.unknown_tag);
+  std::printf("%zu ranges with ground truth", r.errors.size());
+  std::printf("; left out: %zu outside it", r.without_truth);
+  // The reader refuses unknown anchors and tags in files: only recordings built in code have them.
+  if (r.unknown_anchor > 0) std::printf(", %zu to unknown anchors", r.unknown_anchor);
+  if (r.unknown_tag > 0) std::printf(", %zu from unknown tags", r.unknown_tag);
+  if (r.non_finite > 0) std::printf(", %zu not finite", r.non_finite);
+  std::printf("\n\n");
   std::printf("| ranges | count | mean (m) | p1 | p5 | median | p95 | p99 | short < -%.2f | long > +%.2f | "
               "slope on radial speed (s) | correlation |\n",
               threshold_m, threshold_m);
@@ -73,37 +80,51 @@ int runRangeErrorsCommand(const RangeErrorsCommandOptions& o) {
     if (!(o.threshold_m >= 0.0) || !std::isfinite(o.threshold_m)) {
       throw std::invalid_argument("--threshold must be finite and >= 0, got " + std::to_string(o.threshold_m));
     }
+    RangeErrorOptions options;
+    options.truth_shift_s = o.truth_shift_s;
+    // Written beside the target and renamed at the end: a failure on a later
+    // recording leaves no partial file under the name asked for.
+    const std::string csv_tmp = o.csv + ".tmp";
     std::ofstream csv;
     if (!o.csv.empty()) {
-      csv.open(o.csv);
-      if (!csv) throw std::runtime_error("cannot write " + o.csv);
+      csv.open(csv_tmp);
+      if (!csv) throw std::runtime_error("cannot write " + csv_tmp);
       csv << "recording,t_ns,anchor_id,tag_id,range_m,true_m,error_m,radial_speed_m_s,los\n";
     }
     std::printf("# Range errors against the ground truth (range - true distance to the antenna)\n");
+    if (o.truth_shift_s != 0.0) std::printf("\nThe truth taken %+.3f s before each range's stamp.\n", o.truth_shift_s);
     for (const std::string& path : o.recordings) {
-      const Recording recording = readRecording(path);
+      ReadReport read_report;
+      const Recording recording = readRecording(path, &read_report);
+      for (const ReadWarning& w : read_report.warnings) spdlog::warn("{}", w.message);
       RangeErrors errors;
       try {
-        errors = rangeErrors(recording);
+        errors = rangeErrors(recording, options);
       } catch (const std::invalid_argument& e) {
         throw std::invalid_argument(path + ": " + e.what());
       }
       printRecording(path, errors, o.threshold_m);
+      if (!csv.is_open()) continue;
+      const std::string field = csvField(path);
       for (const RangeError& e : errors.errors) {
-        if (!csv.is_open()) break;
-        char line[256];
-        std::snprintf(line, sizeof line, "%lld,%u,%u,%.6f,%.6f,%.6f,%.6f,%d\n", static_cast<long long>(e.t_ns),
+        char numbers[160];
+        std::snprintf(numbers, sizeof numbers, "%lld,%u,%u,%.9g,%.9g,%.9g,%.9g,%d\n", static_cast<long long>(e.t_ns),
                       e.anchor_id, e.tag_id, e.range_m, e.true_m, e.error_m, e.radial_speed_m_s, e.los);
-        csv << path << ',' << line;
+        csv << field << ',' << numbers;
       }
     }
     if (csv.is_open()) {
       csv.close();
-      if (!csv) throw std::runtime_error("writing " + o.csv + " failed");
+      if (!csv) throw std::runtime_error("writing " + csv_tmp + " failed");
+      std::filesystem::rename(csv_tmp, o.csv);
     }
     return 0;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
+    if (!o.csv.empty()) {
+      std::error_code ignored;
+      std::filesystem::remove(o.csv + ".tmp", ignored);
+    }
     return 1;
   }
 }
@@ -121,6 +142,11 @@ void addRangeErrorsCommand(CLI::App& app) {
   cmd->add_option("--threshold", o->threshold_m, "An error beyond +-this counts as long / short (m)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 100.0));
+  cmd->add_option("--truth-shift", o->truth_shift_s,
+                  "Take the true distance this long before each range's stamp (s): were the ranges measured before "
+                  "their stamps? The right shift takes the slope on the radial speed to 0")
+      ->capture_default_str()
+      ->check(CLI::Range(-60.0, 60.0));
   cmd->callback([o] {
     const int code = runRangeErrorsCommand(*o);
     if (code != 0) throw CLI::RuntimeError(code);

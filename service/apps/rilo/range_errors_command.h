@@ -17,6 +17,7 @@ struct RangeErrorsCommandOptions {
   std::vector<std::string> recordings;  ///< folders with groundtruth.csv
   std::string csv;                      ///< per-range CSV (empty: none)
   double threshold_m = 0.3;             ///< |error| beyond this counts as short / long
+  double truth_shift_s = 0.0;           ///< RangeErrorOptions::truth_shift_s
 };
 
 /// Returns the process exit code (0: printed; 1: bad input or I/O failure, the message on stderr).

@@ -14,7 +14,6 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <optional>
 #include <random>
 #include <string>
 #include <thread>
@@ -23,6 +22,7 @@
 #include "dds/publisher.h"
 #include "dds/subscriber.h"
 #include "dds_test_support.h"
+#include "support/child_process.h"
 
 namespace rilo::dds {
 namespace {
@@ -94,19 +94,6 @@ pid_t spawnReader(std::uint32_t domain_id, const TopicNames& names) {
                              "RILO_DDS_STALLED_READER_STATUS=" + names.status});
 }
 
-/// The child's exit status, or nullopt after `timeout`.
-std::optional<int> waitChild(pid_t child, std::chrono::seconds timeout) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  int child_status = 0;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (waitpid(child, &child_status, WNOHANG) == child) {
-      return WIFEXITED(child_status) ? WEXITSTATUS(child_status) : 128 + WTERMSIG(child_status);
-    }
-    std::this_thread::sleep_for(20ms);
-  }
-  return std::nullopt;
-}
-
 /// Continues, kills and reaps the child unless it was reaped: a failed
 /// assertion between SIGSTOP and SIGCONT must not leave it stopped.
 struct ChildGuard {
@@ -152,10 +139,10 @@ TEST(DdsStatusRepair, AStalledSubscriberGetsEveryStatusPublishedWhileOdometryFlo
   ASSERT_EQ(kill(reader.pid, SIGCONT), 0);
   ASSERT_TRUE(all_written) << "a status write failed (DDS_RETCODE_TIMEOUT: too much unacknowledged, qos.h)";
   EXPECT_TRUE(pub.waitForAcknowledgments(30s)) << "the reader acknowledged every status";
-  const std::optional<int> code = waitChild(reader.pid, 60s);
-  ASSERT_TRUE(code.has_value()) << "the stalled reader did not finish";
+  const int code = rilo::testing::waitExit(reader.pid, 60s);  // -1: killed at the timeout
   reader.reaped = true;
-  EXPECT_EQ(*code, 0) << "the stalled reader missed or reordered statuses (see its stderr)";
+  ASSERT_NE(code, -1) << "the stalled reader did not finish";
+  EXPECT_EQ(code, 0) << "the stalled reader missed or reordered statuses (see its stderr)";
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "dds/participant.h"
 #include "dds/subscriber.h"
 #include "service_test_support.h"
+#include "support/child_process.h"
 
 namespace rilo::testing {
 
@@ -53,26 +54,6 @@ inline pid_t startRilod(const std::filesystem::path& config, double duration_s, 
     ::_exit(127);
   }
   return pid;
-}
-
-/// Exit code of `pid` (128 + signal if killed) if it has exited, else nothing (does not wait).
-inline std::optional<int> exitedCode(pid_t pid) {
-  int status = 0;
-  if (::waitpid(pid, &status, WNOHANG) != pid) return std::nullopt;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-}
-
-/// Exit code of `pid` (128 + signal if killed), or -1 after killing it at the timeout.
-inline int waitExit(pid_t pid, std::chrono::milliseconds timeout) {
-  const auto end = std::chrono::steady_clock::now() + timeout;
-  int status = 0;
-  while (std::chrono::steady_clock::now() < end) {
-    if (::waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  ::kill(pid, SIGKILL);
-  ::waitpid(pid, &status, 0);
-  return -1;
 }
 
 /// Everything one rilod run published, as received.

@@ -20,19 +20,9 @@
 namespace rilo::tool {
 namespace {
 
-std::string signedCell(double v, int decimals) {  // "+0.123", "-" when there is no figure
-  if (!std::isfinite(v)) return "-";
-  char text[32];
-  std::snprintf(text, sizeof text, "%+.*f", decimals, v);
-  return text;
-}
-
-std::string percentCell(double share) {
-  if (!std::isfinite(share)) return "-";
-  char text[32];
-  std::snprintf(text, sizeof text, "%.1f %%", 100.0 * share);
-  return text;
-}
+// "+0.123" / "12.5 %", "-" where there is no figure.
+std::string signedCell(double v, int decimals) { return std::isfinite(v) ? strf("%+.*f", decimals, v) : "-"; }
+std::string percentCell(double share) { return std::isfinite(share) ? strf("%.1f %%", 100.0 * share) : "-"; }
 
 void printRow(const std::string& label, const RangeErrorStats& s) {
   std::printf("| %s | %zu | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", label.c_str(), s.count,

@@ -208,15 +208,16 @@ std::string tdoaReportMarkdown(const std::vector<ReportRecording>& recordings, c
              "(seed %llu), ultrasonic ranges all kept\n",
              static_cast<unsigned long long>(o.reception_seed)));
   md += strf("- Window / lag %.1f s; dynamic covariance (per-link TDoA/ultrasonic sigmas) %s; vertical speed prior "
-             "%.2f m/s on every estimator's states (replay's default with TDoA; %.2f m/s on two-way ranges "
-             "alone); TDoA rows with a packet whose RX level exceeds its first-path power by more than %.0f dB "
+             "%.3f m/s per %.2f s of states on every estimator (replay's default with TDoA; %.2f m/s on two-way "
+             "ranges alone); TDoA rows with a packet whose RX level exceeds its first-path power by more than %.0f dB "
              "gated (not used; rows without receive diagnostics are all used); %s; other parameters: the library "
              "defaults and each recording's meta.yaml\n",
              o.lag_s,
              !o.dynamic_covariance ? "on for every estimator when TDoA is used (default)"
              : *o.dynamic_covariance ? "on for every estimator"
                                      : "off",
-             kTdoaVerticalSpeedSigmaMs, kTwoWayVerticalSpeedSigmaMs, RangeImuGraphParams().tdoa_max_power_gap_db,
+             kTdoaVerticalSpeedSigmaMs, RangeImuGraphParams().vertical_speed_correlation_s, kTwoWayVerticalSpeedSigmaMs,
+             RangeImuGraphParams().tdoa_max_power_gap_db,
              RangeImuGraphParams().tdoa_gap_excess.enabled
                  ? "the graph estimators learn each packet's NLOS excess per gap bin from the rows' residuals and "
                    "take it off the rows (the EKF does not)"

@@ -286,7 +286,8 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
 EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
   const ConfigMap m = field.map({"smoother", "lag_s", "relinearization", "damping", "trust_region", "range",
                                  "anchors_as_variables", "anchor_sigma_m", "init", "height_band",
-                                 "vertical_speed_sigma_m_s", "zero_velocity_sigma_m_s", "max_outside_anchors_m",
+                                 "vertical_speed_sigma_m_s", "vertical_speed_correlation_s", "zero_velocity_sigma_m_s",
+                                 "max_outside_anchors_m",
                                  "tdoa", "input_screen"});
   m.read("smoother", e.smoother.method, [](const ConfigField& f) {
     return f.choice<SmootherParams::Method>(kSmootherMethodNames);
@@ -380,6 +381,8 @@ EstimatorConfig readEstimator(const ConfigField& field, EstimatorConfig e) {
     }
     return f.number(0.0, 100.0);
   });
+  m.read("vertical_speed_correlation_s", e.graph.vertical_speed_correlation_s,
+         [](const ConfigField& f) { return f.positive(10.0); });
   m.read("zero_velocity_sigma_m_s", e.zero_velocity_sigma_m_s, [](const ConfigField& f) { return f.number(0.0, 100.0); });
   try {
     e.smoother.validate();

@@ -162,9 +162,9 @@ struct EstimatorConfig {
   /// Tag height band above the floor (a wearable's height; see
   /// estimation/measurements/height_band.h): initialization and every state.
   HeightBand height_band;
-  /// Zero vertical-speed prior on every state (m/s std-dev; 0 = none);
-  /// unset ("auto"): on the tracked states, 0.05 when the ranging is TDoA,
-  /// else 0.3 (LocalizerParams::vertical_speed_sigma_m_s).
+  /// Zero vertical-speed prior (m/s std-dev per graph.vertical_speed_correlation_s;
+  /// 0 = none); unset ("auto"): on the tracked states, 0.016 when the ranging
+  /// is TDoA, else 0.1 (LocalizerParams::vertical_speed_sigma_m_s).
   std::optional<double> vertical_speed_sigma_m_s;
   /// Zero-velocity prior on each tracked state the IMU shows still (m/s per
   /// second of standstill; 0 = none; LocalizerParams::zero_velocity_sigma_m_s).

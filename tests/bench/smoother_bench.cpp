@@ -43,10 +43,13 @@ struct RunFigures {
   long cliques = 0, relinearized = 0, tries = 0, rejected = 0;
 };
 
-RunFigures runWalk(const sim::Scenario& s, SmootherParams params, bool anchors_as_variables, const char* loss) {
+RunFigures runWalk(const sim::Scenario& s, SmootherParams params, bool anchors_as_variables, const char* loss,
+                   std::int64_t state_window_ns = RangeImuGraphParams().same_state_window_ns) {
   RunFigures fig;
   auto smoother = std::make_unique<BayesTreeSmoother>(params);
-  RangeImuEstimator estimator(s.p_w_anchors, testing::graphParamsFor(s, loss, anchors_as_variables), std::move(smoother));
+  RangeImuGraphParams graph = testing::graphParamsFor(s, loss, anchors_as_variables);
+  graph.same_state_window_ns = state_window_ns;
+  RangeImuEstimator estimator(s.p_w_anchors, graph, std::move(smoother));
   testing::runOnline(s, estimator, [&](const UpdateStats& st, const RangeImuEstimator& e) {
     fig.update_ms.push_back(st.time_s * 1e3);
     fig.cliques += st.cliques_reeliminated;
@@ -74,24 +77,28 @@ void report(benchmark::State& state, RunFigures& fig) {
   state.counters["rejected"] = static_cast<double>(fig.rejected);
 }
 
-/// Args: method (0 iSAM2, 1 D-iSAM2, 2 dog-leg), anchors as variables (0/1), lag (s, 0 = none).
+/// Args: method (0 iSAM2, 1 D-iSAM2, 2 dog-leg), anchors as variables (0/1),
+/// lag (s, 0 = none), state window (ms: ranges this close share a state;
+/// 50 is the service's, 5 one state per 40 Hz range).
 void BM_SmootherWalk60s(benchmark::State& state) {
   const sim::Scenario& s = walk(60.0);
   SmootherParams params;
   params.method = static_cast<SmootherParams::Method>(state.range(0));
   params.lag_s = static_cast<double>(state.range(2));
   for (auto _ : state) {
-    RunFigures fig = runWalk(s, params, state.range(1) != 0, "asymmetric");
+    RunFigures fig = runWalk(s, params, state.range(1) != 0, "asymmetric", state.range(3) * 1'000'000);
     report(state, fig);
   }
 }
 BENCHMARK(BM_SmootherWalk60s)
-    ->ArgNames({"method", "anchor_vars", "lag_s"})
-    ->Args({1, 1, 5})
-    ->Args({0, 1, 5})
-    ->Args({2, 1, 5})
-    ->Args({1, 0, 5})
-    ->Args({1, 1, 0})
+    ->ArgNames({"method", "anchor_vars", "lag_s", "window_ms"})
+    ->Args({1, 1, 5, 5})
+    ->Args({0, 1, 5, 5})
+    ->Args({2, 1, 5, 5})
+    ->Args({1, 0, 5, 5})
+    ->Args({1, 1, 0, 5})
+    ->Args({1, 1, 10, 5})
+    ->Args({1, 1, 10, 50})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
 

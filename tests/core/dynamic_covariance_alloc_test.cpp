@@ -40,11 +40,11 @@ TEST(DynamicCovarianceAllocation, NotesAndSigmasDoNotAllocate) {
         const Measurement u{Measurement::Kind::kUltrasonic, 0, a % 2, 0, 2.5};
         const Measurement r{Measurement::Kind::kRange, 0, a, 0, 4.0};
         sum += noise.sigma(d) + noise.sigma(u) + noise.sigma(r);
-        noise.notePrediction(state, d, T);
-        noise.notePrediction(state, u, T);
+        noise.notePrediction(state, 0, d, T, Vec3::Zero());
+        noise.notePrediction(state, 0, u, T, Vec3::Zero());
         noise.noteInnovation(r, 0.1 * static_cast<double>(state % 3) - 0.1, 0.01);
       }
-      noise.notePostFit(state, Pose3(Mat3::Identity(), Vec3(3.01, 4.0, 1.2)));
+      noise.notePostFit(state, Pose3(Mat3::Identity(), Vec3(3.01, 4.0, 1.2)), Vec3::Zero());
     }
     news = counter.count();
   }

@@ -62,8 +62,8 @@ TEST(MeasurementNoise, OffGivesTheConfiguredSigmaOfEachKindAndIgnoresResiduals) 
   const Measurement u{Measurement::Kind::kUltrasonic, 0, 3, 0, 2.0};
   for (int k = 0; k < 100; ++k) {
     noise.noteInnovation(d, 3.0, 0.0);
-    noise.notePrediction(1, u, Pose3());
-    noise.notePostFit(1, Pose3());
+    noise.notePrediction(1, u.t_ns, u, Pose3(), Vec3::Zero());
+    noise.notePostFit(1, Pose3(), Vec3::Zero());
   }
   EXPECT_EQ(noise.sigma(r), 0.12);
   EXPECT_EQ(noise.sigma(d), 0.15);
@@ -130,7 +130,7 @@ double ultrasonicSigmaFromPredictionAndPostFit(double meas_sigma, double prior_s
       const Vec3 p_us_true = R * g.p_b_ultrasonic + p_true;
       ms.push_back({Measurement::Kind::kUltrasonic, 0, b, 0,
                     (p_us_true - g.p_w_ultrasonic[b]).norm() + meas_sigma * n01(rng)});
-      noise.notePrediction(k, ms.back(), Pose3(R, p_pred));
+      noise.notePrediction(k, 0, ms.back(), Pose3(R, p_pred), Vec3::Zero());
     }
     Vec3 p_post = p_pred;
     for (int it = 0; it < 8; ++it) {
@@ -144,7 +144,7 @@ double ultrasonicSigmaFromPredictionAndPostFit(double meas_sigma, double prior_s
       }
       p_post += info.ldlt().solve(rhs);
     }
-    noise.notePostFit(k, Pose3(R, p_post));
+    noise.notePostFit(k, Pose3(R, p_post), Vec3::Zero());
   }
   EXPECT_EQ(noise.pending(), 0u);
   return covarianceOf(noise).sigma(NoiseKey::ultrasonic(0));
@@ -190,7 +190,7 @@ TEST(MeasurementNoise, TwoWayRangesKeepTheirSigmaUnlessAsked) {
   for (int k = 0; k < 200; ++k) with_ranges.noteInnovation(r, k % 2 == 0 ? 0.6 : -0.6, 0.0);
   EXPECT_NEAR(with_ranges.sigma(r), 0.6, 0.1);
   const Measurement u{Measurement::Kind::kUltrasonic, 0, 1, 0, 2.0};
-  with_ranges.notePrediction(3, u, Pose3());
+  with_ranges.notePrediction(3, 0, u, Pose3(), Vec3::Zero());
   EXPECT_EQ(with_ranges.pending(), 0u);
 }
 
@@ -214,14 +214,14 @@ TEST(MeasurementNoise, PendingNotesOfAnotherStateAreDroppedAndTheBufferIsBounded
   o.max_pending = 3;
   MeasurementNoise noise(anchors(), geometryParams(), o);
   const Measurement d{Measurement::Kind::kTdoa, 0, 1, 3, 0.0};
-  for (int k = 0; k < 5; ++k) noise.notePrediction(4, d, Pose3());
+  for (int k = 0; k < 5; ++k) noise.notePrediction(4, 0, d, Pose3(), Vec3::Zero());
   EXPECT_EQ(noise.pending(), 3u);
   EXPECT_EQ(noise.pendingOverflow(), 2u);
-  noise.notePostFit(3, Pose3());  // not the pending state: kept
+  noise.notePostFit(3, Pose3(), Vec3::Zero());  // not the pending state: kept
   EXPECT_EQ(noise.pending(), 3u);
-  noise.notePrediction(5, d, Pose3());  // state 4 never came back: dropped
+  noise.notePrediction(5, 0, d, Pose3(), Vec3::Zero());  // state 4 never came back: dropped
   EXPECT_EQ(noise.pending(), 1u);
-  noise.notePostFit(5, Pose3());
+  noise.notePostFit(5, Pose3(), Vec3::Zero());
   EXPECT_EQ(noise.pending(), 0u);
   EXPECT_EQ(noise.residualsFed(), 1u);
 }

@@ -16,6 +16,7 @@ namespace rilo {
 namespace {
 
 using sym::L;
+using sym::V;
 using sym::X;
 using testing::TestAsymmetric;
 using testing::randomPose;
@@ -269,6 +270,77 @@ TEST(RangeFactor, JacobiansMatchWithAVerticalWeight) {
     x.insert(X(0), T_w_b);
     EXPECT_TRUE(testing::jacobiansMatch(fc, x, 1e-6)) << "sample " << i;
   }
+}
+
+TEST(RangeFactor, ARangeAfterItsStateSeesTheTagMovedOnByTheStatesVelocity) {
+  // Walking at 1.5 m/s along x; the range is measured 40 ms after the state.
+  const Pose3 T_w_b(so3::exp(Vec3(0, 0, 0.3)), Vec3(1, 2, 1.5));
+  const Vec3 p_b_tag(0.06, 0.0, 0.1);
+  const Vec3 v_w(1.5, 0.0, 0.0);
+  const Vec3 p_w_anchor(6, 2, 2.5);
+  const double dt_s = 0.04;
+  const double truth_m = (T_w_b.transformFrom(p_b_tag) + dt_s * v_w - p_w_anchor).norm();
+  const RangeFactor f(X(0), L(3), truth_m, 0.1, p_b_tag, nullptr, RangeTimeOffset{V(0), dt_s});
+  ASSERT_EQ(f.keys().size(), 3u);
+  EXPECT_EQ(f.keys()[2], V(0));
+  EXPECT_TRUE(f.hasTimeOffset());
+  EXPECT_DOUBLE_EQ(f.timeOffset(), dt_s);
+  Values x = poseAndAnchor(T_w_b, p_w_anchor);
+  x.insert(V(0), v_w);
+  EXPECT_NEAR(f.predictedRange(x), truth_m, 1e-12);
+  Residual r;
+  Jacobians H;
+  f.evaluate(x, r, &H);
+  EXPECT_NEAR(r(0), 0.0, 1e-10);
+  // Moving towards the anchor shortens the prediction: the velocity Jacobian
+  // is dt times the position's.
+  EXPECT_TRUE(H[2].isApprox(dt_s * H[0].rightCols<3>() * T_w_b.R.transpose(), 1e-12));
+  // The same range without the offset is predicted 6 cm too long.
+  const RangeFactor plain(X(0), L(3), truth_m, 0.1, p_b_tag);
+  EXPECT_NEAR(plain.predictedRange(x) - truth_m, 0.06 * (p_w_anchor - T_w_b.transformFrom(p_b_tag)).normalized().x(), 2e-3);
+  EXPECT_FALSE(plain.hasTimeOffset());
+  EXPECT_EQ(plain.timeOffset(), 0.0);
+
+  // A constant anchor: keys {pose, velocity}.
+  const RangeFactor fc(X(0), p_w_anchor, truth_m, 0.1, p_b_tag, nullptr, RangeTimeOffset{V(0), dt_s});
+  ASSERT_EQ(fc.keys().size(), 2u);
+  EXPECT_EQ(fc.keys()[1], V(0));
+  EXPECT_NEAR(fc.predictedRange(x), truth_m, 1e-12);
+}
+
+TEST(RangeFactor, JacobiansMatchWithATimeOffset) {
+  std::mt19937 rng(14);
+  std::uniform_real_distribution<double> weight(0.0, 1.0);
+  std::uniform_real_distribution<double> offset(-0.05, 0.05);
+  for (int i = 0; i < 200; ++i) {
+    const Pose3 T_w_b = randomPose(rng, 5.0);
+    const Vec3 p_b_tag = randomVec(rng, 0.3);
+    const Vec3 p_w_anchor = randomVec(rng, 6.0);
+    const Vec3 v_w = randomVec(rng, 2.0);
+    const RangeTimeOffset dt{V(0), offset(rng)};
+    const double z = (T_w_b.transformFrom(p_b_tag) + dt.dt_s * v_w - p_w_anchor).norm() + randomVec(rng, 0.3).x();
+    RangeFactor fv(X(0), L(3), z, 0.1, p_b_tag, nullptr, dt);
+    RangeFactor fc(X(0), p_w_anchor, z, 0.1, p_b_tag, nullptr, dt);
+    if (i % 2 == 1) {  // with a vertical weight too
+      fv.setVerticalWeight(weight(rng), randomVec(rng, 2.0).z());
+      fc.setVerticalWeight(fv.verticalWeight(), randomVec(rng, 2.0).z());
+    }
+    Values x = poseAndAnchor(T_w_b, p_w_anchor);
+    x.insert(V(0), v_w);
+    EXPECT_TRUE(testing::jacobiansMatch(fv, x, 1e-6)) << "sample " << i;
+    EXPECT_TRUE(testing::jacobiansMatch(fc, x, 1e-6)) << "sample " << i;
+  }
+}
+
+TEST(RangeFactor, ABadTimeOffsetThrows) {
+  const Vec3 lever = Vec3::Zero();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(RangeFactor(X(0), L(1), 5.0, 0.1, lever, nullptr, RangeTimeOffset{V(0), nan}), std::invalid_argument);
+  EXPECT_THROW(RangeFactor(X(0), Vec3(1, 2, 3), 5.0, 0.1, lever, nullptr, RangeTimeOffset{V(0), nan}),
+               std::invalid_argument);
+  EXPECT_THROW(RangeFactor(X(0), L(1), 5.0, 0.1, lever, nullptr, RangeTimeOffset{L(1), 0.01}), std::invalid_argument);
+  EXPECT_THROW(RangeFactor(X(0), Vec3(1, 2, 3), 5.0, 0.1, lever, nullptr, RangeTimeOffset{X(0), 0.01}),
+               std::invalid_argument);
 }
 
 TEST(RangeFactor, VerticalWeightOutsideItsRangeThrows) {

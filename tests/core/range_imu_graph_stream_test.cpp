@@ -10,6 +10,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <set>
 #include <string>
 #include <tuple>
@@ -27,7 +28,9 @@ namespace rilo {
 namespace {
 
 // ---------------------------------------------------------------------------
-// Oracle: buildRangeImuGraph as of commit 510bdb0 (before the stream), logic unchanged.
+// Oracle: buildRangeImuGraph as of commit 510bdb0 (before the stream), logic
+// unchanged but for one later rule: a range later than its state is predicted
+// at its own time (RangeTimeOffset on the state's velocity).
 void legacyIntegrateInterval(const std::vector<ImuSample>& imu, std::size_t& cursor, std::int64_t t_a_ns,
                              std::int64_t t_b_ns, PreintegratedImu& pim) {
   std::int64_t t = t_a_ns;
@@ -78,13 +81,16 @@ RangeImuGraph legacyBuild(const std::vector<ImuSample>& imu, const std::vector<R
   for (std::size_t k = 0; k < ranges.size(); ++k) {
     const RangeSample& r = ranges[k];
     const Key x = sym::X(state_of_range[k]);
+    std::optional<RangeTimeOffset> offset;
+    const std::int64_t state_t_ns = out.state_t_ns[state_of_range[k]];
+    if (r.t_ns != state_t_ns) offset = RangeTimeOffset{sym::V(state_of_range[k]), 1e-9 * static_cast<double>(r.t_ns - state_t_ns)};
     if (params.anchors_as_variables) {
       out.graph.emplace<RangeFactor>(x, sym::L(r.anchor_id), r.range_m, params.range_noise.sigma_m, params.p_b_tag,
-                                     loss);
+                                     loss, offset);
       anchor_used[r.anchor_id] = true;
     } else {
       out.graph.emplace<RangeFactor>(x, p_w_anchors[r.anchor_id], r.range_m, params.range_noise.sigma_m,
-                                     params.p_b_tag, loss);
+                                     params.p_b_tag, loss, offset);
     }
     ++out.range_factors;
   }
@@ -747,7 +753,10 @@ TEST(RangeImuGraphStream, MotionPriorsOnEveryStateWhenEnabled) {
       if (v != nullptr && f->keys()[0] == sym::V(inc.state_index) && v->sqrtInformation()(0, 0) < 1e-3) {
         ++vertical;  // horizontal speed left free; state 0's own velocity prior holds all axes
         EXPECT_TRUE(v->prior().isZero());
-        EXPECT_DOUBLE_EQ(v->sqrtInformation()(2, 2), 1.0 / 0.3);
+        // 0.3 per correlation time (0.25 s): states closer share it, state 0 has it whole.
+        const double interval_s = inc.state_index == 0 ? 0.25 : 1e-9 * static_cast<double>(inc.t_ns - t_prev_ns);
+        EXPECT_NEAR(v->sqrtInformation()(2, 2), 1.0 / (0.3 * std::sqrt(0.25 / std::min(interval_s, 0.25))), 1e-9);
+        EXPECT_NEAR(v->sqrtInformation()(2, 2), 1.0 / verticalSpeedPriorSigma(gp, std::llround(interval_s * 1e9)), 1e-6);
       }
     }
     EXPECT_EQ(bands, 1) << "state " << inc.state_index;
@@ -757,6 +766,46 @@ TEST(RangeImuGraphStream, MotionPriorsOnEveryStateWhenEnabled) {
   };
   feedStream(s, s.ranges, gp, RangeImuStreamOptions(), Feed(), hook);
   EXPECT_GT(states, 10u);
+}
+
+TEST(RangeImuGraphStream, RangesOfOneStateArePredictedAtTheirOwnTimes) {
+  // Exact LOS ranges at 40 Hz on a walk; 50 ms windows (config/rilod.yaml)
+  // group them about two a state. At the true states every range must fit to well
+  // under a centimetre; predicted at the state's own time instead, the later
+  // ones would miss by the walk's speed times their delay.
+  sim::ScenarioParams sp;
+  sp.seed = 7;
+  sp.duration_s = 6.0;
+  sp.range_rate_hz = 40.0;
+  sp.range_sigma_m = 1e-4;
+  sp.nlos_fraction = 0.0;
+  sp.outlier_probability = 0.0;
+  const sim::Scenario s = sim::simulateScenario(sp);
+  RangeImuGraphParams gp = graphParams(s);
+  gp.same_state_window_ns = 50'000'000;  // the shipped configuration's
+  const Collected c = feedStream(s, s.ranges, gp, RangeImuStreamOptions(), Feed());
+  EXPECT_LT(c.state_t_ns.size(), s.ranges.size() * 2 / 3);  // grouped
+  const Values truth = sim::truthValues(s, c.state_t_ns, c.anchor_keys);
+  std::size_t later = 0;
+  double worst_m = 0.0, worst_uncompensated_m = 0.0;
+  for (const FactorPtr& f : c.factors) {
+    const auto* r = dynamic_cast<const RangeFactor*>(f.get());
+    if (r == nullptr) continue;
+    const std::uint64_t state = keyIndex(r->poseKey());
+    const std::int64_t delay_ns = static_cast<std::int64_t>(std::llround(r->timeOffset() * 1e9));
+    ASSERT_GE(delay_ns, 0);
+    ASSERT_LE(delay_ns, gp.same_state_window_ns);
+    worst_m = std::max(worst_m, std::abs(r->measuredRange() - r->predictedRange(truth)));
+    if (!r->hasTimeOffset()) continue;
+    ++later;
+    EXPECT_EQ(r->keys().back(), sym::V(state));
+    const RangeFactor at_state(r->poseKey(), r->anchorKey(), r->measuredRange(), r->sigma(), r->leverArm());
+    worst_uncompensated_m =
+        std::max(worst_uncompensated_m, std::abs(at_state.measuredRange() - at_state.predictedRange(truth)));
+  }
+  EXPECT_GT(later, s.ranges.size() / 3);
+  EXPECT_LT(worst_m, 0.005);
+  EXPECT_GT(worst_uncompensated_m, 0.02);
 }
 
 TEST(RangeImuGraphStream, RangesSpeakToTheHeightByTheirVerticalLever) {
@@ -843,6 +892,12 @@ TEST(RangeImuGraphStream, RejectsBadMotionPriors) {
   RangeImuGraphParams gp = graphParams(s);
   gp.vertical_speed_sigma_m_s = -1.0;
   EXPECT_THROW(RangeImuGraphStream(s.p_w_anchors, gp), std::invalid_argument);
+  gp.vertical_speed_sigma_m_s = 0.3;
+  for (double tau_s : {0.0, -0.1, std::numeric_limits<double>::infinity(), std::nan("")}) {
+    gp.vertical_speed_correlation_s = tau_s;
+    EXPECT_THROW(RangeImuGraphStream(s.p_w_anchors, gp), std::invalid_argument) << tau_s;
+  }
+  gp.vertical_speed_correlation_s = 0.25;
   gp.vertical_speed_sigma_m_s = 0.0;
   gp.height_band = HeightBand();
   gp.height_band.max_height_m = 0.1;  // below min_height_m

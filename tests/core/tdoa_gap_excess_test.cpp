@@ -136,9 +136,9 @@ TEST(TdoaGapExcess, MeasurementNoiseFeedsItPostFitResidualsOfTdoaRows) {
   m.power_gap_db = 1.0;   // LOS reference packet
   m.power_gap_b_db = 10.5;  // anchor 2's packet deep in NLOS
   m.value_m = noise.predict(m, T_w_b) + 0.4;  // within clip_m: the first row sets the bin
-  noise.notePrediction(5, m, T_w_b);
+  noise.notePrediction(5, 0, m, T_w_b, Vec3::Zero());
   EXPECT_EQ(noise.pending(), 1u);
-  noise.notePostFit(5, T_w_b);
+  noise.notePostFit(5, T_w_b, Vec3::Zero());
   EXPECT_EQ(learner != nullptr ? learner->rowsLearnt() : 0u, 1u);
   EXPECT_NEAR(noise.tdoaExcessCorrection(m), 0.4, 1e-9);
 

@@ -178,6 +178,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
       "  height_band: {enabled: true, floor_z_m: -0.3, min_height_m: 1.0, max_height_m: 1.6, sigma_m: 0.05,\n"
       "                range_lever: false, hold_sigma_m: 0.7, learn_carry_height: true, carry_memory_s: 30}\n"
       "  vertical_speed_sigma_m_s: 0.4\n"
+      "  vertical_speed_correlation_s: 0.5\n"
       "dds:\n"
       "  domain: 42\n"
       "  cyclone_config_file: cyclone.xml\n"
@@ -265,6 +266,7 @@ TEST_F(ConfigTest, EverySectionMapsOntoTheStructs) {
   EXPECT_DOUBLE_EQ(c.estimator.height_band.carry_memory_s, 30.0);
   ASSERT_TRUE(c.estimator.vertical_speed_sigma_m_s.has_value());
   EXPECT_DOUBLE_EQ(*c.estimator.vertical_speed_sigma_m_s, 0.4);
+  EXPECT_DOUBLE_EQ(g.vertical_speed_correlation_s, 0.5);
 
   EXPECT_EQ(c.dds.domain_id, 42u);
   EXPECT_EQ(c.dds.cyclone_config_file, (dir_ / "cyclone.xml").lexically_normal());
@@ -766,6 +768,8 @@ std::vector<BadCase> badCases() {
       {"lag_not_a_number", valid("estimator:\n  lag_s: abc\n"), "estimator.lag_s", "expected a number", 11},
       {"vertical_speed_neither_auto_nor_a_number", valid("estimator:\n  vertical_speed_sigma_m_s: automatic\n"),
        "estimator.vertical_speed_sigma_m_s", "expected a number (m/s) or auto, got 'automatic'", 11},
+      {"vertical_speed_correlation_zero", valid("estimator:\n  vertical_speed_correlation_s: 0\n"),
+       "estimator.vertical_speed_correlation_s", "expected a number > 0, got 0", 11},
       {"zero_velocity_negative", valid("estimator:\n  zero_velocity_sigma_m_s: -0.05\n"),
        "estimator.zero_velocity_sigma_m_s", "expected a number in [0, 100], got -0.05", 11},
       {"zero_velocity_not_a_number", valid("estimator:\n  zero_velocity_sigma_m_s: still\n"),

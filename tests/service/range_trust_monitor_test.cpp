@@ -92,6 +92,22 @@ TEST(RangeTrustMonitor, TheLastJudgedRangesKeepTheirPredictionAndWeight) {
   EXPECT_TRUE(m.lastVerdicts().empty());
 }
 
+// Ranges of a state's 50 ms (config/rilod.yaml) are judged where the state's
+// velocity takes the tag by their time, as their factors predict them.
+TEST(RangeTrustMonitor, ALaterRangeOfTheStateIsPredictedWhereTheVelocityTakesTheTag) {
+  RangeImuGraphParams p = graphParams();
+  p.same_state_window_ns = 50 * kMs;
+  RangeTrustMonitor m(kAnchors, p);
+  StateEstimate s = stateAt(1000 * kMs);
+  s.v_w = Vec3(1.5, 0.0, 0.0);
+  StateEstimate moved = s;  // where the tag is 40 ms later
+  moved.T_w_b.p += 0.04 * s.v_w;
+  m.onRange(rangeFrom(moved, 1, 0.0, 1040 * kMs));
+  m.judge(s);
+  ASSERT_EQ(m.lastVerdicts().size(), 1u);
+  EXPECT_NEAR(m.lastVerdicts()[0].range_m - m.lastVerdicts()[0].predicted_m, 0.0, 1e-9);
+}
+
 TEST(RangeTrustMonitor, TheLossDecidesAboutShortRangesToo) {
   RangeTrustMonitor asymmetric(kAnchors, graphParams("asymmetric"));
   RangeTrustMonitor huber(kAnchors, graphParams("huber"));

@@ -188,7 +188,7 @@ TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
 
   const auto online = readTum(out / "online.tum");
   const auto smoothed = readTum(out / "smoothed.tum");
-  ASSERT_GT(online.size(), 1000u);  // 45 s at 40 Hz, after a ~10 s initialization
+  ASSERT_GT(online.size(), 400u);  // 45 s at 40 Hz in 50 ms states (over 10 a second), after a ~10 s initialization
   ASSERT_GE(smoothed.size(), online.size());
   for (const auto& row : smoothed) ASSERT_EQ(row.size(), 8u);
   for (std::size_t i = 1; i < smoothed.size(); ++i) ASSERT_GT(smoothed[i][0], smoothed[i - 1][0]);

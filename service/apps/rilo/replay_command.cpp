@@ -365,7 +365,7 @@ void addReplayCommand(CLI::App& app) {
                   "Learn the carry height from where ranges tell the height (true/false; default: the "
                   "configuration's height_band.learn_carry_height)");
   cmd->add_option("--vertical-speed-sigma", options->settings.vertical_speed_sigma_m_s,
-                  "Std-dev of a zero vertical-speed prior on every state (m/s; 0 = none; default: the configuration's vertical_speed_sigma_m_s, whose auto is 0.05 when TDoA rows are used, else 0.3)")->check(CLI::Range(0.0, 100.0));
+                  "Std-dev of a zero vertical-speed prior per vertical_speed_correlation_s of states (m/s; 0 = none; default: the configuration's vertical_speed_sigma_m_s, whose auto is 0.016 when TDoA rows are used, else 0.1)")->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--zero-velocity-sigma", options->settings.zero_velocity_sigma_m_s,
                   "Std-dev of a zero-velocity prior on each state the IMU shows still (m/s per second still; 0 = none; "
                   "default: the configuration's zero_velocity_sigma_m_s)")

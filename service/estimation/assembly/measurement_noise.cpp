@@ -86,7 +86,15 @@ void MeasurementNoise::count(CovarianceUpdate u) {
   if (u == CovarianceUpdate::kUpdated || u == CovarianceUpdate::kWarmingUp) ++fed_;
 }
 
-void MeasurementNoise::notePrediction(std::uint64_t state_index, const Measurement& m, const Pose3& T_w_b_predicted) {
+double MeasurementNoise::predictAt(const Pending& p, const Pose3& T_w_b, const Vec3& v_w) const {
+  if (p.dt_s == 0.0) return predict(p.m, T_w_b);
+  Pose3 T_w_b_at_m = T_w_b;
+  T_w_b_at_m.p += p.dt_s * v_w;
+  return predict(p.m, T_w_b_at_m);
+}
+
+void MeasurementNoise::notePrediction(std::uint64_t state_index, std::int64_t state_t_ns, const Measurement& m,
+                                      const Pose3& T_w_b_predicted, const Vec3& v_w_predicted) {
   if (!learnsFrom(m.kind)) return;
   if (!pending_.empty() && pending_index_ != state_index) pending_.clear();
   pending_index_ = state_index;
@@ -94,13 +102,16 @@ void MeasurementNoise::notePrediction(std::uint64_t state_index, const Measureme
     ++overflow_;
     return;
   }
-  pending_.push_back({m, m.value_m - predict(m, T_w_b_predicted)});
+  Pending p{m, 0.0, 0.0};
+  if (m.kind == Measurement::Kind::kRange) p.dt_s = 1e-9 * static_cast<double>(m.t_ns - state_t_ns);
+  p.innovation_m = m.value_m - predictAt(p, T_w_b_predicted, v_w_predicted);
+  pending_.push_back(p);
 }
 
-void MeasurementNoise::notePostFit(std::uint64_t state_index, const Pose3& T_w_b_updated) {
+void MeasurementNoise::notePostFit(std::uint64_t state_index, const Pose3& T_w_b_updated, const Vec3& v_w_updated) {
   if (pending_.empty() || pending_index_ != state_index) return;
   for (const Pending& p : pending_) {
-    const double e_post = p.m.value_m - predict(p.m, T_w_b_updated);
+    const double e_post = p.m.value_m - predictAt(p, T_w_b_updated, v_w_updated);
     if (gap_excess_ && p.m.kind == Measurement::Kind::kTdoa) gap_excess_->add(p.m.power_gap_db, p.m.power_gap_b_db, e_post);
     if (!dynamicKind(p.m.kind)) continue;
     const double product = p.innovation_m * e_post;

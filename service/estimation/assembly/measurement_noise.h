@@ -100,15 +100,18 @@ class MeasurementNoise {
   bool learnsFrom(Measurement::Kind kind) const {
     return dynamicKind(kind) || (kind == Measurement::Kind::kTdoa && gap_excess_.has_value());
   }
-  /// Graph stream: m's factor on state `state_index` was created with
-  /// T_w_b_predicted as the state's initial value. A note for another state
-  /// than the pending one drops the pending notes (their state was never
-  /// reported back). No-op when off.
-  void notePrediction(std::uint64_t state_index, const Measurement& m, const Pose3& T_w_b_predicted);
+  /// Graph stream: m's factor on state `state_index` (at state_t_ns) was
+  /// created with T_w_b_predicted and v_w_predicted as the state's initial
+  /// values; a two-way range after the state is predicted where the velocity
+  /// takes the tag by its time, as its factor does (RangeTimeOffset). A note
+  /// for another state than the pending one drops the pending notes (their
+  /// state was never reported back). No-op when off.
+  void notePrediction(std::uint64_t state_index, std::int64_t state_t_ns, const Measurement& m,
+                      const Pose3& T_w_b_predicted, const Vec3& v_w_predicted);
   /// Graph stream: the smoother's estimate of `state_index` after it absorbed
   /// the state: feeds the pending notes of that state (see the file comment)
   /// and clears them. Notes of another state are kept. No-op when off.
-  void notePostFit(std::uint64_t state_index, const Pose3& T_w_b_updated);
+  void notePostFit(std::uint64_t state_index, const Pose3& T_w_b_updated, const Vec3& v_w_updated);
   /// EKF: innovation y = z - h(x_prior) (m) and H P H^T (m^2) of m. No-op when off.
   /// Not fed to the excess learner: the EKF builds its MeasurementNoise
   /// without one (ekf_estimator.cpp).
@@ -124,7 +127,10 @@ class MeasurementNoise {
   struct Pending {
     Measurement m;
     double innovation_m = 0.0;
+    double dt_s = 0.0;  ///< measurement time minus state time (two-way ranges; else 0)
   };
+  /// h(x) of p at the state's pose and velocity.
+  double predictAt(const Pending& p, const Pose3& T_w_b, const Vec3& v_w) const;
 
   void count(CovarianceUpdate u);
 

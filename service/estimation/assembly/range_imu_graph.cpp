@@ -1,5 +1,7 @@
 #include "estimation/assembly/range_imu_graph.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "estimation/assembly/range_imu_graph_stream.h"
@@ -23,6 +25,12 @@ TdoaModelParams tdoaModelParams(const RangeImuGraphParams& params) {
   t.use_indicator = params.tdoa_nlos_indicator;
   t.max_power_gap_db = params.tdoa_max_power_gap_db;
   return t;
+}
+
+double verticalSpeedPriorSigma(const RangeImuGraphParams& params, std::int64_t interval_ns) {
+  const double tau_s = params.vertical_speed_correlation_s;
+  const double interval_s = std::max(1e-3, 1e-9 * static_cast<double>(interval_ns));
+  return params.vertical_speed_sigma_m_s * std::sqrt(tau_s / std::min(interval_s, tau_s));
 }
 
 RangeImuGraph buildRangeImuGraph(const std::vector<ImuSample>& imu, const std::vector<RangeSample>& ranges,

@@ -27,7 +27,14 @@ struct RangeImuGraphParams {
   ImuParams imu;
   std::string range_loss = "asymmetric";  ///< see makeRangeLoss
   RangeNoiseParams range_noise;
-  std::int64_t same_state_window_ns = 5'000'000;  ///< ranges closer than this share one state (>= 0)
+  /// Ranges closer than this share one state (>= 0): each is predicted
+  /// where the state's velocity takes the tag by its own time
+  /// (RangeTimeOffset). The service ships 50 ms (config/rilod.yaml): 40 Hz
+  /// ranging then gives about 15 states a second instead of 40, which is
+  /// what the smoother's cost scales with, and the motion left out over
+  /// 50 ms (half the acceleration times dt^2, the lever arm's turn) stays
+  /// under 1 cm (docs/smoother.md, "States per ranging epoch, session 40").
+  std::int64_t same_state_window_ns = 5'000'000;
   /// Longest interval between consecutive states: ranging gaps get IMU-only
   /// states, so preintegration windows stay short (rotation, first-order bias).
   std::int64_t max_state_interval_ns = 500'000'000;
@@ -50,8 +57,15 @@ struct RangeImuGraphParams {
   /// Soft band on the tag height of every state (HeightBandFactor on the body
   /// height, shifted by the lever arm's z for an upright wearer).
   HeightBand height_band = HeightBand::off();
-  /// Std-dev of a zero-mean prior on each state's vertical velocity (m/s); 0: none.
+  /// Std-dev of a zero-mean prior on the vertical velocity (m/s) of a state
+  /// vertical_speed_correlation_s or more after the previous one; 0: none.
+  /// Closer states share that information (verticalSpeedPriorSigma), so the
+  /// prior's pull per second does not grow with the state rate.
   double vertical_speed_sigma_m_s = 0.0;
+  /// Time (s) over which a walker's vertical speed is taken as one value: half
+  /// a step cycle (about two steps a second), after which the gait's bob has
+  /// turned. > 0.
+  double vertical_speed_correlation_s = 0.25;
   /// Zero-velocity prior on each state that closes an interval the IMU shows
   /// still (StandstillDetector with `standstill`), sigma * sqrt(1 s / the
   /// interval) per state: the same weight per second at any ranging rate, as
@@ -92,6 +106,13 @@ struct RangeImuGraphParams {
 
 /// The TDoA model of params (tdoa_model.h).
 TdoaModelParams tdoaModelParams(const RangeImuGraphParams& params);
+
+/// Std-dev (m/s) of the vertical speed prior on a state interval_ns after the
+/// previous one: vertical_speed_sigma_m_s * sqrt(tau / min(interval, tau)),
+/// tau = vertical_speed_correlation_s (interval at least 1 ms). States closer
+/// than tau split the prior's information, so 40 states a second and 15 pull
+/// the same per second. The graph stream and the EKF baseline both use it.
+double verticalSpeedPriorSigma(const RangeImuGraphParams& params, std::int64_t interval_ns);
 
 struct RangeImuGraph {
   FactorGraph graph;

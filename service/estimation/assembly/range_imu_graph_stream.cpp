@@ -90,6 +90,9 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
   if (!(std::isfinite(params_.vertical_speed_sigma_m_s) && params_.vertical_speed_sigma_m_s >= 0.0)) {
     throw std::invalid_argument(where + "vertical_speed_sigma_m_s must be finite and >= 0");
   }
+  if (!(std::isfinite(params_.vertical_speed_correlation_s) && params_.vertical_speed_correlation_s > 0.0)) {
+    throw std::invalid_argument(where + "vertical_speed_correlation_s must be finite and > 0");
+  }
   if (!(std::isfinite(params_.zero_velocity_sigma_m_s) && params_.zero_velocity_sigma_m_s >= 0.0)) {
     throw std::invalid_argument(where + "zero_velocity_sigma_m_s must be finite and >= 0");
   }
@@ -124,7 +127,8 @@ GraphIncrement RangeImuGraphStream::start(std::int64_t t0_ns, const Pose3& T_w_b
     bias_sigmas << Vec3::Constant(params_.first_accel_bias_sigma), Vec3::Constant(params_.first_gyro_bias_sigma);
     inc.factors.emplace<PriorBiasFactor>(sym::B(0), bias0_guess, bias_sigmas);
   }
-  addMotionPriors(0, inc);
+  // The first state has no previous one: a whole correlation time's prior.
+  addMotionPriors(0, static_cast<std::int64_t>(std::llround(params_.vertical_speed_correlation_s * 1e9)), inc);
   inc.values.insert(sym::X(0), T_w_b0_guess);
   inc.values.insert(sym::V(0), v_w0_guess);
   inc.values.insert(sym::B(0), bias0_guess);
@@ -270,7 +274,7 @@ std::optional<GraphIncrement> RangeImuGraphStream::next(const StateEstimate& pre
   if (!allFinite(previous.T_w_b) || !previous.v_w.allFinite() || !previous.bias.vector().allFinite()) {
     throw std::invalid_argument("RangeImuGraphStream::next: previous estimate is not finite");
   }
-  noise_.notePostFit(previous.index, previous.T_w_b);  // no-op unless its measurements await it
+  noise_.notePostFit(previous.index, previous.T_w_b, previous.v_w);  // no-op unless its measurements await it
   if (options_.learn_carry_height) {
     carry_height_.notePostFit(previous.index, previous.t_ns, previous.T_w_b.transformFrom(params_.p_b_tag).z());
   }
@@ -293,10 +297,10 @@ GraphIncrement RangeImuGraphStream::emitState(const StateEstimate& previous) {
   inc.t_ns = s.t_ns;
   inc.factors.emplace<CombinedImuFactor>(sym::X(i - 1), sym::V(i - 1), sym::B(i - 1), sym::X(i), sym::V(i),
                                          sym::B(i), pim_);
-  addRangeFactors(0, carry_ranges_, sym::X(i - 1), inc);
-  addRangeFactors(carry_ranges_, s.n_ranges, sym::X(i), inc);
+  addRangeFactors(0, carry_ranges_, i - 1, last_t_ns_, inc);
+  addRangeFactors(carry_ranges_, s.n_ranges, i, s.t_ns, inc);
   addAnchorPriors(inc);
-  addMotionPriors(i, inc);
+  addMotionPriors(i, s.t_ns - last_t_ns_, inc);
   addCarryHold(i, s.t_ns - last_t_ns_, inc);
   const bool still = addStandstillPrior(i, last_t_ns_, s.t_ns, previous.v_w, inc);
 
@@ -309,7 +313,7 @@ GraphIncrement RangeImuGraphStream::emitState(const StateEstimate& previous) {
 
   // Commit (nothing above changed the stream).
   for (std::size_t k = carry_ranges_; k < carry_ranges_ + s.n_ranges; ++k) {
-    noise_.notePrediction(i, ranges_[k], nav.T_w_b);
+    noise_.notePrediction(i, s.t_ns, ranges_[k], nav.T_w_b, nav.v_w);
     noteHeightEvidence(i, ranges_[k]);
   }
   commitAnchors(inc);
@@ -329,7 +333,7 @@ GraphIncrement RangeImuGraphStream::emitCarriedRanges() {
   inc.new_state = false;
   inc.state_index = last_index_;
   inc.t_ns = last_t_ns_;
-  addRangeFactors(0, carry_ranges_, sym::X(last_index_), inc);
+  addRangeFactors(0, carry_ranges_, last_index_, last_t_ns_, inc);
   addAnchorPriors(inc);
   commitAnchors(inc);
   ranges_.pop_front(carry_ranges_);

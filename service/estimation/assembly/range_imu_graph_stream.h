@@ -193,14 +193,17 @@ class RangeImuGraphStream {
   bool carryClosed() const;
   GraphIncrement emitState(const StateEstimate& previous);
   GraphIncrement emitCarriedRanges();
-  /// Adds state i's height band and vertical speed priors (when enabled).
-  void addMotionPriors(std::uint64_t i, GraphIncrement& inc) const;
+  /// Adds state i's height band and vertical speed priors (when enabled);
+  /// state i is interval_ns after the previous one.
+  void addMotionPriors(std::uint64_t i, std::int64_t interval_ns, GraphIncrement& inc) const;
   /// Adds state i's zero-velocity prior if the IMU was still over (t_prev_ns,
   /// t_ns] and the previous state's estimate v_w_prev is slow (StandstillDetector::stillFor); true if it did.
   bool addStandstillPrior(std::uint64_t i, std::int64_t t_prev_ns, std::int64_t t_ns, const Vec3& v_w_prev,
                           GraphIncrement& inc) const;
   /// Adds the factors of ranges_[first, first + n) on state key x, noting anchors new to the graph.
-  void addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const;
+  /// Factors of ranges_[first, first + n) on state `state` at state_t_ns.
+  void addRangeFactors(std::size_t first, std::size_t n, std::uint64_t state, std::int64_t state_t_ns,
+                       GraphIncrement& inc) const;
   /// The hold of state i's height towards the carry height (HeightBand::hold_sigma_m).
   void addCarryHold(std::uint64_t i, std::int64_t interval_ns, GraphIncrement& inc) const;
   /// State i's range m tells the carry height what it says about the height.

@@ -29,7 +29,7 @@ FactorPtr motionPrior(Args&&... args) {
 
 }  // namespace
 
-void RangeImuGraphStream::addMotionPriors(std::uint64_t i, GraphIncrement& inc) const {
+void RangeImuGraphStream::addMotionPriors(std::uint64_t i, std::int64_t interval_ns, GraphIncrement& inc) const {
   const HeightBand& band = params_.height_band;
   if (band.enabled) {
     inc.factors.add(motionPrior<HeightBandFactor>(sym::X(i), band.minZ() - params_.p_b_tag.z(),
@@ -37,8 +37,8 @@ void RangeImuGraphStream::addMotionPriors(std::uint64_t i, GraphIncrement& inc) 
   }
   if (params_.vertical_speed_sigma_m_s > 0.0) {
     // Horizontal speed is free (1e4 m/s std-dev); only v_z is held near zero.
-    inc.factors.add(motionPrior<PriorVec3Factor>(sym::V(i), Vec3::Zero(),
-                                                 Vec3(1e4, 1e4, params_.vertical_speed_sigma_m_s)));
+    const double sigma = verticalSpeedPriorSigma(params_, interval_ns);
+    inc.factors.add(motionPrior<PriorVec3Factor>(sym::V(i), Vec3::Zero(), Vec3(1e4, 1e4, sigma)));
   }
 }
 
@@ -93,8 +93,10 @@ Key RangeImuGraphStream::uwbAnchorKey(std::uint32_t id, GraphIncrement& inc) con
   return l;
 }
 
-void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key x, GraphIncrement& inc) const {
+void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, std::uint64_t state,
+                                          std::int64_t state_t_ns, GraphIncrement& inc) const {
   const bool vars = params_.anchors_as_variables;
+  const Key x = sym::X(state);
   for (std::size_t k = first; k < first + n; ++k) {
     const Measurement& m = ranges_[k];
     const double sigma_m = tdoa_model_.vouchedLos(m) ? noise_.nominalSigma(m.kind) : noise_.sigma(m);
@@ -102,9 +104,13 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, Key 
       case Measurement::Kind::kRange: {
         const RangeTerm t = range_model_.term(m, sigma_m);
         const Vec3& p_b_tag = params_.leverArm(m.tag);
+        // A range later than its state sees the tag moved on by the state's velocity.
+        std::optional<RangeTimeOffset> offset;
+        if (m.t_ns != state_t_ns) offset = RangeTimeOffset{sym::V(state), 1e-9 * static_cast<double>(m.t_ns - state_t_ns)};
         auto f = vars ? std::make_shared<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m, p_b_tag,
-                                                      t.loss)
-                      : std::make_shared<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, p_b_tag, t.loss);
+                                                      t.loss, offset)
+                      : std::make_shared<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, p_b_tag, t.loss,
+                                                      offset);
         double sine = 0.0;
         const double w = verticalWeightOf(m, &sine);
         if (w < 1.0) f->setVerticalWeight(w, params_.height_band.midZ() - p_w_anchors_[m.anchor].z());

@@ -20,6 +20,18 @@ void requirePositive(double v, const char* name) {
   }
 }
 
+std::vector<Key> rangeKeys(Key pose_key, std::optional<Key> anchor_key, const std::optional<RangeTimeOffset>& offset) {
+  std::vector<Key> keys{pose_key};
+  if (anchor_key) keys.push_back(*anchor_key);
+  if (offset) keys.push_back(offset->velocity_key);
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    for (std::size_t j = i + 1; j < keys.size(); ++j) {
+      if (keys[i] == keys[j]) throw std::invalid_argument("RangeFactor: the pose, anchor and velocity keys must differ");
+    }
+  }
+  return keys;
+}
+
 }  // namespace
 
 RangeAndDirection rangeAndDirection(const Vec3& d_w) {
@@ -38,33 +50,38 @@ Eigen::Matrix<double, 1, 6> tagPointGradientToPoseTangent(const Mat3& R_w_b, con
 }
 
 RangeFactor::RangeFactor(Key pose_key, Key anchor_key, double range_m, double sigma_m, const Vec3& p_b_tag,
-                         RobustLossPtr loss)
-    : Factor({pose_key, anchor_key}, std::move(loss)),
+                         RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
+    : Factor(rangeKeys(pose_key, anchor_key, offset), std::move(loss)),
       range_m_(range_m),
       sigma_m_(sigma_m),
       inv_sigma_(1.0 / sigma_m),
       p_b_tag_(p_b_tag),
       p_w_anchor_(Vec3::Zero()),
-      anchor_is_variable_(true) {
+      anchor_is_variable_(true),
+      has_offset_(offset.has_value()),
+      dt_s_(offset ? offset->dt_s : 0.0) {
   requireFinite(range_m, "range_m");
   requirePositive(sigma_m, "sigma_m");
   requireFinite(p_b_tag, "p_b_tag");
-  if (pose_key == anchor_key) throw std::invalid_argument("RangeFactor: pose_key and anchor_key must differ");
+  requireFinite(dt_s_, "time offset");
 }
 
 RangeFactor::RangeFactor(Key pose_key, const Vec3& p_w_anchor, double range_m, double sigma_m,
-                         const Vec3& p_b_tag, RobustLossPtr loss)
-    : Factor({pose_key}, std::move(loss)),
+                         const Vec3& p_b_tag, RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
+    : Factor(rangeKeys(pose_key, std::nullopt, offset), std::move(loss)),
       range_m_(range_m),
       sigma_m_(sigma_m),
       inv_sigma_(1.0 / sigma_m),
       p_b_tag_(p_b_tag),
       p_w_anchor_(p_w_anchor),
-      anchor_is_variable_(false) {
+      anchor_is_variable_(false),
+      has_offset_(offset.has_value()),
+      dt_s_(offset ? offset->dt_s : 0.0) {
   requireFinite(range_m, "range_m");
   requirePositive(sigma_m, "sigma_m");
   requireFinite(p_b_tag, "p_b_tag");
   requireFinite(p_w_anchor, "p_w_anchor");
+  requireFinite(dt_s_, "time offset");
 }
 
 Key RangeFactor::anchorKey() const {
@@ -85,20 +102,21 @@ void RangeFactor::setVerticalWeight(double w, double dz_ref_m) {
   dz_ref_m_ = dz_ref_m;
 }
 
-Vec3 RangeFactor::separation(const Pose3& T_w_b, const Vec3& p_w_anchor) const {
+Vec3 RangeFactor::separation(const Values& x, const Pose3& T_w_b, const Vec3& p_w_anchor) const {
   Vec3 d_w = T_w_b.transformFrom(p_b_tag_) - p_w_anchor;
+  if (has_offset_) d_w += dt_s_ * x.vec3(keys()[velocitySlot()]);
   if (vertical_weight_ != 1.0) d_w.z() = dz_ref_m_ + vertical_weight_ * (d_w.z() - dz_ref_m_);
   return d_w;
 }
 
 double RangeFactor::predictedRange(const Values& x) const {
-  return separation(x.pose(keys()[0]), anchorPosition(x)).norm();
+  return separation(x, x.pose(keys()[0]), anchorPosition(x)).norm();
 }
 
 void RangeFactor::evaluate(const Values& x, Residual& r, Jacobians* H) const {
   const Pose3& T_w_b = x.pose(keys()[0]);
   const Vec3& p_w_anchor = anchor_is_variable_ ? x.vec3(keys()[1]) : p_w_anchor_;
-  const RangeAndDirection rd = rangeAndDirection(separation(T_w_b, p_w_anchor));
+  const RangeAndDirection rd = rangeAndDirection(separation(x, T_w_b, p_w_anchor));
 
   r.resize(1);
   r(0) = (range_m_ - rd.range_m) * inv_sigma_;
@@ -115,6 +133,11 @@ void RangeFactor::evaluate(const Values& x, Residual& r, Jacobians* H) const {
     J_r_anchor.resize(1, 3);
     J_r_anchor = inv_sigma_ * rd.u_w.transpose();
     J_r_anchor(0, 2) *= vertical_weight_;
+  }
+  if (has_offset_) {
+    JacobianBlock& J_r_velocity = (*H)[velocitySlot()];
+    J_r_velocity.resize(1, 3);
+    J_r_velocity = dt_s_ * g_w.transpose();  // d p_w_tag / d v_w = dt I
   }
 }
 

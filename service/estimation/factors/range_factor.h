@@ -8,6 +8,13 @@
 // With a vertical weight w < 1 (setVerticalWeight) the vertical separation in
 // h is dz_ref + w (dz - dz_ref): the range informs the heights w^2 as much.
 //
+// A range measured dt after its state's time (ranges a few tens of ms apart
+// share one state, RangeImuGraphParams::same_state_window_ns) sees the tag
+// where the state's velocity takes it: p_w_tag + v_w dt (RangeTimeOffset).
+// Left out, and small against the range sigma at dt <= 50 ms: half the
+// acceleration times dt^2 (walking, < 4 mm) and the lever arm's turn over dt
+// (< 1 cm at 2 rad/s).
+//
 // Sign convention: r > 0 <=> the measured range is LONGER than predicted, the
 // side NLOS propagation produces (a blocked direct path only adds delay). The
 // robust losses in estimation/noise rely on this sign (asymmetric losses put
@@ -25,6 +32,8 @@
 // anchor (anchors are normally mounted above the tag); this is a valid
 // subgradient of |.| at 0, keeps r and H finite, and lets a solver move the
 // tag off the anchor along a deterministic direction.
+#include <optional>
+
 #include "estimation/graph/factor.h"
 
 namespace rilo {
@@ -44,16 +53,23 @@ RangeAndDirection rangeAndDirection(const Vec3& d_w);
 ///   [ (p_b_tag x R^T g)^T , (R^T g)^T ].
 Eigen::Matrix<double, 1, 6> tagPointGradientToPoseTangent(const Mat3& R_w_b, const Vec3& p_b_tag, const Vec3& g_w);
 
+/// A range measured dt_s after the time of the state it is attached to.
+struct RangeTimeOffset {
+  Key velocity_key;  ///< the state's world-frame velocity (Vec3, m/s)
+  double dt_s;       ///< range time minus state time (s), finite
+};
+
 class RangeFactor final : public Factor {
  public:
-  /// Anchor as a variable: keys {pose_key (Pose3 T_w_b), anchor_key (Vec3 p_w_anchor)}.
-  /// Throws std::invalid_argument on non-finite range/lever arm, sigma_m <= 0 or
-  /// pose_key == anchor_key.
+  /// Anchor as a variable: keys {pose_key (Pose3 T_w_b), anchor_key (Vec3 p_w_anchor)},
+  /// then the offset's velocity key if given.
+  /// Throws std::invalid_argument on non-finite range/lever arm/offset, sigma_m <= 0 or
+  /// repeated keys.
   RangeFactor(Key pose_key, Key anchor_key, double range_m, double sigma_m, const Vec3& p_b_tag,
-              RobustLossPtr loss = nullptr);
-  /// Anchor as a constant p_w_anchor (m, world): key {pose_key}.
+              RobustLossPtr loss = nullptr, std::optional<RangeTimeOffset> offset = std::nullopt);
+  /// Anchor as a constant p_w_anchor (m, world): key {pose_key}, then the offset's velocity key if given.
   RangeFactor(Key pose_key, const Vec3& p_w_anchor, double range_m, double sigma_m, const Vec3& p_b_tag,
-              RobustLossPtr loss = nullptr);
+              RobustLossPtr loss = nullptr, std::optional<RangeTimeOffset> offset = std::nullopt);
 
   int dim() const override { return 1; }
   void evaluate(const Values& x, Residual& r, Jacobians* H) const override;
@@ -76,16 +92,20 @@ class RangeFactor final : public Factor {
   /// dz_ref_m finite.
   void setVerticalWeight(double w, double dz_ref_m);
   double verticalWeight() const { return vertical_weight_; }
+  /// Range time minus state time (s); 0 without an offset.
+  double timeOffset() const { return dt_s_; }
+  bool hasTimeOffset() const { return has_offset_; }
   double measuredRange() const { return range_m_; }  ///< z (m)
   double sigma() const { return sigma_m_; }           ///< range std-dev (m)
   const Vec3& leverArm() const { return p_b_tag_; }   ///< tag antenna in body frame (m)
-  /// h(x) = |R p_b_tag + p - p_w_anchor| (m).
+  /// h(x) = |R p_b_tag + p + v dt - p_w_anchor| (m).
   double predictedRange(const Values& x) const;
 
  private:
-  /// Tag antenna minus anchor as the prediction sees it (the vertical
-  /// separation weighted, see setVerticalWeight).
-  Vec3 separation(const Pose3& T_w_b, const Vec3& p_w_anchor) const;
+  /// Tag antenna at the range's time minus anchor as the prediction sees it
+  /// (the vertical separation weighted, see setVerticalWeight).
+  Vec3 separation(const Values& x, const Pose3& T_w_b, const Vec3& p_w_anchor) const;
+  int velocitySlot() const { return anchor_is_variable_ ? 2 : 1; }
 
   double range_m_;        ///< measured range z (m)
   double sigma_m_;        ///< range standard deviation (m)
@@ -95,6 +115,8 @@ class RangeFactor final : public Factor {
   bool anchor_is_variable_;
   double vertical_weight_ = 1.0;  ///< w: share of the tag's height the prediction follows
   double dz_ref_m_ = 0.0;         ///< vertical separation (m) the prediction is pinned to for w < 1
+  bool has_offset_ = false;       ///< keys end with the state's velocity
+  double dt_s_ = 0.0;             ///< range time minus state time (s)
 };
 
 }  // namespace rilo

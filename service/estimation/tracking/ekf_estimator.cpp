@@ -171,9 +171,11 @@ void EkfEstimator::openGroup(std::int64_t t_ns) {
   group_size_ = group_accepted_ = 0;
   group_time_s_ = 0.0;
   // One group is one state of the graph, which gets the vertical speed
-  // prior once (RangeImuGraphParams::vertical_speed_sigma_m_s): the same
-  // motion knowledge for the baseline.
-  if (graph_.vertical_speed_sigma_m_s > 0.0) ekf_.applyVerticalSpeedPrior(graph_.vertical_speed_sigma_m_s);
+  // prior once (verticalSpeedPriorSigma over the interval since the previous
+  // group): the same motion knowledge for the baseline.
+  if (graph_.vertical_speed_sigma_m_s > 0.0) {
+    ekf_.applyVerticalSpeedPrior(verticalSpeedPriorSigma(graph_, t_ns - last_group_t0_ns_));
+  }
   applyStandstill(t_ns);
   group_state_ = ekf_.estimate();
 }

@@ -40,8 +40,10 @@ namespace rilo {
 /// and the NLOS-biased differences (97-99 % of the office sims' rows) pull it
 /// around; a walking wearer on one floor keeps v_z near 0 (the sims' 2 cm step
 /// bob: |v_z| <= 0.23 m/s). Measured in docs/noise-models.md ("Figures
-/// behind the defaults"). Stairs or lifts: pass 0 (off).
-inline constexpr double kTdoaVerticalSpeedSigmaMs = 0.05;
+/// behind the defaults"), as 0.05 per state at 40 states a second: 0.016 per
+/// correlation time (RangeImuGraphParams::vertical_speed_correlation_s, 0.25 s)
+/// is the same prior there (verticalSpeedPriorSigma). Stairs or lifts: pass 0 (off).
+inline constexpr double kTdoaVerticalSpeedSigmaMs = 0.016;
 /// Vertical speed prior of every estimator on two-way ranges when no value is
 /// given: loose, about the size of a walker's own vertical speed (the sims'
 /// step bob reaches 0.23 m/s), so it takes little from a step or a sit-down
@@ -49,13 +51,15 @@ inline constexpr double kTdoaVerticalSpeedSigmaMs = 0.05;
 /// together hold the height still where the ranges alone let it wander
 /// across the height band (anchors at
 /// similar heights: a common NLOS excess e looks like a height change of
-/// about e / 0.2). Per state, so its pull grows with the state rate (40 Hz
-/// two-way ranging: about 40 states a second). 0.3 rather than a stiffer
-/// value: stiffer priors ended tracking once on a walk outside a one-sided
-/// anchor layout (localizer_test's TrackingFarOutsideTheAnchorsIsAFailure);
-/// measured in docs/noise-models.md ("A loose vertical speed prior on two-way
-/// ranges"). TDoA keeps its stiffer 0.05.
-inline constexpr double kTwoWayVerticalSpeedSigmaMs = 0.3;
+/// about e / 0.2). Its pull per second is the same at any state rate above
+/// one per correlation time (verticalSpeedPriorSigma): 0.1 per 0.25 s is
+/// 0.32 per state at 40 states a second, the 0.3 per state measured in
+/// docs/noise-models.md ("A loose vertical speed prior on two-way ranges")
+/// when every 40 Hz range had its own state. Not stiffer: stiffer priors
+/// ended tracking once on a walk outside a one-sided anchor layout
+/// (localizer_test's TrackingFarOutsideTheAnchorsIsAFailure). TDoA keeps its
+/// stiffer prior.
+inline constexpr double kTwoWayVerticalSpeedSigmaMs = 0.1;
 /// The vertical speed prior "auto" stands for: kTdoaVerticalSpeedSigmaMs with
 /// TDoA rows, else kTwoWayVerticalSpeedSigmaMs.
 inline double defaultVerticalSpeedSigma(bool tdoa_used) {

@@ -45,6 +45,31 @@ TEST(RangeConsistency, ResidualUsesTheLeverArmAndSign) {
   EXPECT_NEAR(m.residual(r, at(Vec3(5, 5, 1.0))), -0.3, 1e-12);  // body at 1.0 m, antenna 0.1 m above
 }
 
+// Ranges later than their state (its 50 ms window) are judged where the
+// state's velocity takes the tag by their time, as their factors predict
+// them. A fast mover (10 m/s, towards anchor 0) makes the difference plain:
+// 40 ms later the tag is 0.4 m nearer, which the state's own pose would call
+// 0.4 m short (0.5 m floor: use a lower floor here).
+TEST(RangeConsistency, ALaterRangeOfTheStateIsJudgedWhereTheVelocityTakesTheTag) {
+  RangeConsistencyParams params = smallWindow();
+  params.short_floor_m = 0.2;
+  params.short_sigmas = 2.0;
+  RangeConsistencyMonitor with_velocity(kAnchors, Vec3::Zero(), 0.1, 50'000'000, params);
+  RangeConsistencyMonitor without(kAnchors, Vec3::Zero(), 0.1, 50'000'000, params);
+  const Vec3 v(-7.07, -7.07, 0.0);  // 10 m/s towards anchor 0 at (0, 0, 2)
+  for (int k = 0; k < 10; ++k) {
+    const std::int64_t t = k * 100'000'000;
+    const Vec3 p(5.0 + 0.1 * k, 5.0, 1.0);
+    const RangeSample r = rangeTo(0, t + 40'000'000, p + 0.04 * v, 0.0);
+    with_velocity.onRange(r);
+    without.onRange(r);
+    EXPECT_TRUE(with_velocity.judge(t, at(p), v)) << k;
+    without.judge(t, at(p));
+  }
+  EXPECT_EQ(with_velocity.shortShare(), 0.0);
+  EXPECT_EQ(without.shortShare(), 1.0);
+}
+
 TEST(RangeConsistency, NlosLongRangesNeverFlagButShortOnesDo) {
   RangeConsistencyMonitor m(kAnchors, Vec3::Zero(), 0.1, 5'000'000, smallWindow());
   const Vec3 p(5, 5, 1);

@@ -770,7 +770,7 @@ TEST(RangeImuGraphStream, MotionPriorsOnEveryStateWhenEnabled) {
 
 TEST(RangeImuGraphStream, RangesOfOneStateArePredictedAtTheirOwnTimes) {
   // Exact LOS ranges at 40 Hz on a walk; 50 ms windows (config/rilod.yaml)
-  // group them about two a state. At the true states every range must fit to well
+  // group them two or three a state. At the true states every range must fit to well
   // under a centimetre; predicted at the state's own time instead, the later
   // ones would miss by the walk's speed times their delay.
   sim::ScenarioParams sp;

@@ -544,6 +544,8 @@ TEST(ShippedConfigTest, DefaultReplayDemoLoads) {
   EXPECT_FALSE(c.recording.enabled);
   EXPECT_EQ(c.estimator.smoother.method, SmootherParams::Method::kDamped);
   EXPECT_FALSE(c.estimator.vertical_speed_sigma_m_s.has_value());  // auto
+  EXPECT_EQ(c.estimator.graph.same_state_window_ns, 50'000'000);     // docs/smoother.md, "States per ranging epoch"
+  EXPECT_DOUBLE_EQ(c.estimator.graph.vertical_speed_correlation_s, 0.25);
 }
 
 // The estimator alone (what `rilo replay` runs from the built-in copy): the
@@ -597,6 +599,7 @@ TEST(ShippedConfigTest, HardwareExampleLoads) {
   EXPECT_TRUE(c.recording.enabled);
   EXPECT_EQ(c.recording.directory, std::filesystem::path("/var/lib/rilo/recordings"));
   EXPECT_EQ(c.realtime.imu_source.cpus, std::vector<int>{3});
+  EXPECT_EQ(c.estimator.graph.same_state_window_ns, 50'000'000);  // the replay demo's estimator, on the board
 }
 
 // --- errors --------------------------------------------------------------------------

@@ -30,10 +30,10 @@ struct RangeImuGraphParams {
   /// Ranges closer than this share one state (>= 0): each is predicted
   /// where the state's velocity takes the tag by its own time
   /// (RangeTimeOffset). The service ships 50 ms (config/rilod.yaml): 40 Hz
-  /// ranging then gives about 15 states a second instead of 40, which is
+  /// ranging then gives about 12 states a second instead of 35, which is
   /// what the smoother's cost scales with, and the motion left out over
   /// 50 ms (half the acceleration times dt^2, the lever arm's turn) stays
-  /// under 1 cm (docs/smoother.md, "States per ranging epoch, session 40").
+  /// under 1 cm (docs/smoother.md, "States per ranging epoch").
   std::int64_t same_state_window_ns = 5'000'000;
   /// Longest interval between consecutive states: ranging gaps get IMU-only
   /// states, so preintegration windows stay short (rotation, first-order bias).

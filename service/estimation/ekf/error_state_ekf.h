@@ -180,8 +180,8 @@ class ErrorStateEkf {
   /// measurement that can be an outlier). Returns whether it updated.
   bool applyHeightBand(double z_min_m, double z_max_m, double sigma_m);
   /// Zero-mean prior on the vertical velocity v_w.z with std-dev sigma_m_s
-  /// (the graph's per-state PriorVec3Factor of vertical_speed_sigma_m_s, once
-  /// per state): a pseudo-measurement, never gated.
+  /// (the graph's PriorVec3Factor of verticalSpeedPriorSigma, once per group
+  /// of measurements, which is one graph state): a pseudo-measurement, never gated.
   void applyVerticalSpeedPrior(double sigma_m_s);
   /// Zero-mean prior on the whole velocity v_w with std-dev sigma_m_s per
   /// axis (the graph's standstill PriorVec3Factor,

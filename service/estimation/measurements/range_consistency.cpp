@@ -56,7 +56,7 @@ double RangeConsistencyMonitor::residual(const RangeSample& range, const Pose3& 
   return range.range_m - (p_w_tag - p_w_anchors_[range.anchor_id]).norm();
 }
 
-bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b) noexcept {
+bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b, const Vec3& v_w) noexcept {
   if (!params_.enabled) return true;
   std::size_t kept = 0;
   for (const RangeSample& r : pending_) {
@@ -65,7 +65,9 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b) noexc
       continue;
     }
     if (r.t_ns < t_ns - params_.max_age_ns) continue;  // too old to judge at this pose
-    const double res = residual(r, T_w_b);
+    Pose3 T_w_b_at_range = T_w_b;
+    if (r.t_ns > t_ns) T_w_b_at_range.p += 1e-9 * static_cast<double>(r.t_ns - t_ns) * v_w;
+    const double res = residual(r, T_w_b_at_range);
     const double gap_db = r.rssi_dbm - r.fp_power_dbm;
     // As RangeModel::flagsNlos; the flagged excess is the receiver's flags'
     // alone (RX-level flags take the component's mode, range_model.h).

@@ -79,10 +79,12 @@ class RangeConsistencyMonitor {
 
   /// A range given to the tracking estimator (unknown anchors are ignored).
   void onRange(const RangeSample& range) noexcept;
-  /// After an update whose newest state is at `t_ns` with pose `T_w_b`:
-  /// judges the pending ranges it took. Returns false when the window's share
-  /// of short ranges is above the limit (see shortShare()).
-  bool judge(std::int64_t t_ns, const Pose3& T_w_b) noexcept;
+  /// After an update whose newest state is at `t_ns` with pose `T_w_b` and
+  /// velocity `v_w`: judges the pending ranges it took, those of the state's
+  /// own window where the velocity takes the tag by their time (as their
+  /// factors predict them, RangeTimeOffset). Returns false when the window's
+  /// share of short ranges is above the limit (see shortShare()).
+  bool judge(std::int64_t t_ns, const Pose3& T_w_b, const Vec3& v_w = Vec3::Zero()) noexcept;
   /// Tracking (re)started: forget everything.
   void reset() noexcept;
   /// The tracker's state window (ns): ranges up to this after a state are its own.

@@ -34,6 +34,9 @@ EkfEstimator::EkfEstimator(std::vector<Vec3> p_w_anchors, const RangeImuGraphPar
   if (!(graph_.zero_velocity_sigma_m_s >= 0.0 && std::isfinite(graph_.zero_velocity_sigma_m_s))) {
     throw std::invalid_argument("EkfEstimator: zero_velocity_sigma_m_s must be finite and >= 0");
   }
+  if (!(graph_.vertical_speed_correlation_s > 0.0 && std::isfinite(graph_.vertical_speed_correlation_s))) {
+    throw std::invalid_argument("EkfEstimator: vertical_speed_correlation_s must be finite and > 0");
+  }
   pending_.reserve(64);
   ready_.reserve(16);
 }
@@ -68,6 +71,7 @@ UpdateStats EkfEstimator::start(std::int64_t t0_ns, const Pose3& T_w_b0, const V
   x.bias = bias0;
   ekf_.initialize(t0_ns, x, P);
   last_group_t0_ns_ = t0_ns;
+  groups_opened_ = 0;
   standstill_.dropBefore(t0_ns);
   latest_ = ekf_.estimate();
   filtered_.push_back({t0_ns, latest_.T_w_b});
@@ -172,10 +176,14 @@ void EkfEstimator::openGroup(std::int64_t t_ns) {
   group_time_s_ = 0.0;
   // One group is one state of the graph, which gets the vertical speed
   // prior once (verticalSpeedPriorSigma over the interval since the previous
-  // group): the same motion knowledge for the baseline.
+  // group; the first group, like the graph's first state, a whole
+  // correlation time's): the same motion knowledge for the baseline.
   if (graph_.vertical_speed_sigma_m_s > 0.0) {
-    ekf_.applyVerticalSpeedPrior(verticalSpeedPriorSigma(graph_, t_ns - last_group_t0_ns_));
+    const std::int64_t tau_ns = static_cast<std::int64_t>(std::llround(graph_.vertical_speed_correlation_s * 1e9));
+    const std::int64_t interval_ns = groups_opened_ == 0 ? tau_ns : t_ns - last_group_t0_ns_;
+    ekf_.applyVerticalSpeedPrior(verticalSpeedPriorSigma(graph_, interval_ns));
   }
+  ++groups_opened_;
   applyStandstill(t_ns);
   group_state_ = ekf_.estimate();
 }

@@ -105,6 +105,7 @@ class EkfEstimator final : public TrackingEstimator {
   bool group_open_ = false;
   std::int64_t group_t0_ns_ = 0;
   std::int64_t last_group_t0_ns_ = 0;  ///< the previous group's (or the start's) time
+  std::uint64_t groups_opened_ = 0;   ///< since start(): the first gets a whole correlation time's vertical prior
   int group_size_ = 0, group_accepted_ = 0;
   double group_time_s_ = 0.0;
   StateEstimate group_state_;

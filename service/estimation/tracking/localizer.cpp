@@ -40,6 +40,9 @@ void LocalizerParams::validate() const {
   if (!(zero_velocity_sigma_m_s >= 0.0 && std::isfinite(zero_velocity_sigma_m_s))) {
     fail("zero_velocity_sigma_m_s", "must be finite and >= 0 (0: off)");
   }
+  if (!(graph.vertical_speed_correlation_s > 0.0 && std::isfinite(graph.vertical_speed_correlation_s))) {
+    fail("graph.vertical_speed_correlation_s", "must be finite and > 0");
+  }
   smoother.validate();
   sliding_window.validate();
   init.validate();
@@ -419,7 +422,7 @@ void Localizer::checkHealth(const UpdateStats& stats) {
 
 void Localizer::checkConsistency() {
   const StateEstimate& s = estimator_->latest();
-  const bool consistent = consistency_.judge(s.t_ns, s.T_w_b);
+  const bool consistent = consistency_.judge(s.t_ns, s.T_w_b, s.v_w);
   if (estimate_flagged_excess_) {
     const FlaggedExcessParams& fx = params_.flagged_excess;
     const double e = consistency_.flaggedQuantile(fx.quantile, fx.min_ranges);

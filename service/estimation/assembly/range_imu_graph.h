@@ -110,7 +110,7 @@ TdoaModelParams tdoaModelParams(const RangeImuGraphParams& params);
 /// Std-dev (m/s) of the vertical speed prior on a state interval_ns after the
 /// previous one: vertical_speed_sigma_m_s * sqrt(tau / min(interval, tau)),
 /// tau = vertical_speed_correlation_s (interval at least 1 ms). States closer
-/// than tau split the prior's information, so 40 states a second and 15 pull
+/// than tau split the prior's information, so 35 states a second and 12 pull
 /// the same per second. The graph stream and the EKF baseline both use it.
 double verticalSpeedPriorSigma(const RangeImuGraphParams& params, std::int64_t interval_ns);
 

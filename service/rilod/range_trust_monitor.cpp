@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "estimation/measurements/range_time.h"
 #include "estimation/noise/noise_model_factory.h"
 
 namespace rilo {
@@ -52,10 +53,8 @@ std::uint64_t RangeTrustMonitor::judge(const StateEstimate& latest) noexcept {
       ++unjudged_;  // an older state's, absorbed in the same update
     } else {
       ++judged_;
-      // The state's factor predicts a range later than the state where its velocity takes the tag.
-      Pose3 T_w_b_at_range = latest.T_w_b;
-      T_w_b_at_range.p += 1e-9 * static_cast<double>(r.t_ns - latest.t_ns) * latest.v_w;
-      const double predicted_m = predictedRange(p_w_anchors_[r.anchor_id], p_b_tag_, T_w_b_at_range);
+      const double predicted_m = predictedRange(p_w_anchors_[r.anchor_id], p_b_tag_,
+                                                poseAtRangeTime(latest.T_w_b, latest.v_w, latest.t_ns, r.t_ns));
       const double w = loss_->weight((r.range_m - predicted_m) / sigma_m_);
       if (!(w >= kTrustedWeight)) ++rejected_now;
       verdicts_.push_back({r.anchor_id, r.range_m, predicted_m, w});  // within the reserved capacity

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "estimation/measurements/range_time.h"
+
 namespace rilo {
 namespace {
 
@@ -87,10 +89,9 @@ void MeasurementNoise::count(CovarianceUpdate u) {
 }
 
 double MeasurementNoise::predictAt(const Pending& p, const Pose3& T_w_b, const Vec3& v_w) const {
-  if (p.dt_s == 0.0) return predict(p.m, T_w_b);
-  Pose3 T_w_b_at_m = T_w_b;
-  T_w_b_at_m.p += p.dt_s * v_w;
-  return predict(p.m, T_w_b_at_m);
+  // Two-way ranges as their factors predict them (RangeTimeOffset); the other kinds at the state.
+  if (p.m.kind != Measurement::Kind::kRange) return predict(p.m, T_w_b);
+  return predict(p.m, poseAtRangeTime(T_w_b, v_w, p.state_t_ns, p.m.t_ns));
 }
 
 void MeasurementNoise::notePrediction(std::uint64_t state_index, std::int64_t state_t_ns, const Measurement& m,
@@ -102,8 +103,7 @@ void MeasurementNoise::notePrediction(std::uint64_t state_index, std::int64_t st
     ++overflow_;
     return;
   }
-  Pending p{m, 0.0, 0.0};
-  if (m.kind == Measurement::Kind::kRange) p.dt_s = 1e-9 * static_cast<double>(m.t_ns - state_t_ns);
+  Pending p{m, 0.0, state_t_ns};
   p.innovation_m = m.value_m - predictAt(p, T_w_b_predicted, v_w_predicted);
   pending_.push_back(p);
 }

@@ -127,7 +127,7 @@ class MeasurementNoise {
   struct Pending {
     Measurement m;
     double innovation_m = 0.0;
-    double dt_s = 0.0;  ///< measurement time minus state time (two-way ranges; else 0)
+    std::int64_t state_t_ns = 0;  ///< the time of the state its factor is on
   };
   /// h(x) of p at the state's pose and velocity.
   double predictAt(const Pending& p, const Pose3& T_w_b, const Vec3& v_w) const;

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "estimation/measurements/range_time.h"
+
 namespace rilo {
 
 void RangeConsistencyParams::validate() const {
@@ -65,9 +67,8 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b, const
       continue;
     }
     if (r.t_ns < t_ns - params_.max_age_ns) continue;  // too old to judge at this pose
-    Pose3 T_w_b_at_range = T_w_b;
-    if (r.t_ns > t_ns) T_w_b_at_range.p += 1e-9 * static_cast<double>(r.t_ns - t_ns) * v_w;
-    const double res = residual(r, T_w_b_at_range);
+    // The state's own ranges where its velocity takes the tag; an older state's at this pose.
+    const double res = residual(r, r.t_ns > t_ns ? poseAtRangeTime(T_w_b, v_w, t_ns, r.t_ns) : T_w_b);
     const double gap_db = r.rssi_dbm - r.fp_power_dbm;
     // As RangeModel::flagsNlos; the flagged excess is the receiver's flags'
     // alone (RX-level flags take the component's mode, range_model.h).

@@ -19,8 +19,18 @@ NlosClassification classifyRanges(const std::vector<RangeSample>& ranges,
     if (k > 0 && (k == trajectory.size() || r.t_ns - trajectory[k - 1].t_ns < trajectory[k].t_ns - r.t_ns)) best = k - 1;
     if (std::llabs(trajectory[best].t_ns - r.t_ns) > options.max_dt_ns) continue;
     const Pose3& T = trajectory[best].T_w_b;
+    // States hold the ranges of up to range.same_state_window_s after them:
+    // the body is where the walk between the two poses around the range puts
+    // it at the range's time (the nearer pose's attitude; its turn over tens
+    // of ms moves the antenna by millimetres).
+    Vec3 p_w_b = T.p;
+    if (k > 0 && k < trajectory.size() && trajectory[k].t_ns > trajectory[k - 1].t_ns) {
+      const double u = static_cast<double>(r.t_ns - trajectory[k - 1].t_ns) /
+                       static_cast<double>(trajectory[k].t_ns - trajectory[k - 1].t_ns);
+      p_w_b = (1.0 - u) * trajectory[k - 1].T_w_b.p + u * trajectory[k].T_w_b.p;
+    }
     const Vec3& p_b_antenna = leverArmOf(options.tag_lever_arms, r.tag_id, p_b_tag);
-    const double predicted_m = (T.R * p_b_antenna + T.p - p_w_anchors[r.anchor_id]).norm();
+    const double predicted_m = (T.R * p_b_antenna + p_w_b - p_w_anchors[r.anchor_id]).norm();
     const RangeTerm term = model.term(Measurement::of(r), sigma_m);
     const bool down =
         term.flagged_nlos || term.loss->weight((term.range_m - predicted_m) / term.sigma_m) < options.weight_threshold;

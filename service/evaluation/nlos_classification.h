@@ -37,8 +37,10 @@ struct NlosClassificationOptions {
   std::vector<TagLeverArm> tag_lever_arms;  ///< further antennas by tag id (p_b_tag for the others)
 };
 
-/// Classifies `ranges` (time order) against `trajectory` (time order; the
-/// nearest pose in time is used, states sit at ranging times): the range as
+/// Classifies `ranges` (time order) against `trajectory` (time order; a range
+/// is judged within max_dt_ns of its nearest pose, at the position
+/// interpolated between the poses around it and the nearest's attitude:
+/// a state holds the ranges of its same_state_window_s): the range as
 /// `model` makes it a term at sigma_m (range_model.h), its residual (range -
 /// |R p_b_tag + p - anchor|) / sigma weighted by the term's loss. A range the
 /// receiver flagged as NLOS (the model's indicator) counts as down-weighted:

@@ -53,6 +53,27 @@ TEST(NlosClassification, LongRangesAreDownWeightedAndScoredAgainstTheLabels) {
   EXPECT_DOUBLE_EQ(c.downweightedFraction(), 0.4);
 }
 
+// A state holds the ranges of its next 50 ms (config/rilod.yaml): a range
+// between two poses is judged where the walk between them puts the tag.
+TEST(NlosClassification, ARangeBetweenTwoPosesIsJudgedWhereTheWalkPutsTheTagAtItsTime) {
+  const std::vector<Vec3> anchors = {Vec3(10, 0, 1.2)};  // ahead, along the walk
+  const std::vector<RangeImuEstimator::TimedPose> trajectory = {
+      {0, Pose3(Mat3::Identity(), Vec3(0.0, 0, 1.2))}, {100'000'000, Pose3(Mat3::Identity(), Vec3(0.2, 0, 1.2))}};
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.03;  // the decision point at about 0.064 m
+  const RangeModel model("asymmetric", noise);
+  RangeSample r;
+  r.anchor_id = 0;
+  r.t_ns = 40'000'000;  // 2 m/s: the tag is 0.08 m on from the first pose, 0.12 m short of the second
+  r.range_m = 10.0 - 0.08;
+  r.los = 1;
+  const NlosClassification c = classifyRanges({r}, trajectory, anchors, Vec3::Zero(), model, noise.sigma_m);
+  EXPECT_EQ(c.ranges, 1u);
+  EXPECT_EQ(c.downweighted, 0u) << "at the nearest pose it would be 0.08 m long: 2.7 sigma, NLOS";
+  r.range_m += 0.3;  // a real excess still is one
+  EXPECT_EQ(classifyRanges({r}, trajectory, anchors, Vec3::Zero(), model, noise.sigma_m).downweighted, 1u);
+}
+
 TEST(NlosClassification, ShortRangesStayOnTheGaussianSideOfTheAsymmetricModel) {
   const std::vector<Vec3> anchors = {Vec3(0, 0, 2)};
   const std::vector<RangeImuEstimator::TimedPose> trajectory = {{0, Pose3(Mat3::Identity(), Vec3(3, 4, 2))}};

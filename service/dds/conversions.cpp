@@ -269,7 +269,7 @@ RangesMessage toRangesMessage(const rilo_msg_dds__Ranges_& msg) {
   out.ranges.reserve(msg.ranges._length);
   for (std::uint32_t i = 0; i < msg.ranges._length; ++i) {
     const rilo_msg_dds__RangeReading_& r = msg.ranges._buffer[i];
-    out.ranges.push_back({r.anchor_id, r.range_m, r.predicted_m, r.residual_m, r.weight, r.nlos});
+    out.ranges.push_back({r.anchor_id, r.range_m, r.predicted_m, r.residual_m, r.weight, r.nlos, r.t_offset_ns});
   }
   return out;
 }

@@ -53,6 +53,7 @@ struct RangeReading {
   double residual_m = 0.0;
   double weight = 1.0;
   bool nlos = false;
+  std::int64_t t_offset_ns = 0;  ///< the range's time minus the message's stamp (>= 0)
 };
 
 /// One rilo_msgs/Ranges: a ranging epoch's ranges as the estimator judged them.

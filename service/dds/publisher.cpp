@@ -151,7 +151,7 @@ WriteStatus Publisher::publishRanges(std::int64_t t_ns, std::span<const RangeRea
   const std::size_t n = std::min(ranges.size(), kMaxRanges);
   for (std::size_t i = 0; i < n; ++i) {
     const RangeReading& r = ranges[i];
-    range_readings_[i] = {r.anchor_id, r.range_m, r.predicted_m, r.residual_m, r.weight, r.nlos};
+    range_readings_[i] = {r.anchor_id, r.range_m, r.predicted_m, r.residual_m, r.weight, r.nlos, r.t_offset_ns};
   }
   ranges_.ranges._length = static_cast<std::uint32_t>(n);
   const std::int64_t offset_ns = stampOffsetNs();

@@ -57,7 +57,7 @@ std::uint64_t RangeTrustMonitor::judge(const StateEstimate& latest) noexcept {
                                                 poseAtRangeTime(latest.T_w_b, latest.v_w, latest.t_ns, r.t_ns));
       const double w = loss_->weight((r.range_m - predicted_m) / sigma_m_);
       if (!(w >= kTrustedWeight)) ++rejected_now;
-      verdicts_.push_back({r.anchor_id, r.range_m, predicted_m, w});  // within the reserved capacity
+      verdicts_.push_back({r.anchor_id, r.range_m, predicted_m, w, r.t_ns - latest.t_ns});  // within the reserved capacity
     }
   }
   pending_.resize(kept);

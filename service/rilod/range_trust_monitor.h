@@ -31,6 +31,7 @@ struct RangeVerdict {
   double range_m = 0.0;
   double predicted_m = 0.0;  ///< from the state's pose, the lever arm and the surveyed anchor
   double weight = 1.0;       ///< the range model's robust weight
+  std::int64_t t_offset_ns = 0;  ///< the range's time minus its state's (0 to the state window)
 };
 
 class RangeTrustMonitor {

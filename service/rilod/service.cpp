@@ -534,7 +534,7 @@ void Service::publishJudgedRanges(std::int64_t t_ns) {
   for (const RangeVerdict& v : verdicts) {
     if (judged_ranges_.size() == judged_ranges_.capacity()) break;  // never grows: reserved in the constructor
     judged_ranges_.push_back({v.anchor_id, v.range_m, v.predicted_m, v.range_m - v.predicted_m, v.weight,
-                              !(v.weight >= RangeTrustMonitor::kTrustedWeight)});
+                              !(v.weight >= RangeTrustMonitor::kTrustedWeight), v.t_offset_ns});
   }
   (void)publisher_.publishRanges(t_ns, judged_ranges_);
 }

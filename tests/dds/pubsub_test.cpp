@@ -425,7 +425,7 @@ TEST_F(DdsPubSub, RangesArriveWithEveryReadingUpToTheCapacity) {
   so.ranges = true;
   Subscriber sub(sub_participant_, so);
   ASSERT_TRUE(pub.waitForSubscribers(TopicKind::kRanges, 1, kMatchTimeout));
-  const std::vector<RangeReading> epoch{{0, 4.25, 4.2, 0.05, 0.98, false}, {3, 7.9, 6.1, 1.8, 0.02, true}};
+  const std::vector<RangeReading> epoch{{0, 4.25, 4.2, 0.05, 0.98, false, 0}, {3, 7.9, 6.1, 1.8, 0.02, true, 37'500'000}};
   ASSERT_TRUE(pub.publishRanges(12'000'000'000, epoch).ok());
   std::vector<RangeReading> many(Publisher::kMaxRanges + 5, RangeReading{5, 1.0, 1.0, 0.0, 1.0, false});
   ASSERT_TRUE(pub.publishRanges(12'025'000'000, many).ok());
@@ -442,6 +442,8 @@ TEST_F(DdsPubSub, RangesArriveWithEveryReadingUpToTheCapacity) {
   EXPECT_EQ(got[0].ranges[1].weight, 0.02);
   EXPECT_TRUE(got[0].ranges[1].nlos);
   EXPECT_FALSE(got[0].ranges[0].nlos);
+  EXPECT_EQ(got[0].ranges[0].t_offset_ns, 0);
+  EXPECT_EQ(got[0].ranges[1].t_offset_ns, 37'500'000) << "each range's own time after the state's stamp";
   EXPECT_EQ(got[1].ranges.size(), Publisher::kMaxRanges) << "the first kMaxRanges of an epoch";
 }
 

@@ -106,6 +106,7 @@ TEST(RangeTrustMonitor, ALaterRangeOfTheStateIsPredictedWhereTheVelocityTakesThe
   m.judge(s);
   ASSERT_EQ(m.lastVerdicts().size(), 1u);
   EXPECT_NEAR(m.lastVerdicts()[0].range_m - m.lastVerdicts()[0].predicted_m, 0.0, 1e-9);
+  EXPECT_EQ(m.lastVerdicts()[0].t_offset_ns, 40 * kMs) << "published as the range's time after the state's stamp";
 }
 
 TEST(RangeTrustMonitor, TheLossDecidesAboutShortRangesToo) {

@@ -137,7 +137,7 @@ TEST(ViewState, EachAnchorKeepsItsNewestJudgedRange) {
   state.onRanges(first);
   dds::RangesMessage second;
   second.stamp_ns = 1'025'000'000;
-  second.ranges = {{0, 4.1, 4.08, 0.02, 0.99, false}};
+  second.ranges = {{0, 4.1, 4.08, 0.02, 0.99, false, 37'500'000}};
   state.onRanges(second);
   json j = json::parse(state.json());
   ASSERT_EQ(j["ranges"].size(), 2u);
@@ -145,6 +145,7 @@ TEST(ViewState, EachAnchorKeepsItsNewestJudgedRange) {
   EXPECT_EQ(j["ranges"][0]["range_m"], 4.1) << "the newest";
   EXPECT_EQ(j["ranges"][0]["residual_m"], 0.02);
   EXPECT_EQ(j["ranges"][0]["nlos"], false);
+  EXPECT_EQ(j["ranges"][0]["t_offset_ms"], 37.5) << "the range's time after its state's stamp";
   EXPECT_EQ(j["ranges"][1]["anchor_id"], 3);
   EXPECT_EQ(j["ranges"][1]["nlos"], true);
   EXPECT_EQ(j["ranges"][1]["weight"], 0.01);

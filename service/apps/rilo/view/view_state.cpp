@@ -176,6 +176,7 @@ std::string ViewState::json() const {
                           {"residual_m", round3(r.residual_m)},
                           {"weight", std::round(r.weight * 1e3) / 1e3},
                           {"nlos", r.nlos},
+                          {"t_offset_ms", std::round(r.t_offset_ns * 1e-5) / 10.0},
                           {"age_s", std::round(std::chrono::duration<double>(now - a.arrived).count() * 10.0) / 10.0}});
   }
   j["ranges"] = std::move(ranges);

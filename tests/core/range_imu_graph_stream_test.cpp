@@ -20,6 +20,7 @@
 #include "estimation/factors/imu_factor.h"
 #include "estimation/factors/prior_factors.h"
 #include "estimation/factors/range_factor.h"
+#include "estimation/factors/tdoa_factor.h"
 #include "estimation/solver/batch_lm.h"
 #include "sim/range_imu_scenario.h"
 #include "support/resting_imu.h"
@@ -806,6 +807,81 @@ TEST(RangeImuGraphStream, RangesOfOneStateArePredictedAtTheirOwnTimes) {
   EXPECT_GT(later, s.ranges.size() / 3);
   EXPECT_LT(worst_m, 0.005);
   EXPECT_GT(worst_uncompensated_m, 0.02);
+}
+
+TEST(RangeImuGraphStream, TdoaRowsOfOneStateArePredictedAtTheirOwnTimes) {
+  // Exact TDoA rows every 12.5 ms (the office TDoA sims' rate) on a walk,
+  // 25 ms windows (LocalizerParams::with_tdoa): two rows a state. At the true
+  // states every row must fit to well under a centimetre, the later ones by
+  // the state's velocity, as a state's later two-way ranges.
+  const sim::Scenario s = makeScenario(6.0);
+  RangeImuGraphParams gp = graphParams(s);
+  gp.same_state_window_ns = 25'000'000;
+  gp.tdoa_sigma_m = 0.1;
+  const std::int64_t t0_ns = s.ranges.front().t_ns;
+  const std::int64_t t_end_ns = s.ranges.back().t_ns;
+  const std::uint32_t n_anchors = static_cast<std::uint32_t>(s.p_w_anchors.size());
+  std::vector<TdoaSample> rows;
+  for (std::int64_t t = t0_ns, k = 0; t < t_end_ns; t += 12'500'000, ++k) {
+    TdoaSample d;
+    d.t_ns = t;
+    d.anchor_a = static_cast<std::uint32_t>(k % n_anchors);
+    d.anchor_b = static_cast<std::uint32_t>((k + 3) % n_anchors);
+    const Vec3 p_w_tag = s.truthAt(t).T_w_b.transformFrom(s.p_b_tag);
+    d.diff_m = (p_w_tag - s.p_w_anchors[d.anchor_b]).norm() - (p_w_tag - s.p_w_anchors[d.anchor_a]).norm();
+    rows.push_back(d);
+  }
+  RangeImuGraphStream stream(s.p_w_anchors, gp);
+  std::vector<FactorPtr> factors;
+  std::vector<std::int64_t> state_t_ns;
+  std::vector<Key> anchor_keys;
+  StateEstimate previous;
+  auto collect = [&](const GraphIncrement& inc) {
+    if (inc.new_state) {
+      state_t_ns.push_back(inc.t_ns);
+      previous.index = inc.state_index;
+      previous.t_ns = inc.t_ns;
+      previous.T_w_b = s.truthAt(inc.t_ns).T_w_b;
+      previous.v_w = s.truthAt(inc.t_ns).v_w;
+    }
+    for (const FactorPtr& f : inc.factors) factors.push_back(f);
+    for (Key l : inc.new_anchor_keys) anchor_keys.push_back(l);
+  };
+  collect(stream.start(t0_ns, s.truthAt(t0_ns).T_w_b, s.truthAt(t0_ns).v_w));
+  std::size_t i = 0, k = 0;
+  while (i < s.imu.size() && s.imu[i].t_ns <= t_end_ns + 100'000'000) {
+    if (k < rows.size() && rows[k].t_ns <= s.imu[i].t_ns) {
+      stream.addTdoa(rows[k++]);
+    } else {
+      stream.addImu(s.imu[i++]);
+    }
+    while (std::optional<GraphIncrement> inc = stream.next(previous)) collect(*inc);
+  }
+  stream.finish();
+  while (std::optional<GraphIncrement> inc = stream.next(previous)) collect(*inc);
+  std::sort(anchor_keys.begin(), anchor_keys.end());
+  const Values truth = sim::truthValues(s, state_t_ns, anchor_keys);
+  std::size_t tdoa_factors = 0, later = 0;
+  double worst_m = 0.0, worst_uncompensated_m = 0.0;
+  for (const FactorPtr& f : factors) {
+    const auto* t = dynamic_cast<const TdoaFactor*>(f.get());
+    if (t == nullptr) continue;
+    ++tdoa_factors;
+    ASSERT_GE(t->timeOffset(), 0.0);
+    ASSERT_LE(t->timeOffset(), 0.025 + 1e-9);
+    worst_m = std::max(worst_m, std::abs(t->measuredDifference() - t->predictedDifference(truth)));
+    if (!t->hasTimeOffset()) continue;
+    ++later;
+    EXPECT_EQ(t->keys().back(), sym::V(keyIndex(t->poseKey())));
+    const TdoaFactor at_state(t->poseKey(), t->anchorAKey(), t->anchorBKey(), t->measuredDifference(), t->sigma(),
+                              t->leverArm());
+    worst_uncompensated_m =
+        std::max(worst_uncompensated_m, std::abs(at_state.measuredDifference() - at_state.predictedDifference(truth)));
+  }
+  EXPECT_GT(tdoa_factors, rows.size() * 9 / 10);
+  EXPECT_GT(later, tdoa_factors / 3);
+  EXPECT_LT(worst_m, 0.005);
+  EXPECT_GT(worst_uncompensated_m, 0.01);
 }
 
 TEST(RangeImuGraphStream, RangesSpeakToTheHeightByTheirVerticalLever) {

@@ -17,6 +17,7 @@ namespace rilo {
 namespace {
 
 using sym::L;
+using sym::V;
 using sym::X;
 using testing::TestAsymmetric;
 using testing::randomPose;
@@ -170,6 +171,73 @@ TEST(TdoaFactor, RobustLossPropagates) {
   auto asym = std::make_shared<TestAsymmetric>();
   EXPECT_NEAR(TdoaFactor(X(0), p_w_a, p_w_b, 5.2, 0.1, Vec3::Zero(), asym).error(x), 0.5, 1e-9);
   EXPECT_NEAR(TdoaFactor(X(0), p_w_a, p_w_b, 4.8, 0.1, Vec3::Zero(), asym).error(x), 2.0, 1e-9);
+}
+
+TEST(TdoaFactor, ARowAfterItsStateSeesTheTagMovedOnByTheStatesVelocity) {
+  // Walking at 1.5 m/s along x; the row is measured 40 ms after the state.
+  const Pose3 T_w_b(so3::exp(Vec3(0, 0, 0.3)), Vec3(1, 2, 1.5));
+  const Vec3 p_b_tag(0.06, 0.0, 0.1);
+  const Vec3 v_w(1.5, 0.0, 0.0);
+  const Vec3 p_w_a(-4, 2, 2.5), p_w_b(8, 3, 2.5);  // behind and ahead
+  const double dt_s = 0.04;
+  const Vec3 p_w_tag = T_w_b.transformFrom(p_b_tag) + dt_s * v_w;
+  const double truth_m = (p_w_tag - p_w_b).norm() - (p_w_tag - p_w_a).norm();
+  const TdoaFactor f(X(0), L(1), L(2), truth_m, 0.1, p_b_tag, nullptr, RangeTimeOffset{V(0), dt_s});
+  ASSERT_EQ(f.keys().size(), 4u);
+  EXPECT_EQ(f.keys()[3], V(0));
+  EXPECT_TRUE(f.hasTimeOffset());
+  EXPECT_DOUBLE_EQ(f.timeOffset(), dt_s);
+  Values x = poseAndAnchors(T_w_b, p_w_a, p_w_b);
+  x.insert(V(0), v_w);
+  EXPECT_NEAR(f.predictedDifference(x), truth_m, 1e-12);
+  Residual r;
+  Jacobians H;
+  f.evaluate(x, r, &H);
+  EXPECT_NEAR(r(0), 0.0, 1e-10);
+  // The velocity Jacobian is dt times the position's.
+  EXPECT_TRUE(H[3].isApprox(dt_s * H[0].rightCols<3>() * T_w_b.R.transpose(), 1e-12));
+  // Without the offset the row misses by the 6 cm walked, counted twice
+  // (away from a, towards b): predicted about 0.12 m too long.
+  const TdoaFactor plain(X(0), L(1), L(2), truth_m, 0.1, p_b_tag);
+  EXPECT_FALSE(plain.hasTimeOffset());
+  EXPECT_EQ(plain.timeOffset(), 0.0);
+  EXPECT_NEAR(plain.predictedDifference(x) - truth_m, 0.12, 0.01);
+
+  // Constant anchors: keys {pose, velocity}.
+  const TdoaFactor fc(X(0), p_w_a, p_w_b, truth_m, 0.1, p_b_tag, nullptr, RangeTimeOffset{V(0), dt_s});
+  ASSERT_EQ(fc.keys().size(), 2u);
+  EXPECT_EQ(fc.keys()[1], V(0));
+  EXPECT_NEAR(fc.predictedDifference(x), truth_m, 1e-12);
+}
+
+TEST(TdoaFactor, JacobiansMatchWithATimeOffset) {
+  std::mt19937 rng(15);
+  std::uniform_real_distribution<double> offset(-0.05, 0.05);
+  for (int i = 0; i < 200; ++i) {
+    const Pose3 T_w_b = randomPose(rng, 5.0);
+    const Vec3 p_b_tag = randomVec(rng, 0.3);
+    const Vec3 p_w_a = randomVec(rng, 6.0), p_w_b = randomVec(rng, 6.0);
+    const Vec3 v_w = randomVec(rng, 2.0);
+    const RangeTimeOffset dt{V(0), offset(rng)};
+    const double z = randomVec(rng, 4.0).x();
+    const TdoaFactor fv(X(0), L(1), L(2), z, 0.1, p_b_tag, nullptr, dt);
+    const TdoaFactor fc(X(0), p_w_a, p_w_b, z, 0.1, p_b_tag, nullptr, dt);
+    Values x = poseAndAnchors(T_w_b, p_w_a, p_w_b);
+    x.insert(V(0), v_w);
+    EXPECT_TRUE(testing::jacobiansMatch(fv, x, 1e-6)) << "sample " << i;
+    EXPECT_TRUE(testing::jacobiansMatch(fc, x, 1e-6)) << "sample " << i;
+  }
+}
+
+TEST(TdoaFactor, ABadTimeOffsetThrows) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Vec3 z = Vec3::Zero();
+  EXPECT_THROW(TdoaFactor(X(0), L(1), L(2), 0.5, 0.1, z, nullptr, RangeTimeOffset{V(0), nan}), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), Vec3(1, 2, 3), Vec3(0, 0, 0), 0.5, 0.1, z, nullptr, RangeTimeOffset{V(0), nan}),
+               std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), L(1), L(2), 0.5, 0.1, z, nullptr, RangeTimeOffset{L(2), 0.01}), std::invalid_argument);
+  EXPECT_THROW(TdoaFactor(X(0), Vec3(1, 2, 3), Vec3(0, 0, 0), 0.5, 0.1, z, nullptr, RangeTimeOffset{X(0), 0.01}),
+               std::invalid_argument);
 }
 
 TEST(TdoaFactor, InvalidArgumentsThrow) {

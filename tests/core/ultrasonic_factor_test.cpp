@@ -17,6 +17,7 @@ namespace rilo {
 namespace {
 
 using sym::L;
+using sym::V;
 using sym::X;
 using testing::TestAsymmetric;
 using testing::randomPose;
@@ -161,6 +162,68 @@ TEST(UltrasonicFactor, RobustLossRules) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("test_asymmetric"), std::string::npos) << e.what();
   }
+}
+
+TEST(UltrasonicFactor, ARangeAfterItsStateSeesTheReceiverMovedOnByTheStatesVelocity) {
+  const Pose3 T_w_b(so3::exp(Vec3(0, 0, 0.3)), Vec3(1, 2, 1.0));
+  const Vec3 p_b_us(0.0, 0.05, 0.2);
+  const Vec3 v_w(1.5, 0.0, 0.2);
+  const Vec3 p_w_anchor(4, 2, 2.5);
+  const double dt_s = 0.04;
+  const Vec3 d_w = T_w_b.transformFrom(p_b_us) + dt_s * v_w - p_w_anchor;
+  const UltrasonicElevation elevation{d_w.z(), 0.05};
+  const UltrasonicFactor f(X(0), L(7), d_w.norm(), 0.02, p_b_us, elevation, nullptr, RangeTimeOffset{V(0), dt_s});
+  ASSERT_EQ(f.keys().size(), 3u);
+  EXPECT_EQ(f.keys()[2], V(0));
+  EXPECT_TRUE(f.hasTimeOffset());
+  EXPECT_DOUBLE_EQ(f.timeOffset(), dt_s);
+  Values x = poseAndAnchor(T_w_b, p_w_anchor);
+  x.insert(V(0), v_w);
+  EXPECT_NEAR(f.predictedRange(x), d_w.norm(), 1e-12);
+  EXPECT_NEAR(f.predictedHeightDifference(x), d_w.z(), 1e-12);
+  Residual r;
+  f.evaluate(x, r, nullptr);
+  EXPECT_NEAR(r.norm(), 0.0, 1e-10);
+  const UltrasonicFactor fc(X(0), p_w_anchor, d_w.norm(), 0.02, p_b_us, std::nullopt, nullptr,
+                            RangeTimeOffset{V(0), dt_s});
+  ASSERT_EQ(fc.keys().size(), 2u);
+  EXPECT_EQ(fc.keys()[1], V(0));
+  EXPECT_NEAR(fc.predictedRange(x), d_w.norm(), 1e-12);
+  const UltrasonicFactor plain(X(0), p_w_anchor, d_w.norm(), 0.02, p_b_us);
+  EXPECT_FALSE(plain.hasTimeOffset());
+  EXPECT_GT(std::abs(plain.predictedRange(x) - d_w.norm()), 0.03) << "6 cm walked, mostly away from the anchor";
+}
+
+TEST(UltrasonicFactor, JacobiansMatchWithATimeOffset) {
+  std::mt19937 rng(16);
+  std::uniform_real_distribution<double> offset(-0.05, 0.05);
+  for (int i = 0; i < 200; ++i) {
+    const Pose3 T_w_b = randomPose(rng, 5.0);
+    const Vec3 p_b_us = randomVec(rng, 0.3);
+    const Vec3 p_w_anchor = randomVec(rng, 6.0);
+    const Vec3 v_w = randomVec(rng, 2.0);
+    const RangeTimeOffset dt{V(0), offset(rng)};
+    const double z = (T_w_b.transformFrom(p_b_us) - p_w_anchor).norm() + randomVec(rng, 0.3).x();
+    std::optional<UltrasonicElevation> elevation;
+    if (i % 2 == 1) elevation = UltrasonicElevation{randomVec(rng, 2.0).z(), 0.05};
+    const UltrasonicFactor fv(X(0), L(7), z, 0.02, p_b_us, elevation, nullptr, dt);
+    const UltrasonicFactor fc(X(0), p_w_anchor, z, 0.02, p_b_us, elevation, nullptr, dt);
+    Values x = poseAndAnchor(T_w_b, p_w_anchor);
+    x.insert(V(0), v_w);
+    EXPECT_TRUE(testing::jacobiansMatch(fv, x, 1e-6)) << "sample " << i;
+    EXPECT_TRUE(testing::jacobiansMatch(fc, x, 1e-6)) << "sample " << i;
+  }
+}
+
+TEST(UltrasonicFactor, ABadTimeOffsetThrows) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Vec3 z = Vec3::Zero();
+  EXPECT_THROW(UltrasonicFactor(X(0), L(1), 1.0, 0.1, z, std::nullopt, nullptr, RangeTimeOffset{V(0), nan}),
+               std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), L(1), 1.0, 0.1, z, std::nullopt, nullptr, RangeTimeOffset{L(1), 0.01}),
+               std::invalid_argument);
+  EXPECT_THROW(UltrasonicFactor(X(0), Vec3(0, 0, 3), 1.0, 0.1, z, std::nullopt, nullptr, RangeTimeOffset{X(0), 0.01}),
+               std::invalid_argument);
 }
 
 TEST(UltrasonicFactor, InvalidArgumentsThrow) {

@@ -89,8 +89,7 @@ void MeasurementNoise::count(CovarianceUpdate u) {
 }
 
 double MeasurementNoise::predictAt(const Pending& p, const Pose3& T_w_b, const Vec3& v_w) const {
-  // Two-way ranges as their factors predict them (RangeTimeOffset); the other kinds at the state.
-  if (p.m.kind != Measurement::Kind::kRange) return predict(p.m, T_w_b);
+  // As the factors predict them: where the state's velocity takes the tag by the measurement's time (RangeTimeOffset).
   return predict(p.m, poseAtRangeTime(T_w_b, v_w, p.state_t_ns, p.m.t_ns));
 }
 

@@ -102,8 +102,8 @@ class MeasurementNoise {
   }
   /// Graph stream: m's factor on state `state_index` (at state_t_ns) was
   /// created with T_w_b_predicted and v_w_predicted as the state's initial
-  /// values; a two-way range after the state is predicted where the velocity
-  /// takes the tag by its time, as its factor does (RangeTimeOffset). A note
+  /// values; a measurement after the state (any kind) is predicted where the
+  /// velocity takes the tag by its time, as its factor does (RangeTimeOffset). A note
   /// for another state than the pending one drops the pending notes (their
   /// state was never reported back). No-op when off.
   void notePrediction(std::uint64_t state_index, std::int64_t state_t_ns, const Measurement& m,

@@ -100,13 +100,13 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, std:
   for (std::size_t k = first; k < first + n; ++k) {
     const Measurement& m = ranges_[k];
     const double sigma_m = tdoa_model_.vouchedLos(m) ? noise_.nominalSigma(m.kind) : noise_.sigma(m);
+    // A measurement later than its state sees the tag moved on by the state's velocity.
+    std::optional<RangeTimeOffset> offset;
+    if (m.t_ns != state_t_ns) offset = RangeTimeOffset{sym::V(state), 1e-9 * static_cast<double>(m.t_ns - state_t_ns)};
     switch (m.kind) {
       case Measurement::Kind::kRange: {
         const RangeTerm t = range_model_.term(m, sigma_m);
         const Vec3& p_b_tag = params_.leverArm(m.tag);
-        // A range later than its state sees the tag moved on by the state's velocity.
-        std::optional<RangeTimeOffset> offset;
-        if (m.t_ns != state_t_ns) offset = RangeTimeOffset{sym::V(state), 1e-9 * static_cast<double>(m.t_ns - state_t_ns)};
         auto f = vars ? std::make_shared<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m, p_b_tag,
                                                       t.loss, offset)
                       : std::make_shared<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, p_b_tag, t.loss,
@@ -126,16 +126,16 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, std:
         if (vars) {
           const Key a = uwbAnchorKey(t.anchor_a, inc);
           inc.factors.emplace<TdoaFactor>(x, a, uwbAnchorKey(t.anchor_b, inc), t.value_m, t.sigma_m, params_.p_b_tag,
-                                          t.loss);
+                                          t.loss, offset);
         } else {
           inc.factors.emplace<TdoaFactor>(x, p_w_anchors_[t.anchor_a], p_w_anchors_[t.anchor_b], t.value_m, t.sigma_m,
-                                          params_.p_b_tag, t.loss);
+                                          params_.p_b_tag, t.loss, offset);
         }
         break;
       }
       case Measurement::Kind::kUltrasonic:
         inc.factors.emplace<UltrasonicFactor>(x, params_.p_w_ultrasonic[m.anchor], m.value_m, sigma_m,
-                                              params_.p_b_ultrasonic, std::nullopt, ultrasonic_loss_);
+                                              params_.p_b_ultrasonic, std::nullopt, ultrasonic_loss_, offset);
         break;
     }
     ++inc.range_factors;

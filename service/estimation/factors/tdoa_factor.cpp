@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace rilo {
 namespace {
@@ -20,18 +21,31 @@ void requirePositive(double v, const char* name) {
   }
 }
 
+std::vector<Key> tdoaKeys(std::vector<Key> keys, const std::optional<RangeTimeOffset>& offset) {
+  if (offset) {
+    for (Key k : keys) {
+      if (k == offset->velocity_key) throw std::invalid_argument("TdoaFactor: the velocity key must differ from the others");
+    }
+    keys.push_back(offset->velocity_key);
+  }
+  return keys;
+}
+
 }  // namespace
 
 TdoaFactor::TdoaFactor(Key pose_key, Key anchor_a_key, Key anchor_b_key, double diff_m, double sigma_m,
-                       const Vec3& p_b_tag, RobustLossPtr loss)
-    : Factor({pose_key, anchor_a_key, anchor_b_key}, std::move(loss)),
+                       const Vec3& p_b_tag, RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
+    : Factor(tdoaKeys({pose_key, anchor_a_key, anchor_b_key}, offset), std::move(loss)),
       diff_m_(diff_m),
       sigma_m_(sigma_m),
       inv_sigma_(1.0 / sigma_m),
       p_b_tag_(p_b_tag),
       p_w_anchor_a_(Vec3::Zero()),
       p_w_anchor_b_(Vec3::Zero()),
-      anchors_are_variables_(true) {
+      anchors_are_variables_(true),
+      has_offset_(offset.has_value()),
+      dt_s_(offset ? offset->dt_s : 0.0) {
+  requireFinite(dt_s_, "time offset");
   requireFinite(diff_m, "diff_m");
   requirePositive(sigma_m, "sigma_m");
   requireFinite(p_b_tag, "p_b_tag");
@@ -42,15 +56,18 @@ TdoaFactor::TdoaFactor(Key pose_key, Key anchor_a_key, Key anchor_b_key, double 
 }
 
 TdoaFactor::TdoaFactor(Key pose_key, const Vec3& p_w_anchor_a, const Vec3& p_w_anchor_b, double diff_m,
-                       double sigma_m, const Vec3& p_b_tag, RobustLossPtr loss)
-    : Factor({pose_key}, std::move(loss)),
+                       double sigma_m, const Vec3& p_b_tag, RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
+    : Factor(tdoaKeys({pose_key}, offset), std::move(loss)),
       diff_m_(diff_m),
       sigma_m_(sigma_m),
       inv_sigma_(1.0 / sigma_m),
       p_b_tag_(p_b_tag),
       p_w_anchor_a_(p_w_anchor_a),
       p_w_anchor_b_(p_w_anchor_b),
-      anchors_are_variables_(false) {
+      anchors_are_variables_(false),
+      has_offset_(offset.has_value()),
+      dt_s_(offset ? offset->dt_s : 0.0) {
+  requireFinite(dt_s_, "time offset");
   requireFinite(diff_m, "diff_m");
   requirePositive(sigma_m, "sigma_m");
   requireFinite(p_b_tag, "p_b_tag");
@@ -79,8 +96,14 @@ Vec3 TdoaFactor::anchorBPosition(const Values& x) const {
   return anchors_are_variables_ ? x.vec3(keys()[2]) : p_w_anchor_b_;
 }
 
+Vec3 TdoaFactor::tagPosition(const Values& x) const {
+  Vec3 p_w_tag = x.pose(keys()[0]).transformFrom(p_b_tag_);
+  if (has_offset_) p_w_tag += dt_s_ * x.vec3(keys()[velocitySlot()]);
+  return p_w_tag;
+}
+
 double TdoaFactor::predictedDifference(const Values& x) const {
-  const Vec3 p_w_tag = x.pose(keys()[0]).transformFrom(p_b_tag_);
+  const Vec3 p_w_tag = tagPosition(x);
   return (p_w_tag - anchorBPosition(x)).norm() - (p_w_tag - anchorAPosition(x)).norm();
 }
 
@@ -88,7 +111,7 @@ void TdoaFactor::evaluate(const Values& x, Residual& r, Jacobians* H) const {
   const Pose3& T_w_b = x.pose(keys()[0]);
   const Vec3& p_w_a = anchors_are_variables_ ? x.vec3(keys()[1]) : p_w_anchor_a_;
   const Vec3& p_w_b = anchors_are_variables_ ? x.vec3(keys()[2]) : p_w_anchor_b_;
-  const Vec3 p_w_tag = T_w_b.transformFrom(p_b_tag_);
+  const Vec3 p_w_tag = tagPosition(x);
   const RangeAndDirection to_a = rangeAndDirection(p_w_tag - p_w_a);
   const RangeAndDirection to_b = rangeAndDirection(p_w_tag - p_w_b);
 
@@ -107,6 +130,11 @@ void TdoaFactor::evaluate(const Values& x, Residual& r, Jacobians* H) const {
     JacobianBlock& J_r_anchor_b = (*H)[2];
     J_r_anchor_b.resize(1, 3);
     J_r_anchor_b = inv_sigma_ * to_b.u_w.transpose();
+  }
+  if (has_offset_) {
+    JacobianBlock& J_r_velocity = (*H)[velocitySlot()];
+    J_r_velocity.resize(1, 3);
+    J_r_velocity = (dt_s_ * inv_sigma_) * (to_a.u_w - to_b.u_w).transpose();  // d p_w_tag / d v_w = dt I
   }
 }
 

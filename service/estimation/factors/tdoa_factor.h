@@ -12,25 +12,31 @@
 // (NLOS-tail) loss is allowed but only down-weights NLOS on b, and treats NLOS
 // on a as if it were on the Gaussian side. The caller decides.
 //
+// A row measured dt after its state's time sees the tag where the state's
+// velocity takes it, p_w_tag + v_w dt (RangeTimeOffset, as a two-way range).
+//
 // Anchors are both variables (keys {X_i, L_a, L_b}) or both constants (key
-// {X_i}). Jacobians are in rilo's retraction charts (pose [phi; rho], Vec3
+// {X_i}), then the offset's velocity key V_i if given. Jacobians are in rilo's retraction charts (pose [phi; rho], Vec3
 // additive). Near a singular configuration (tag on an anchor) the direction
 // convention of rangeAndDirection() in range_factor.h applies.
+#include <optional>
+
 #include "estimation/factors/range_factor.h"
 
 namespace rilo {
 
 class TdoaFactor final : public Factor {
  public:
-  /// Anchors as variables: keys {pose_key, anchor_a_key, anchor_b_key}.
-  /// Throws std::invalid_argument on non-finite diff/lever arm, sigma_m <= 0 or
-  /// repeated keys.
+  /// Anchors as variables: keys {pose_key, anchor_a_key, anchor_b_key}, then
+  /// the offset's velocity key if given. Throws std::invalid_argument on
+  /// non-finite diff/lever arm/offset, sigma_m <= 0 or repeated keys.
   TdoaFactor(Key pose_key, Key anchor_a_key, Key anchor_b_key, double diff_m, double sigma_m, const Vec3& p_b_tag,
-             RobustLossPtr loss = nullptr);
-  /// Anchors as constants (world, m): key {pose_key}. Throws std::invalid_argument
-  /// also when the two anchors coincide (the measurement carries no information).
+             RobustLossPtr loss = nullptr, std::optional<RangeTimeOffset> offset = std::nullopt);
+  /// Anchors as constants (world, m): key {pose_key}, then the offset's
+  /// velocity key if given. Throws std::invalid_argument also when the two
+  /// anchors coincide (the measurement carries no information).
   TdoaFactor(Key pose_key, const Vec3& p_w_anchor_a, const Vec3& p_w_anchor_b, double diff_m, double sigma_m,
-             const Vec3& p_b_tag, RobustLossPtr loss = nullptr);
+             const Vec3& p_b_tag, RobustLossPtr loss = nullptr, std::optional<RangeTimeOffset> offset = std::nullopt);
 
   int dim() const override { return 1; }
   void evaluate(const Values& x, Residual& r, Jacobians* H) const override;
@@ -46,8 +52,11 @@ class TdoaFactor final : public Factor {
   double measuredDifference() const { return diff_m_; }  ///< z (m)
   double sigma() const { return sigma_m_; }               ///< std-dev of the difference (m)
   const Vec3& leverArm() const { return p_b_tag_; }       ///< tag antenna in body frame (m)
-  /// h(x) = |p_tag - A_b| - |p_tag - A_a| (m).
+  /// h(x) = |p_tag - A_b| - |p_tag - A_a| (m), p_tag at the row's time.
   double predictedDifference(const Values& x) const;
+  /// Row time minus state time (s); 0 without an offset.
+  double timeOffset() const { return dt_s_; }
+  bool hasTimeOffset() const { return has_offset_; }
 
  private:
   double diff_m_;      ///< measured range difference z (m)
@@ -57,6 +66,11 @@ class TdoaFactor final : public Factor {
   Vec3 p_w_anchor_a_;  ///< constant anchor a, world (m); unused if variables
   Vec3 p_w_anchor_b_;  ///< constant anchor b, world (m); unused if variables
   bool anchors_are_variables_;
+  bool has_offset_ = false;  ///< keys end with the state's velocity
+  double dt_s_ = 0.0;        ///< row time minus state time (s)
+
+  int velocitySlot() const { return anchors_are_variables_ ? 3 : 1; }
+  Vec3 tagPosition(const Values& x) const;  ///< p_w_tag at the row's time
 };
 
 }  // namespace rilo

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace rilo {
 namespace {
@@ -20,40 +21,54 @@ void requirePositive(double v, const char* name) {
   }
 }
 
+std::vector<Key> ultrasonicKeys(std::vector<Key> keys, const std::optional<RangeTimeOffset>& offset) {
+  if (offset) keys.push_back(offset->velocity_key);
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    for (std::size_t j = i + 1; j < keys.size(); ++j) {
+      if (keys[i] == keys[j]) throw std::invalid_argument("UltrasonicFactor: the pose, anchor and velocity keys must differ");
+    }
+  }
+  return keys;
+}
+
 }  // namespace
 
 UltrasonicFactor::UltrasonicFactor(Key pose_key, Key anchor_key, double range_m, double sigma_range_m,
                                    const Vec3& p_b_us, std::optional<UltrasonicElevation> elevation,
-                                   RobustLossPtr loss)
-    : Factor({pose_key, anchor_key}, std::move(loss)),
+                                   RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
+    : Factor(ultrasonicKeys({pose_key, anchor_key}, offset), std::move(loss)),
       range_m_(range_m),
       sigma_range_m_(sigma_range_m),
       inv_sigma_range_(1.0 / sigma_range_m),
       p_b_us_(p_b_us),
       p_w_anchor_(Vec3::Zero()),
       elevation_(elevation),
-      anchor_is_variable_(true) {
+      anchor_is_variable_(true),
+      has_offset_(offset.has_value()),
+      dt_s_(offset ? offset->dt_s : 0.0) {
   validate();
-  if (pose_key == anchor_key) throw std::invalid_argument("UltrasonicFactor: pose_key and anchor_key must differ");
 }
 
 UltrasonicFactor::UltrasonicFactor(Key pose_key, const Vec3& p_w_anchor, double range_m, double sigma_range_m,
                                    const Vec3& p_b_us, std::optional<UltrasonicElevation> elevation,
-                                   RobustLossPtr loss)
-    : Factor({pose_key}, std::move(loss)),
+                                   RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
+    : Factor(ultrasonicKeys({pose_key}, offset), std::move(loss)),
       range_m_(range_m),
       sigma_range_m_(sigma_range_m),
       inv_sigma_range_(1.0 / sigma_range_m),
       p_b_us_(p_b_us),
       p_w_anchor_(p_w_anchor),
       elevation_(elevation),
-      anchor_is_variable_(false) {
+      anchor_is_variable_(false),
+      has_offset_(offset.has_value()),
+      dt_s_(offset ? offset->dt_s : 0.0) {
   validate();
   requireFinite(p_w_anchor, "p_w_anchor");
 }
 
 void UltrasonicFactor::validate() const {
   requireFinite(range_m_, "range_m");
+  requireFinite(dt_s_, "time offset");
   requirePositive(sigma_range_m_, "sigma_range_m");
   requireFinite(p_b_us_, "p_b_us");
   if (elevation_) {
@@ -78,18 +93,22 @@ Vec3 UltrasonicFactor::anchorPosition(const Values& x) const {
   return anchor_is_variable_ ? x.vec3(keys()[1]) : p_w_anchor_;
 }
 
-double UltrasonicFactor::predictedRange(const Values& x) const {
-  return (x.pose(keys()[0]).transformFrom(p_b_us_) - anchorPosition(x)).norm();
+Vec3 UltrasonicFactor::receiverPosition(const Values& x) const {
+  Vec3 p_w_us = x.pose(keys()[0]).transformFrom(p_b_us_);
+  if (has_offset_) p_w_us += dt_s_ * x.vec3(keys()[velocitySlot()]);
+  return p_w_us;
 }
 
+double UltrasonicFactor::predictedRange(const Values& x) const { return (receiverPosition(x) - anchorPosition(x)).norm(); }
+
 double UltrasonicFactor::predictedHeightDifference(const Values& x) const {
-  return verticalNormal().dot(x.pose(keys()[0]).transformFrom(p_b_us_) - anchorPosition(x));
+  return verticalNormal().dot(receiverPosition(x) - anchorPosition(x));
 }
 
 void UltrasonicFactor::evaluate(const Values& x, Residual& r, Jacobians* H) const {
   const Pose3& T_w_b = x.pose(keys()[0]);
   const Vec3& p_w_anchor = anchor_is_variable_ ? x.vec3(keys()[1]) : p_w_anchor_;
-  const Vec3 d_w = T_w_b.transformFrom(p_b_us_) - p_w_anchor;
+  const Vec3 d_w = receiverPosition(x) - p_w_anchor;
   const RangeAndDirection rd = rangeAndDirection(d_w);
   const Vec3 n_w = verticalNormal();
   const int rows = dim();
@@ -113,6 +132,12 @@ void UltrasonicFactor::evaluate(const Values& x, Residual& r, Jacobians* H) cons
     J_r_anchor.resize(rows, 3);
     J_r_anchor.row(0) = inv_sigma_range_ * rd.u_w.transpose();
     if (elevation_) J_r_anchor.row(1) = -inv_sigma_h * n_w.transpose();
+  }
+  if (has_offset_) {
+    JacobianBlock& J_r_velocity = (*H)[velocitySlot()];  // d p_w_us / d v_w = dt I
+    J_r_velocity.resize(rows, 3);
+    J_r_velocity.row(0) = (-dt_s_ * inv_sigma_range_) * rd.u_w.transpose();
+    if (elevation_) J_r_velocity.row(1) = (dt_s_ * inv_sigma_h) * n_w.transpose();
   }
 }
 

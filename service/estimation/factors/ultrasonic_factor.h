@@ -27,7 +27,11 @@
 // symmetric loss, so an asymmetric loss with an elevation row is rejected in
 // the constructor.
 //
-// Anchor variable (keys {X_i, L_j}) or constant (key {X_i}); Jacobians in
+// A range measured dt after its state's time sees the receiver where the
+// state's velocity takes it, p_w_tag + v_w dt (RangeTimeOffset): both rows.
+//
+// Anchor variable (keys {X_i, L_j}) or constant (key {X_i}), then the
+// offset's velocity key V_i if given; Jacobians in
 // rilo's retraction charts; the singular-direction convention of
 // rangeAndDirection() (range_factor.h) applies when the receiver is on the anchor.
 #include <optional>
@@ -44,14 +48,17 @@ struct UltrasonicElevation {
 
 class UltrasonicFactor final : public Factor {
  public:
-  /// Anchor as a variable: keys {pose_key, anchor_key}. Throws std::invalid_argument
-  /// on non-finite inputs, non-positive sigmas, pose_key == anchor_key, or an
-  /// asymmetric loss together with an elevation row.
+  /// Anchor as a variable: keys {pose_key, anchor_key}, then the offset's
+  /// velocity key if given. Throws std::invalid_argument on non-finite inputs,
+  /// non-positive sigmas, repeated keys, or an asymmetric loss together with
+  /// an elevation row.
   UltrasonicFactor(Key pose_key, Key anchor_key, double range_m, double sigma_range_m, const Vec3& p_b_us,
-                   std::optional<UltrasonicElevation> elevation = std::nullopt, RobustLossPtr loss = nullptr);
-  /// Anchor as a constant p_w_anchor (world, m): key {pose_key}.
+                   std::optional<UltrasonicElevation> elevation = std::nullopt, RobustLossPtr loss = nullptr,
+                   std::optional<RangeTimeOffset> offset = std::nullopt);
+  /// Anchor as a constant p_w_anchor (world, m): key {pose_key}, then the offset's velocity key if given.
   UltrasonicFactor(Key pose_key, const Vec3& p_w_anchor, double range_m, double sigma_range_m, const Vec3& p_b_us,
-                   std::optional<UltrasonicElevation> elevation = std::nullopt, RobustLossPtr loss = nullptr);
+                   std::optional<UltrasonicElevation> elevation = std::nullopt, RobustLossPtr loss = nullptr,
+                   std::optional<RangeTimeOffset> offset = std::nullopt);
 
   /// 1 (range only) or 2 (range and elevation).
   int dim() const override { return elevation_ ? 2 : 1; }
@@ -67,6 +74,9 @@ class UltrasonicFactor final : public Factor {
   double sigmaRange() const { return sigma_range_m_; }        ///< range std-dev (m)
   const std::optional<UltrasonicElevation>& elevation() const { return elevation_; }
   const Vec3& leverArm() const { return p_b_us_; }            ///< receiver in body frame (m)
+  /// Range time minus state time (s); 0 without an offset.
+  double timeOffset() const { return dt_s_; }
+  bool hasTimeOffset() const { return has_offset_; }
   /// Vertical normal n (world), (0, 0, 1).
   static Vec3 verticalNormal() { return Vec3::UnitZ(); }
   /// |p_tag - p_anchor| (m).
@@ -84,6 +94,11 @@ class UltrasonicFactor final : public Factor {
   Vec3 p_w_anchor_;                                ///< constant anchor, world (m); unused if variable
   std::optional<UltrasonicElevation> elevation_;   ///< elevation row, if any
   bool anchor_is_variable_;
+  bool has_offset_ = false;  ///< keys end with the state's velocity
+  double dt_s_ = 0.0;        ///< range time minus state time (s)
+
+  int velocitySlot() const { return anchor_is_variable_ ? 2 : 1; }
+  Vec3 receiverPosition(const Values& x) const;  ///< p_w_tag at the range's time
 };
 
 }  // namespace rilo

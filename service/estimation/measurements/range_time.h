@@ -1,9 +1,10 @@
 #pragma once
-// Where the tag's body is when a range is measured dt after its state: the
-// state's velocity carries it on (RangeFactor's RangeTimeOffset, the same
-// model). One definition for every place that predicts a state's later
-// ranges outside the factor (dynamic covariance, range consistency, the
-// ranges topic), so they judge what the smoother fits.
+// Where the tag's body is when a range (two-way, TDoA row or ultrasonic) is
+// measured dt after its state: the state's velocity carries it on (the
+// factors' RangeTimeOffset, the same model). One definition for every place
+// that predicts a state's later measurements outside the factors (dynamic
+// covariance, TDoA gap excess, range consistency, the ranges topic), so they
+// judge what the smoother fits.
 #include <cstdint>
 
 #include "math/pose3.h"

@@ -102,7 +102,9 @@ struct LocalizerParams {
     /// Measurements closer than this share one state, instead of
     /// graph.same_state_window_ns (ns; 0: keep that). A TDoA round of 8
     /// anchors is 8 packets 6.25 ms apart: 40 states a second instead of
-    /// 160. With the graph's 5 ms the office TDoA sims replayed at 3.4x real
+    /// 160; each row is predicted at its own time (RangeTimeOffset). 50 ms
+    /// replayed 1.2-1.7x faster but less accurately (docs/smoother.md,
+    /// session 41). With the graph's 5 ms the office TDoA sims replayed at 3.4x real
     /// time and 0.46 m online error, against 27x and 0.35 m. Below
     /// graph.max_state_interval_ns. The range-consistency monitor follows
     /// the tracker's window (trackingStateWindowNs).

@@ -6,7 +6,8 @@
 //    smoother update that took it, is below 0.5: the range model's own loss
 //    (makeRangeLoss with the graph's range_loss and range_noise) on the
 //    whitened signed residual (measured - predicted) / sigma, predicted from
-//    the state's pose, the lever arm and the surveyed anchor. That is the
+//    the state's pose moved on by its velocity to the range's time
+//    (poseAtRangeTime), the lever arm and the surveyed anchor. That is the
 //    IRLS weight the smoother gave the range at that estimate: the share of
 //    the range it treated as NLOS/outlier. (rilo replay's NLOS figure judges
 //    the same way at the final smoothed trajectory instead.)
@@ -29,7 +30,7 @@ namespace rilo {
 struct RangeVerdict {
   std::uint32_t anchor_id = 0;
   double range_m = 0.0;
-  double predicted_m = 0.0;  ///< from the state's pose, the lever arm and the surveyed anchor
+  double predicted_m = 0.0;  ///< from the state's pose moved on by its velocity to the range's time, the lever arm and the surveyed anchor
   double weight = 1.0;       ///< the range model's robust weight
   std::int64_t t_offset_ns = 0;  ///< the range's time minus its state's (0 to the state window)
 };

@@ -110,6 +110,41 @@ TEST(MeasurementNoise, PredictionsAreTheFactorModels) {
               1e-12);
 }
 
+// A state holds the measurements of its window (25 ms for TDoA, 50 ms for
+// two-way ranges): a later one's residual is taken where the state's velocity
+// takes the tag by its time, as its factor predicts it (RangeTimeOffset), so
+// the walk is not mistaken for the link's noise.
+TEST(MeasurementNoise, AMeasurementAfterItsStateIsJudgedWhereTheVelocityTakesTheTag) {
+  const RangeImuGraphParams g = geometryParams();
+  const Pose3 T(so3::exp(Vec3(0.0, 0.0, 0.4)), Vec3(3.0, 4.0, 1.2));
+  const Vec3 v_w(1.5, 0.5, 0.0);
+  const std::int64_t dt_ns = 40'000'000;
+  Pose3 T_later = T;
+  T_later.p += 0.04 * v_w;
+  for (const Measurement::Kind kind : {Measurement::Kind::kTdoa, Measurement::Kind::kUltrasonic}) {
+    MeasurementNoise compensated(anchors(), g, on()), exact(anchors(), g, on()), uncompensated(anchors(), g, on());
+    Measurement m{kind, 0, kind == Measurement::Kind::kTdoa ? 0u : 3u, 2, 0.0};
+    const double miss_m = compensated.predict(m, T_later) - compensated.predict(m, T);
+    ASSERT_GT(std::abs(miss_m), 0.03) << "the walk moves the prediction";
+    for (std::uint64_t k = 1; k <= 300; ++k) {
+      const std::int64_t t_ns = static_cast<std::int64_t>(k) * 100'000'000;
+      m.t_ns = t_ns + dt_ns;
+      m.value_m = compensated.predict(m, T_later);  // exact at the measurement's time
+      compensated.notePrediction(k, t_ns, m, T, v_w);
+      compensated.notePostFit(k, T, v_w);
+      uncompensated.notePrediction(k, m.t_ns, m, T, v_w);  // as if measured at the state
+      uncompensated.notePostFit(k, T, v_w);
+      Measurement at_state = m;
+      at_state.t_ns = t_ns;
+      at_state.value_m = exact.predict(m, T);
+      exact.notePrediction(k, t_ns, at_state, T, v_w);
+      exact.notePostFit(k, T, v_w);
+    }
+    EXPECT_NEAR(compensated.sigma(m), exact.sigma(m), 1e-12) << "kind " << static_cast<int>(kind);
+    EXPECT_GT(uncompensated.sigma(m), compensated.sigma(m) + 0.5 * std::abs(miss_m)) << "kind " << static_cast<int>(kind);
+  }
+}
+
 /// The stream's situation, linearized: a predicted position with error
 /// N(0, prior_sigma^2 I), measurements of one state with noise `meas_sigma`,
 /// the MAP update of the position from both. Returns the dynamic sigma of the

@@ -21,6 +21,7 @@
 #include "estimation/factors/prior_factors.h"
 #include "estimation/factors/range_factor.h"
 #include "estimation/factors/tdoa_factor.h"
+#include "estimation/factors/ultrasonic_factor.h"
 #include "estimation/solver/batch_lm.h"
 #include "sim/range_imu_scenario.h"
 #include "support/resting_imu.h"
@@ -809,18 +810,30 @@ TEST(RangeImuGraphStream, RangesOfOneStateArePredictedAtTheirOwnTimes) {
   EXPECT_GT(worst_uncompensated_m, 0.02);
 }
 
+/// What TdoaRowsOfOneStateArePredictedAtTheirOwnTimes measures over the
+/// factors of one kind: how many, how many later than their state, and the
+/// worst miss at the true states with and without their time offset.
+struct OwnTimeFit {
+  std::size_t factors = 0, later = 0;
+  double worst_m = 0.0, worst_uncompensated_m = 0.0;
+};
+
 TEST(RangeImuGraphStream, TdoaRowsOfOneStateArePredictedAtTheirOwnTimes) {
-  // Exact TDoA rows every 12.5 ms (the office TDoA sims' rate) on a walk,
-  // 25 ms windows (LocalizerParams::with_tdoa): two rows a state. At the true
-  // states every row must fit to well under a centimetre, the later ones by
-  // the state's velocity, as a state's later two-way ranges.
+  // Exact TDoA rows every 12.5 ms (the office TDoA sims' rate) and exact
+  // ultrasonic ranges every 50 ms on a walk, 25 ms windows
+  // (LocalizerParams::with_tdoa): two or three measurements a state. At the
+  // true states every one must fit to well under a centimetre, the later ones
+  // by the state's velocity, as a state's later two-way ranges; with anchors
+  // as variables (the service) and as constants.
   const sim::Scenario s = makeScenario(6.0);
-  RangeImuGraphParams gp = graphParams(s);
-  gp.same_state_window_ns = 25'000'000;
-  gp.tdoa_sigma_m = 0.1;
   const std::int64_t t0_ns = s.ranges.front().t_ns;
   const std::int64_t t_end_ns = s.ranges.back().t_ns;
   const std::uint32_t n_anchors = static_cast<std::uint32_t>(s.p_w_anchors.size());
+  RangeImuGraphParams gp = graphParams(s);
+  gp.same_state_window_ns = 25'000'000;
+  gp.tdoa_sigma_m = 0.1;
+  gp.p_b_ultrasonic = Vec3(0.0, 0.03, 0.14);
+  gp.p_w_ultrasonic = {Vec3(2.0, 2.0, 3.0), Vec3(6.0, 4.0, 3.0)};
   std::vector<TdoaSample> rows;
   for (std::int64_t t = t0_ns, k = 0; t < t_end_ns; t += 12'500'000, ++k) {
     TdoaSample d;
@@ -831,57 +844,88 @@ TEST(RangeImuGraphStream, TdoaRowsOfOneStateArePredictedAtTheirOwnTimes) {
     d.diff_m = (p_w_tag - s.p_w_anchors[d.anchor_b]).norm() - (p_w_tag - s.p_w_anchors[d.anchor_a]).norm();
     rows.push_back(d);
   }
-  RangeImuGraphStream stream(s.p_w_anchors, gp);
-  std::vector<FactorPtr> factors;
-  std::vector<std::int64_t> state_t_ns;
-  std::vector<Key> anchor_keys;
-  StateEstimate previous;
-  auto collect = [&](const GraphIncrement& inc) {
-    if (inc.new_state) {
-      state_t_ns.push_back(inc.t_ns);
-      previous.index = inc.state_index;
-      previous.t_ns = inc.t_ns;
-      previous.T_w_b = s.truthAt(inc.t_ns).T_w_b;
-      previous.v_w = s.truthAt(inc.t_ns).v_w;
+  std::vector<UltrasonicSample> pings;
+  for (std::int64_t t = t0_ns + 6'000'000, k = 0; t < t_end_ns; t += 50'000'000, ++k) {
+    UltrasonicSample u;
+    u.t_ns = t;
+    u.anchor_id = static_cast<std::uint32_t>(k % 2);
+    u.range_m = (s.truthAt(t).T_w_b.transformFrom(gp.p_b_ultrasonic) - gp.p_w_ultrasonic[u.anchor_id]).norm();
+    pings.push_back(u);
+  }
+
+  for (const bool vars : {true, false}) {
+    gp.anchors_as_variables = vars;
+    RangeImuGraphStream stream(s.p_w_anchors, gp);
+    std::vector<FactorPtr> factors;
+    std::vector<std::int64_t> state_t_ns;
+    std::vector<Key> anchor_keys;
+    StateEstimate previous;
+    auto collect = [&](const GraphIncrement& inc) {
+      if (inc.new_state) {
+        state_t_ns.push_back(inc.t_ns);
+        previous.index = inc.state_index;
+        previous.t_ns = inc.t_ns;
+        previous.T_w_b = s.truthAt(inc.t_ns).T_w_b;
+        previous.v_w = s.truthAt(inc.t_ns).v_w;
+      }
+      for (const FactorPtr& f : inc.factors) factors.push_back(f);
+      for (Key l : inc.new_anchor_keys) anchor_keys.push_back(l);
+    };
+    collect(stream.start(t0_ns, s.truthAt(t0_ns).T_w_b, s.truthAt(t0_ns).v_w));
+    std::size_t i = 0, k = 0, u = 0;
+    while (i < s.imu.size() && s.imu[i].t_ns <= t_end_ns + 100'000'000) {
+      if (k < rows.size() && rows[k].t_ns <= s.imu[i].t_ns && (u == pings.size() || rows[k].t_ns <= pings[u].t_ns)) {
+        stream.addTdoa(rows[k++]);
+      } else if (u < pings.size() && pings[u].t_ns <= s.imu[i].t_ns) {
+        stream.addUltrasonic(pings[u++]);
+      } else {
+        stream.addImu(s.imu[i++]);
+      }
+      while (std::optional<GraphIncrement> inc = stream.next(previous)) collect(*inc);
     }
-    for (const FactorPtr& f : inc.factors) factors.push_back(f);
-    for (Key l : inc.new_anchor_keys) anchor_keys.push_back(l);
-  };
-  collect(stream.start(t0_ns, s.truthAt(t0_ns).T_w_b, s.truthAt(t0_ns).v_w));
-  std::size_t i = 0, k = 0;
-  while (i < s.imu.size() && s.imu[i].t_ns <= t_end_ns + 100'000'000) {
-    if (k < rows.size() && rows[k].t_ns <= s.imu[i].t_ns) {
-      stream.addTdoa(rows[k++]);
-    } else {
-      stream.addImu(s.imu[i++]);
-    }
+    stream.finish();
     while (std::optional<GraphIncrement> inc = stream.next(previous)) collect(*inc);
+    std::sort(anchor_keys.begin(), anchor_keys.end());
+    const Values truth = sim::truthValues(s, state_t_ns, anchor_keys);
+    OwnTimeFit tdoa, ultrasonic;
+    for (const FactorPtr& f : factors) {
+      if (const auto* t = dynamic_cast<const TdoaFactor*>(f.get())) {
+        ++tdoa.factors;
+        ASSERT_GE(t->timeOffset(), 0.0);
+        ASSERT_LE(t->timeOffset(), 0.025 + 1e-9);
+        tdoa.worst_m = std::max(tdoa.worst_m, std::abs(t->measuredDifference() - t->predictedDifference(truth)));
+        if (!t->hasTimeOffset()) continue;
+        ++tdoa.later;
+        EXPECT_EQ(t->keys().back(), sym::V(keyIndex(t->poseKey())));
+        EXPECT_EQ(t->anchorsAreVariables(), vars);
+        const TdoaFactor at_state = vars ? TdoaFactor(t->poseKey(), t->anchorAKey(), t->anchorBKey(),
+                                                      t->measuredDifference(), t->sigma(), t->leverArm())
+                                         : TdoaFactor(t->poseKey(), t->anchorAPosition(truth), t->anchorBPosition(truth),
+                                                      t->measuredDifference(), t->sigma(), t->leverArm());
+        tdoa.worst_uncompensated_m = std::max(tdoa.worst_uncompensated_m,
+                                              std::abs(at_state.measuredDifference() - at_state.predictedDifference(truth)));
+      } else if (const auto* us = dynamic_cast<const UltrasonicFactor*>(f.get())) {
+        ++ultrasonic.factors;
+        ultrasonic.worst_m = std::max(ultrasonic.worst_m, std::abs(us->measuredRange() - us->predictedRange(truth)));
+        if (!us->hasTimeOffset()) continue;
+        ++ultrasonic.later;
+        EXPECT_EQ(us->keys().back(), sym::V(keyIndex(us->poseKey())));
+        const UltrasonicFactor at_state(us->poseKey(), us->anchorPosition(truth), us->measuredRange(), us->sigmaRange(),
+                                        us->leverArm());
+        ultrasonic.worst_uncompensated_m = std::max(ultrasonic.worst_uncompensated_m,
+                                                    std::abs(at_state.measuredRange() - at_state.predictedRange(truth)));
+      }
+    }
+    SCOPED_TRACE(vars ? "anchors as variables" : "anchors as constants");
+    EXPECT_GT(tdoa.factors, rows.size() * 9 / 10);
+    EXPECT_GT(tdoa.later, tdoa.factors / 3);
+    EXPECT_LT(tdoa.worst_m, 0.005);
+    EXPECT_GT(tdoa.worst_uncompensated_m, 0.01);
+    EXPECT_GT(ultrasonic.factors, pings.size() * 9 / 10);
+    EXPECT_GT(ultrasonic.later, ultrasonic.factors / 2) << "6 ms after a row's state at least";
+    EXPECT_LT(ultrasonic.worst_m, 0.002);
+    EXPECT_GT(ultrasonic.worst_uncompensated_m, 0.005);
   }
-  stream.finish();
-  while (std::optional<GraphIncrement> inc = stream.next(previous)) collect(*inc);
-  std::sort(anchor_keys.begin(), anchor_keys.end());
-  const Values truth = sim::truthValues(s, state_t_ns, anchor_keys);
-  std::size_t tdoa_factors = 0, later = 0;
-  double worst_m = 0.0, worst_uncompensated_m = 0.0;
-  for (const FactorPtr& f : factors) {
-    const auto* t = dynamic_cast<const TdoaFactor*>(f.get());
-    if (t == nullptr) continue;
-    ++tdoa_factors;
-    ASSERT_GE(t->timeOffset(), 0.0);
-    ASSERT_LE(t->timeOffset(), 0.025 + 1e-9);
-    worst_m = std::max(worst_m, std::abs(t->measuredDifference() - t->predictedDifference(truth)));
-    if (!t->hasTimeOffset()) continue;
-    ++later;
-    EXPECT_EQ(t->keys().back(), sym::V(keyIndex(t->poseKey())));
-    const TdoaFactor at_state(t->poseKey(), t->anchorAKey(), t->anchorBKey(), t->measuredDifference(), t->sigma(),
-                              t->leverArm());
-    worst_uncompensated_m =
-        std::max(worst_uncompensated_m, std::abs(at_state.measuredDifference() - at_state.predictedDifference(truth)));
-  }
-  EXPECT_GT(tdoa_factors, rows.size() * 9 / 10);
-  EXPECT_GT(later, tdoa_factors / 3);
-  EXPECT_LT(worst_m, 0.005);
-  EXPECT_GT(worst_uncompensated_m, 0.01);
 }
 
 TEST(RangeImuGraphStream, RangesSpeakToTheHeightByTheirVerticalLever) {

@@ -56,7 +56,7 @@ TEST(NlosClassification, LongRangesAreDownWeightedAndScoredAgainstTheLabels) {
 // A state holds the ranges of its next 50 ms (config/rilod.yaml): a range
 // between two poses is judged where the walk between them puts the tag.
 TEST(NlosClassification, ARangeBetweenTwoPosesIsJudgedWhereTheWalkPutsTheTagAtItsTime) {
-  const std::vector<Vec3> anchors = {Vec3(10, 0, 1.2)};  // ahead, along the walk
+  const std::vector<Vec3> anchors = {Vec3(-10, 0, 1.2)};  // behind, along the walk
   const std::vector<RangeImuEstimator::TimedPose> trajectory = {
       {0, Pose3(Mat3::Identity(), Vec3(0.0, 0, 1.2))}, {100'000'000, Pose3(Mat3::Identity(), Vec3(0.2, 0, 1.2))}};
   RangeNoiseParams noise;
@@ -65,7 +65,7 @@ TEST(NlosClassification, ARangeBetweenTwoPosesIsJudgedWhereTheWalkPutsTheTagAtIt
   RangeSample r;
   r.anchor_id = 0;
   r.t_ns = 40'000'000;  // 2 m/s: the tag is 0.08 m on from the first pose, 0.12 m short of the second
-  r.range_m = 10.0 - 0.08;
+  r.range_m = 10.0 + 0.08;
   r.los = 1;
   const NlosClassification c = classifyRanges({r}, trajectory, anchors, Vec3::Zero(), model, noise.sigma_m);
   EXPECT_EQ(c.ranges, 1u);

@@ -16,8 +16,9 @@
 // ErrorStateEkf::updateTdoaGroup: group gate, correlated rows, iterated
 // re-weighting) when the group closes, at the filter's time then (the last
 // IMU sample before the one that passes the window: the rows' motion within
-// the window is not modelled, as the graph puts them on one state); ranges
-// and ultrasonic ranges update as they come.
+// the window, up to 25 ms of walking, is not modelled; the graph predicts
+// each row at its own time since session 41, the EKF baseline not yet);
+// ranges and ultrasonic ranges update as they come.
 //
 // Measurement models, noise, losses and the tag height band are the graph's (RangeImuGraphParams):
 // ranges with range_loss and range_noise.sigma_m, TDoA with tdoa_loss and

@@ -20,19 +20,19 @@ void requirePositive(double v, const char* name) {
   }
 }
 
-std::vector<Key> rangeKeys(Key pose_key, std::optional<Key> anchor_key, const std::optional<RangeTimeOffset>& offset) {
-  std::vector<Key> keys{pose_key};
-  if (anchor_key) keys.push_back(*anchor_key);
-  if (offset) keys.push_back(offset->velocity_key);
-  for (std::size_t i = 0; i < keys.size(); ++i) {
-    for (std::size_t j = i + 1; j < keys.size(); ++j) {
-      if (keys[i] == keys[j]) throw std::invalid_argument("RangeFactor: the pose, anchor and velocity keys must differ");
+}  // namespace
+
+std::vector<Key> withVelocityKey(std::vector<Key> keys, const std::optional<RangeTimeOffset>& offset,
+                                 const char* factor) {
+  if (!offset) return keys;
+  for (Key k : keys) {
+    if (k == offset->velocity_key) {
+      throw std::invalid_argument(std::string(factor) + ": the velocity key must differ from the other keys");
     }
   }
+  keys.push_back(offset->velocity_key);
   return keys;
 }
-
-}  // namespace
 
 RangeAndDirection rangeAndDirection(const Vec3& d_w) {
   const double range_m = d_w.norm();
@@ -51,7 +51,7 @@ Eigen::Matrix<double, 1, 6> tagPointGradientToPoseTangent(const Mat3& R_w_b, con
 
 RangeFactor::RangeFactor(Key pose_key, Key anchor_key, double range_m, double sigma_m, const Vec3& p_b_tag,
                          RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
-    : Factor(rangeKeys(pose_key, anchor_key, offset), std::move(loss)),
+    : Factor(withVelocityKey({pose_key, anchor_key}, offset, "RangeFactor"), std::move(loss)),
       range_m_(range_m),
       sigma_m_(sigma_m),
       inv_sigma_(1.0 / sigma_m),
@@ -64,11 +64,12 @@ RangeFactor::RangeFactor(Key pose_key, Key anchor_key, double range_m, double si
   requirePositive(sigma_m, "sigma_m");
   requireFinite(p_b_tag, "p_b_tag");
   requireFinite(dt_s_, "time offset");
+  if (pose_key == anchor_key) throw std::invalid_argument("RangeFactor: pose_key and anchor_key must differ");
 }
 
 RangeFactor::RangeFactor(Key pose_key, const Vec3& p_w_anchor, double range_m, double sigma_m,
                          const Vec3& p_b_tag, RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
-    : Factor(rangeKeys(pose_key, std::nullopt, offset), std::move(loss)),
+    : Factor(withVelocityKey({pose_key}, offset, "RangeFactor"), std::move(loss)),
       range_m_(range_m),
       sigma_m_(sigma_m),
       inv_sigma_(1.0 / sigma_m),

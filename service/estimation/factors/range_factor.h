@@ -33,6 +33,7 @@
 // subgradient of |.| at 0, keeps r and H finite, and lets a solver move the
 // tag off the anchor along a deterministic direction.
 #include <optional>
+#include <vector>
 
 #include "estimation/graph/factor.h"
 
@@ -58,6 +59,13 @@ struct RangeTimeOffset {
   Key velocity_key;  ///< the state's world-frame velocity (Vec3, m/s)
   double dt_s;       ///< range time minus state time (s), finite
 };
+
+/// A range-like factor's keys: `keys`, then the offset's velocity key if
+/// given. Throws std::invalid_argument naming `factor` when the velocity key
+/// repeats one of the others. Shared by RangeFactor, TdoaFactor and
+/// UltrasonicFactor.
+std::vector<Key> withVelocityKey(std::vector<Key> keys, const std::optional<RangeTimeOffset>& offset,
+                                 const char* factor);
 
 class RangeFactor final : public Factor {
  public:

@@ -3,7 +3,6 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
-#include <vector>
 
 namespace rilo {
 namespace {
@@ -21,21 +20,11 @@ void requirePositive(double v, const char* name) {
   }
 }
 
-std::vector<Key> tdoaKeys(std::vector<Key> keys, const std::optional<RangeTimeOffset>& offset) {
-  if (offset) {
-    for (Key k : keys) {
-      if (k == offset->velocity_key) throw std::invalid_argument("TdoaFactor: the velocity key must differ from the others");
-    }
-    keys.push_back(offset->velocity_key);
-  }
-  return keys;
-}
-
 }  // namespace
 
 TdoaFactor::TdoaFactor(Key pose_key, Key anchor_a_key, Key anchor_b_key, double diff_m, double sigma_m,
                        const Vec3& p_b_tag, RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
-    : Factor(tdoaKeys({pose_key, anchor_a_key, anchor_b_key}, offset), std::move(loss)),
+    : Factor(withVelocityKey({pose_key, anchor_a_key, anchor_b_key}, offset, "TdoaFactor"), std::move(loss)),
       diff_m_(diff_m),
       sigma_m_(sigma_m),
       inv_sigma_(1.0 / sigma_m),
@@ -57,7 +46,7 @@ TdoaFactor::TdoaFactor(Key pose_key, Key anchor_a_key, Key anchor_b_key, double 
 
 TdoaFactor::TdoaFactor(Key pose_key, const Vec3& p_w_anchor_a, const Vec3& p_w_anchor_b, double diff_m,
                        double sigma_m, const Vec3& p_b_tag, RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
-    : Factor(tdoaKeys({pose_key}, offset), std::move(loss)),
+    : Factor(withVelocityKey({pose_key}, offset, "TdoaFactor"), std::move(loss)),
       diff_m_(diff_m),
       sigma_m_(sigma_m),
       inv_sigma_(1.0 / sigma_m),

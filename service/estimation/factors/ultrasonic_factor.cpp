@@ -3,7 +3,6 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
-#include <vector>
 
 namespace rilo {
 namespace {
@@ -21,22 +20,12 @@ void requirePositive(double v, const char* name) {
   }
 }
 
-std::vector<Key> ultrasonicKeys(std::vector<Key> keys, const std::optional<RangeTimeOffset>& offset) {
-  if (offset) keys.push_back(offset->velocity_key);
-  for (std::size_t i = 0; i < keys.size(); ++i) {
-    for (std::size_t j = i + 1; j < keys.size(); ++j) {
-      if (keys[i] == keys[j]) throw std::invalid_argument("UltrasonicFactor: the pose, anchor and velocity keys must differ");
-    }
-  }
-  return keys;
-}
-
 }  // namespace
 
 UltrasonicFactor::UltrasonicFactor(Key pose_key, Key anchor_key, double range_m, double sigma_range_m,
                                    const Vec3& p_b_us, std::optional<UltrasonicElevation> elevation,
                                    RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
-    : Factor(ultrasonicKeys({pose_key, anchor_key}, offset), std::move(loss)),
+    : Factor(withVelocityKey({pose_key, anchor_key}, offset, "UltrasonicFactor"), std::move(loss)),
       range_m_(range_m),
       sigma_range_m_(sigma_range_m),
       inv_sigma_range_(1.0 / sigma_range_m),
@@ -47,12 +36,13 @@ UltrasonicFactor::UltrasonicFactor(Key pose_key, Key anchor_key, double range_m,
       has_offset_(offset.has_value()),
       dt_s_(offset ? offset->dt_s : 0.0) {
   validate();
+  if (pose_key == anchor_key) throw std::invalid_argument("UltrasonicFactor: pose_key and anchor_key must differ");
 }
 
 UltrasonicFactor::UltrasonicFactor(Key pose_key, const Vec3& p_w_anchor, double range_m, double sigma_range_m,
                                    const Vec3& p_b_us, std::optional<UltrasonicElevation> elevation,
                                    RobustLossPtr loss, std::optional<RangeTimeOffset> offset)
-    : Factor(ultrasonicKeys({pose_key}, offset), std::move(loss)),
+    : Factor(withVelocityKey({pose_key}, offset, "UltrasonicFactor"), std::move(loss)),
       range_m_(range_m),
       sigma_range_m_(sigma_range_m),
       inv_sigma_range_(1.0 / sigma_range_m),

@@ -71,6 +71,7 @@ struct ReplaySettings {
   std::optional<double> flagged_excess_quantile;  ///< FlaggedExcessParams::quantile (0: off)
   std::optional<bool> los_gap_calibration;        ///< LosGapParams::enabled
   std::optional<bool> rx_level_indicator;         ///< RxLevelEnvelopeParams::enabled
+  std::optional<double> nlos_memory_s;            ///< NlosMemoryParams::window_s
   std::optional<double> max_outside_anchors_m;    ///< LocalizerParams::max_outside_anchors_m (+inf: off)
   std::optional<double> init_max_outside_anchors_m;  ///< InitializerParams::max_outside_anchors_m (+inf: off)
   std::optional<double> init_heavy_nlos_after_s;     ///< InitializerParams::heavy_nlos_after_s (+inf: off)

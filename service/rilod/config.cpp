@@ -236,6 +236,7 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
   const ConfigMap m = field.map({"noise_model", "sigma_m", "huber_k", "cauchy_c", "nlos_scale_m", "nlos_weight",
                                  "nlos_power_gap_db", "flagged_nlos_weight", "flagged_nlos_scale_m", "flagged_nlos_component",
                                  "flagged_scale_reference_hz", "flagged_excess_quantile", "los_gap_calibration", "rx_level_indicator",
+                                 "nlos_memory_s",
                                  "lever_arm_m", "same_state_window_s", "max_state_interval_s", "max_wait_s"});
   RangeImuGraphParams& g = e.graph;
   if (auto f = m.get("noise_model")) {
@@ -263,6 +264,7 @@ void readRange(const ConfigField& field, EstimatorConfig& e) {
   m.read("flagged_excess_quantile", e.flagged_excess_quantile, [](const ConfigField& f) { return f.number(0.0, 1.0); });
   if (auto f = m.get("los_gap_calibration")) e.los_gap_calibration = f->boolean();
   if (auto f = m.get("rx_level_indicator")) e.rx_level_indicator = f->boolean();
+  m.read("nlos_memory_s", e.nlos_memory_s, [](const ConfigField& f) { return f.number(0.0, 60.0); });
   m.read("lever_arm_m", g.p_b_tag, [](const ConfigField& f) {
     const Vec3 v = f.vec3();
     if (v.norm() > 5.0) f.fail("expected a lever arm of at most 5 m, got " + std::to_string(v.norm()) + " m");

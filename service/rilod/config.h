@@ -159,6 +159,10 @@ struct EstimatorConfig {
   /// Ranges without first-path power: the RX level's deficit below the
   /// learnt LOS envelope as their NLOS indicator (RxLevelEnvelopeParams).
   bool rx_level_indicator = RxLevelEnvelopeParams().enabled;
+  /// Ranges without first-path power: an anchor whose last two ranges the
+  /// mixture took as NLOS within this has its next one flagged (s;
+  /// NlosMemoryParams::window_s; 0: off).
+  double nlos_memory_s = NlosMemoryParams().window_s;
   /// Tag height band above the floor (a wearable's height; see
   /// estimation/measurements/height_band.h): initialization and every state.
   HeightBand height_band;

@@ -61,6 +61,7 @@ LocalizerParams localizerParams(const EstimatorConfig& e) {
   lp.flagged_excess.quantile = e.flagged_excess_quantile;
   lp.los_gap.enabled = e.los_gap_calibration;
   lp.rx_level_envelope.enabled = e.rx_level_indicator;
+  lp.nlos_memory.window_s = e.nlos_memory_s;
   lp.with_tdoa = e.with_tdoa;
   lp.screen = e.input_screen;
   return lp;

@@ -27,6 +27,10 @@ struct RangeSample {
   /// level (Localizer::withRxLevelIndicator): the flag it gives says a path
   /// is attenuated, not how much it is delayed.
   bool fp_from_rx_level = false;
+  /// The receiver reported no first-path power and the estimator's mixture
+  /// took this anchor's last ranges as NLOS (Localizer, nlos_memory.h): taken
+  /// as flagged NLOS at the component's mode.
+  bool nlos_from_memory = false;
 };
 
 /// Time difference of arrival between two UWB anchors:

@@ -339,6 +339,49 @@ TEST(RangeModel, RxLevelFlagsTakeTheComponentsModeNotTheSitesExcess) {
   EXPECT_DOUBLE_EQ(m.power_gap_db, 9.0);
 }
 
+// A range the anchor's memory flags (nlos_memory.h) while its gap is a LOS
+// one takes the NLOS component at its mode: neither its LOS gap bin's
+// excess nor the site's flagged excess, which belong to the receiver's flags.
+TEST(RangeModel, ARangeFlaggedByItsAnchorsMemoryTakesTheComponentsMode) {
+  RangeNoiseParams noise;
+  noise.sigma_m = 0.1;
+  RangeModel model("asymmetric", noise);
+  const std::shared_ptr<const NlosComponentLoss> nlos = makeNlosComponentLoss(noise.flagged());
+  model.setFlaggedExcess(0.3);
+  GapExcessTable table;
+  table.excess_m[5] = 0.05;  // (2.5, 3.0] dB: a LOS bin with a small excess
+  model.setGapExcess(table);
+  Measurement m = rangeWithGap(3.0);
+  EXPECT_FALSE(model.flagsNlos(m));
+  m.nlos_from_memory = true;
+  EXPECT_TRUE(model.flagsNlos(m));
+  const RangeTerm t = model.term(m, 0.1);
+  EXPECT_TRUE(t.flagged_nlos);
+  EXPECT_DOUBLE_EQ(t.range_m, 7.0 - nlos->modeSigmas() * 0.1);
+  EXPECT_DOUBLE_EQ(t.sigma_m, 0.1 * nlos->sigmaScale());
+  // Without any power (a receiver reporting neither): flagged the same way.
+  Measurement bare = m;
+  bare.power_gap_db = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_DOUBLE_EQ(model.term(bare, 0.1).range_m, 7.0 - nlos->modeSigmas() * 0.1);
+  // Its gap above the threshold: the receiver's flag rules, with its shift.
+  Measurement both = rangeWithGap(9.0);
+  both.nlos_from_memory = true;
+  EXPECT_DOUBLE_EQ(model.term(both, 0.1).range_m, 7.0 - 0.3);
+  // The mixture variant: no shift.
+  noise.flagged_nlos_component = false;
+  RangeModel mixture("asymmetric", noise);
+  mixture.setFlaggedExcess(0.3);
+  EXPECT_DOUBLE_EQ(mixture.term(m, 0.1).range_m, 7.0);
+  // No indicator (threshold +inf) or a symmetric model: nothing is flagged.
+  noise.nlos_power_gap_db = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(RangeModel("asymmetric", noise).flagsNlos(m));
+  EXPECT_FALSE(RangeModel("huber", RangeNoiseParams()).flagsNlos(m));
+  // Measurement::of carries the mark from the sample.
+  RangeSample s;
+  s.nlos_from_memory = true;
+  EXPECT_TRUE(Measurement::of(s).nlos_from_memory);
+}
+
 TEST(RangeModel, TheDefaultComponentScaleStaysWithinTheTableAtSmallSigmas) {
   RangeNoiseParams noise;
   noise.sigma_m = 0.02;  // 1 m would be 50 sigmas, beyond NlosComponentLoss::kMaxGamma

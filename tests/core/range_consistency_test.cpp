@@ -158,6 +158,44 @@ TEST(RangeConsistency, JudgedRangesCalibrateTheFlagThreshold) {
   EXPECT_TRUE(std::isnan(m.losGap().excessTable().at(4.0)));
 }
 
+// Every judged range tells the NLOS memory its residual; a range the memory
+// flagged (no first-path power) does not teach the gap calibration, which
+// would otherwise learn from ranges that pulled weakly and flag more.
+TEST(RangeConsistency, JudgedRangesFeedTheNlosMemoryAndItsFlagsNotTheCalibration) {
+  NlosMemoryParams memory;
+  memory.window_s = 0.5;
+  RangeConsistencyMonitor m(kAnchors, Vec3::Zero(), 0.1, 5'000'000, RangeConsistencyParams(), 6.0, LosGapParams(), {},
+                            NlosMemory(kAnchors.size(), 0.21, memory));
+  const Vec3 p(5, 5, 1);
+  std::int64_t t = 0;
+  for (int k = 0; k < 2; ++k, t += 25'000'000) {
+    m.onRange(rangeTo(2, t, p, 0.5));  // anchor 2 blocked
+    m.onRange(rangeTo(1, t, p, 0.0));
+    EXPECT_TRUE(m.judge(t, at(p)));
+  }
+  EXPECT_TRUE(m.nlosMemory().remembersNlos(2, t));
+  EXPECT_FALSE(m.nlosMemory().remembersNlos(1, t));
+  // 2000 ranges at a LOS gap with a 0.3 m residual: from the receiver they
+  // teach the calibration that excess begins there; flagged by the memory
+  // they teach nothing.
+  RangeConsistencyMonitor taught(kAnchors, Vec3::Zero(), 0.15, 5'000'000, RangeConsistencyParams(), 6.0);
+  RangeConsistencyMonitor untaught(kAnchors, Vec3::Zero(), 0.15, 5'000'000, RangeConsistencyParams(), 6.0);
+  for (int k = 0; k < 2000; ++k, t += 25'000'000) {
+    const double gap_db = 1.0 + 0.5 * (k % 12);  // 1.0 .. 6.5 dB
+    RangeSample r = rangeTo(static_cast<std::uint32_t>(k % 4), t, p, gap_db >= 4.0 ? 0.3 : 0.0);
+    r.rssi_dbm = -80.0;
+    r.fp_power_dbm = -80.0 - gap_db;
+    taught.onRange(r);
+    r.nlos_from_memory = gap_db >= 4.0;
+    untaught.onRange(r);
+    EXPECT_TRUE(taught.judge(t, at(p)));
+    EXPECT_TRUE(untaught.judge(t, at(p)));
+  }
+  EXPECT_EQ(taught.flagGapDb(), 3.5);
+  EXPECT_EQ(untaught.flagGapDb(), 6.0);
+  EXPECT_TRUE(std::isnan(untaught.losGap().excessTable().at(4.0)));
+}
+
 TEST(RangeConsistency, DisabledNeverFlags) {
   RangeConsistencyParams params = smallWindow();
   params.enabled = false;

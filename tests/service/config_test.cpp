@@ -115,6 +115,9 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_TRUE(localizerParams(c).rx_level_envelope.enabled);
   EXPECT_FALSE(
       localizerParams(parse(valid("estimator:\n  range: {rx_level_indicator: false}\n"))).rx_level_envelope.enabled);
+  EXPECT_EQ(c.estimator.nlos_memory_s, NlosMemoryParams().window_s);
+  EXPECT_EQ(localizerParams(parse(valid("estimator:\n  range: {nlos_memory_s: 0}\n"))).nlos_memory.window_s, 0.0);
+  EXPECT_EQ(localizerParams(parse(valid("estimator:\n  range: {nlos_memory_s: 1.5}\n"))).nlos_memory.window_s, 1.5);
   EXPECT_EQ(c.estimator.max_outside_anchors_m, LocalizerParams().max_outside_anchors_m);
   EXPECT_EQ(parse(valid("estimator:\n  max_outside_anchors_m: .inf\n")).estimator.max_outside_anchors_m,
             std::numeric_limits<double>::infinity());
@@ -569,6 +572,7 @@ TEST(ShippedConfigTest, EstimatorAloneIsTheWholeFilesEstimator) {
   EXPECT_DOUBLE_EQ(e.height_band.hold_sigma_m, want.height_band.hold_sigma_m);
   EXPECT_EQ(e.height_band.learn_carry_height, want.height_band.learn_carry_height);
   EXPECT_EQ(e.rx_level_indicator, want.rx_level_indicator);
+  EXPECT_DOUBLE_EQ(e.nlos_memory_s, want.nlos_memory_s);
   EXPECT_DOUBLE_EQ(e.flagged_excess_quantile, want.flagged_excess_quantile);
   EXPECT_EQ(e.with_tdoa.state_window_ns, want.with_tdoa.state_window_ns);
   EXPECT_TRUE(localizerParams(e).graph.p_w_ultrasonic.empty());
@@ -781,6 +785,8 @@ std::vector<BadCase> badCases() {
        "estimator.range.los_gap_calibration", "expected true or false", 11},
       {"rx_level_indicator_not_a_boolean", valid("estimator:\n  range: {rx_level_indicator: maybe}\n"),
        "estimator.range.rx_level_indicator", "expected true or false", 11},
+      {"nlos_memory_negative", valid("estimator:\n  range: {nlos_memory_s: -0.5}\n"), "estimator.range.nlos_memory_s",
+       "expected a number in [0, 60], got -0.5", 11},
       {"lag_zero", valid("estimator:\n  lag_s: 0\n"), "estimator.lag_s", "the service must bound its memory", 11},
       {"lag_negative", valid("estimator:\n  lag_s: -1\n"), "estimator.lag_s", "expected a number in [0, 3600], got -1",
        11},

@@ -337,6 +337,10 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--rx-level-indicator", options->settings.rx_level_indicator,
                   "Where ranges carry the RX level but no first-path power, flag as NLOS those far below the LOS "
                   "path-loss envelope learnt on line (true/false; default true)");
+  cmd->add_option("--nlos-memory", options->settings.nlos_memory_s,
+                  "Where ranges carry no first-path power, flag as NLOS the next range of an anchor whose last two "
+                  "the mixture took as NLOS within this (s; default 0.5; 0: off)")
+      ->check(CLI::Range(0.0, 60.0));
   cmd->add_option("--max-outside-anchors", options->settings.max_outside_anchors_m,
                   "Re-initialize when the tag is estimated farther than this beyond the anchors' horizontal box while "
                   "ranging holds it (m; default 10; inf: off)")

@@ -23,6 +23,7 @@ struct Measurement {
   double power_gap_b_db = std::numeric_limits<double>::quiet_NaN();  ///< TDoA: anchor b's packet's (dB)
   std::uint32_t tag = 0;       ///< range: the antenna on the body that measured it (RangeSample::tag_id)
   bool gap_from_rx_level = false;  ///< range: power_gap_db stands in from the RX level (RangeSample::fp_from_rx_level)
+  bool nlos_from_memory = false;   ///< range: flagged by the anchor's last judged ranges (RangeSample::nlos_from_memory)
 
   static Measurement of(const RangeSample& s) {
     return {Kind::kRange,
@@ -33,7 +34,8 @@ struct Measurement {
             s.rssi_dbm - s.fp_power_dbm,
             std::numeric_limits<double>::quiet_NaN(),
             s.tag_id,
-            s.fp_from_rx_level};
+            s.fp_from_rx_level,
+            s.nlos_from_memory};
   }
   static Measurement of(const TdoaSample& s) {
     return {Kind::kTdoa, s.t_ns, s.anchor_a, s.anchor_b, s.diff_m, s.rssi_a_dbm - s.fp_power_a_dbm,

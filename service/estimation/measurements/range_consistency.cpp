@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "estimation/measurements/range_time.h"
 
@@ -34,14 +35,15 @@ void FlaggedExcessParams::validate() const {
 RangeConsistencyMonitor::RangeConsistencyMonitor(std::vector<Vec3> p_w_anchors, const Vec3& p_b_tag, double sigma_m,
                                                  std::int64_t same_state_window_ns, RangeConsistencyParams params,
                                                  double flag_gap_db, LosGapParams los_gap,
-                                                 std::vector<TagLeverArm> tag_arms)
+                                                 std::vector<TagLeverArm> tag_arms, NlosMemory nlos_memory)
     : p_w_anchors_(std::move(p_w_anchors)),
       p_b_tag_(p_b_tag),
       tag_arms_(std::move(tag_arms)),
       short_m_(std::max(params.short_sigmas * sigma_m, params.short_floor_m)),
       group_window_ns_(same_state_window_ns),
       params_(params),
-      los_gap_(los_gap, sigma_m, flag_gap_db) {
+      los_gap_(los_gap, sigma_m, flag_gap_db),
+      nlos_memory_(std::move(nlos_memory)) {
   params_.validate();
   pending_.reserve(kMaxPending);
   window_.assign(static_cast<std::size_t>(params_.window), 0);
@@ -77,7 +79,12 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b, const
       flagged_next_ = (flagged_next_ + 1) % kFlaggedWindow;
       if (flagged_filled_ < kFlaggedWindow) ++flagged_filled_;
     }
-    los_gap_.add(gap_db, res);
+    // The calibration learns where the LOS gaps end from the ranges as the
+    // mixture weighed them: a range the memory already took out pulled
+    // weakly, and its larger residual in a LOS gap bin would lower the
+    // threshold, flag more, and feed on itself (docs/noise-models.md, session 42).
+    if (!r.nlos_from_memory) los_gap_.add(gap_db, res);
+    nlos_memory_.judged(r.anchor_id, r.t_ns, res);
     const std::uint8_t is_short = res < -short_m_ ? 1 : 0;
     auto& slot = window_[static_cast<std::size_t>(next_)];
     if (filled_ == params_.window) short_in_window_ -= slot;
@@ -105,6 +112,7 @@ void RangeConsistencyMonitor::reset() noexcept {
   pending_.clear();
   std::fill(window_.begin(), window_.end(), std::uint8_t{0});
   next_ = filled_ = short_in_window_ = 0;
+  nlos_memory_.reset();
 }
 
 double RangeConsistencyMonitor::shortShare() const noexcept {

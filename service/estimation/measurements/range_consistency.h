@@ -19,7 +19,8 @@
 // The same pass keeps the residuals of the last `kFlaggedWindow` ranges the
 // receiver flagged as NLOS (power gap above flag_gap_db, range_model.h): a
 // low quantile of them is the excess a flagged range typically carries at
-// this site (FlaggedExcessParams; the Localizer hands it to the range model).
+// this site (FlaggedExcessParams; the Localizer hands it to the range model),
+// and tells each judged range's residual to the NLOS memory (nlos_memory.h).
 // Fixed storage: pending ranges and the window are allocated up front.
 #include <array>
 #include <cstdint>
@@ -27,6 +28,7 @@
 #include <vector>
 
 #include "estimation/measurements/los_gap_calibration.h"
+#include "estimation/measurements/nlos_memory.h"
 #include "estimation/measurements/tag_lever_arms.h"
 #include "math/pose3.h"
 #include "math/types.h"
@@ -74,7 +76,8 @@ class RangeConsistencyMonitor {
   RangeConsistencyMonitor(std::vector<Vec3> p_w_anchors, const Vec3& p_b_tag, double sigma_m,
                           std::int64_t same_state_window_ns, RangeConsistencyParams params,
                           double flag_gap_db = std::numeric_limits<double>::infinity(), LosGapParams los_gap = {},
-                          std::vector<TagLeverArm> tag_arms = {});
+                          std::vector<TagLeverArm> tag_arms = {},
+                          NlosMemory nlos_memory = NlosMemory(0, std::numeric_limits<double>::quiet_NaN(), {}));
   static constexpr int kFlaggedWindow = 200;
 
   /// A range given to the tracking estimator (unknown anchors are ignored).
@@ -102,6 +105,8 @@ class RangeConsistencyMonitor {
   /// judged ranges show where the LOS gaps end (los_gap_calibration.h).
   double flagGapDb() const noexcept { return los_gap_.threshold(); }
   const LosGapCalibrator& losGap() const noexcept { return los_gap_; }
+  /// Every judged range's verdict by anchor (nlos_memory.h).
+  const NlosMemory& nlosMemory() const noexcept { return nlos_memory_; }
 
  private:
   static constexpr std::size_t kMaxPending = 256;
@@ -119,6 +124,7 @@ class RangeConsistencyMonitor {
   std::array<double, kFlaggedWindow> flagged_{};          ///< ring of flagged ranges' residuals (m)
   mutable std::array<double, kFlaggedWindow> scratch_{};  ///< for nth_element
   int flagged_next_ = 0, flagged_filled_ = 0;
+  NlosMemory nlos_memory_;
 };
 
 }  // namespace rilo

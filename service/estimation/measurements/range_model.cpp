@@ -1,6 +1,7 @@
 #include "estimation/measurements/range_model.h"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -34,15 +35,18 @@ RangeModel::RangeModel(const std::string& loss_name, const RangeNoiseParams& noi
 
 RangeTerm RangeModel::term(const Measurement& m, double sigma_m) const {
   if (!flagsNlos(m)) return {m.value_m, sigma_m, loss_, false};
-  // The gap's own bin, where the calibration measured one, else the site's.
-  const double bin_excess_m = gap_excess_.at(m.power_gap_db);
+  // The gap's own bin, where the calibration measured one, else the site's;
+  // a range flagged by its anchor's memory alone has neither.
+  const bool by_memory_alone = !(m.power_gap_db > gap_db_);
+  const double bin_excess_m =
+      by_memory_alone ? std::numeric_limits<double>::quiet_NaN() : gap_excess_.at(m.power_gap_db);
   if (!component_) {
-    const double site_m = m.gap_from_rx_level ? 0.0 : flagged_excess_m_;
+    const double site_m = m.gap_from_rx_level || by_memory_alone ? 0.0 : flagged_excess_m_;
     return {m.value_m - (std::isfinite(bin_excess_m) ? bin_excess_m : site_m), sigma_m, flagged_loss_, true};
   }
   // The site's flagged excess is learnt from the receiver's own flags; a
   // flag from the RX level takes the component's mode (Localizer::withRxLevelIndicator).
-  const bool site_excess = excess_set_ && !m.gap_from_rx_level;
+  const bool site_excess = excess_set_ && !m.gap_from_rx_level && !by_memory_alone;
   const double shift_m = std::isfinite(bin_excess_m) ? bin_excess_m
                          : site_excess              ? flagged_excess_m_
                                                     : component_->modeSigmas() * sigma_m;

@@ -21,7 +21,9 @@
 // A flag that stands in from the RX level (Measurement::gap_from_rx_level,
 // Localizer::withRxLevelIndicator) never takes the site's excess, which is
 // learnt from the receiver's own flags: its bin's excess, else the mode (the
-// mixture: no shift). Measured: docs/noise-models.md, session 31.
+// mixture: no shift). Measured: docs/noise-models.md, session 31. A range
+// flagged only by its anchor's memory (Measurement::nlos_from_memory,
+// nlos_memory.h) takes the mode too: its gap's bin is one of the LOS ones.
 #include <string>
 
 #include "estimation/measurements/los_gap_calibration.h"
@@ -46,7 +48,8 @@ class RangeModel {
 
   /// Whether m (a two-way range) is flagged as NLOS and gets the NLOS component.
   bool flagsNlos(const Measurement& m) const {
-    return flagged_loss_ != nullptr && m.kind == Measurement::Kind::kRange && m.power_gap_db > gap_db_;
+    return flagged_loss_ != nullptr && m.kind == Measurement::Kind::kRange &&
+           (m.power_gap_db > gap_db_ || m.nlos_from_memory);
   }
   /// m as a range term at the LOS std-dev sigma_m (MeasurementNoise::sigma).
   RangeTerm term(const Measurement& m, double sigma_m) const;

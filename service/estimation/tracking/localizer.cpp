@@ -7,6 +7,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "estimation/noise/asymmetric_loss.h"
+#include "estimation/noise/noise_model_factory.h"
 #include "estimation/smoother/bayes_tree_smoother.h"
 #include "estimation/smoother/sliding_window_smoother.h"
 #include "estimation/tracking/ekf_estimator.h"
@@ -27,6 +29,7 @@ void LocalizerParams::validate() const {
   flagged_excess.validate();
   los_gap.validate();
   rx_level_envelope.validate();
+  nlos_memory.validate();
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   if (!(init_attempt_budget_s >= 0.0)) fail("init_attempt_budget_s", "must be >= 0 (+inf: no bound)");
@@ -124,6 +127,19 @@ LosGapParams losGapFor(const LocalizerParams& p) {
   return g;
 }
 
+/// The residual (m) beyond which the mixture takes a range as NLOS, where a
+/// flag is read (the asymmetric model with a finite threshold, range_model.h);
+/// NaN elsewhere: the memory is off.
+double nlosDecisionPointM(const LocalizerParams& p) {
+  const RangeNoiseParams& n = p.graph.range_noise;
+  if (p.graph.range_loss != "asymmetric" || !std::isfinite(n.nlos_power_gap_db)) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  const RobustLossPtr loss = makeRangeLoss(p.graph.range_loss, n);
+  const auto* mixture = dynamic_cast<const AsymmetricLoss*>(loss.get());
+  return mixture != nullptr ? mixture->decisionPoint() * n.sigma_m : std::numeric_limits<double>::quiet_NaN();
+}
+
 /// The envelope learns only where a flag is read: the asymmetric model with a
 /// finite threshold (range_model.h), as the gap calibration.
 RxLevelEnvelopeParams rxLevelEnvelopeFor(const LocalizerParams& p) {
@@ -141,7 +157,8 @@ Localizer::Localizer(std::vector<Vec3> p_w_anchors, LocalizerParams params)
       initializer_(p_w_anchors_, params_.init),
       consistency_(p_w_anchors_, params_.graph.p_b_tag, params_.graph.range_noise.sigma_m,
                    params_.graph.same_state_window_ns, params_.range_consistency,
-                   params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_), params_.graph.tag_lever_arms),
+                   params_.graph.range_noise.nlos_power_gap_db, losGapFor(params_), params_.graph.tag_lever_arms,
+                   NlosMemory(p_w_anchors_.size(), nlosDecisionPointM(params_), params_.nlos_memory)),
       rx_level_envelope_(rxLevelEnvelopeFor(params_)),
       screen_(params_.screen) {
   params_.validate();
@@ -188,14 +205,23 @@ void Localizer::addImu(const ImuSample& sample) {
 void Localizer::addRange(const RangeSample& received) {
   if (received.anchor_id >= p_w_anchors_.size()) return;  // unknown anchor: the initializer counts these
   if (!screen_.admit(received)) return;
-  const RangeSample sample = withRxLevelIndicator(received);
   if (phase_ == Phase::kTracking) {
+    const RangeSample sample = withNlosMemory(received, withRxLevelIndicator(received));
     ranging_support_.note(sample.t_ns);
     consistency_.onRange(sample);
     guarded([&] { estimator_->addRange(sample); });
   } else {
-    initializer_.addRange(sample);
+    initializer_.addRange(withRxLevelIndicator(received));
   }
+}
+
+RangeSample Localizer::withNlosMemory(const RangeSample& received, RangeSample sample) const {
+  // The receiver's own first-path power is better evidence than the memory
+  // (nlos_memory.h); only ranges without it are marked.
+  if (std::isnan(received.fp_power_dbm) && consistency_.nlosMemory().remembersNlos(sample.anchor_id, sample.t_ns)) {
+    sample.nlos_from_memory = true;
+  }
+  return sample;
 }
 
 RangeSample Localizer::withRxLevelIndicator(const RangeSample& sample) {

@@ -147,6 +147,10 @@ struct LocalizerParams {
   /// withRxLevelIndicator) and judged like the receiver's gap. enabled =
   /// false: such ranges go unflagged.
   RxLevelEnvelopeParams rx_level_envelope;
+  /// Where a two-way range carries no first-path power: an anchor whose last
+  /// two ranges the mixture took as NLOS has its next one flagged
+  /// (nlos_memory.h; the asymmetric model with a finite flag threshold only).
+  NlosMemoryParams nlos_memory;
   /// Windowed rejection share (RejectionWindow, see its notes for the
   /// measurements behind the defaults): fail when more than
   /// max_rejection_share of the last rejection_window updates were rejected.
@@ -302,6 +306,10 @@ class Localizer {
   /// receiver's own flags alone (range_model.h, range_consistency.h).
   /// Measured: docs/noise-models.md, session 31.
   RangeSample withRxLevelIndicator(const RangeSample& sample);
+  /// sample marked nlos_from_memory where the receiver reported no
+  /// first-path power (`received`) and the anchor's memory says NLOS
+  /// (nlos_memory.h); else sample.
+  RangeSample withNlosMemory(const RangeSample& received, RangeSample sample) const;
 
   /// With an init runner: takes a finished attempt's outcome, or starts one
   /// when due. Returns whether the initializer is now initialized.

@@ -1,0 +1,49 @@
+#include "estimation/measurements/nlos_memory.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace rilo {
+
+void NlosMemoryParams::validate() const {
+  if (!(window_s >= 0.0 && window_s <= 60.0)) {
+    throw std::invalid_argument("NlosMemoryParams.window_s must be in [0, 60] s (0: off), got " + std::to_string(window_s));
+  }
+}
+
+NlosMemory::NlosMemory(std::size_t anchors, double decision_point_m, NlosMemoryParams params)
+    : anchors_(anchors), decision_point_m_(decision_point_m) {
+  params.validate();
+  if (std::isnan(decision_point_m) || decision_point_m <= 0.0) {
+    if (!std::isnan(decision_point_m)) {
+      throw std::invalid_argument("NlosMemory: decision_point_m must be > 0 (m) or NaN (off), got " +
+                                  std::to_string(decision_point_m));
+    }
+    return;
+  }
+  if (std::isfinite(decision_point_m)) window_ns_ = static_cast<std::int64_t>(std::llround(params.window_s * 1e9));
+}
+
+void NlosMemory::judged(std::uint32_t anchor, std::int64_t t_ns, double residual_m) noexcept {
+  if (!enabled() || anchor >= anchors_.size()) return;
+  Anchor& a = anchors_[anchor];
+  a.last[static_cast<std::size_t>(a.count % kRanges)] = Judgement{t_ns, residual_m > decision_point_m_};
+  ++a.count;
+}
+
+bool NlosMemory::remembersNlos(std::uint32_t anchor, std::int64_t t_ns) const noexcept {
+  if (!enabled() || anchor >= anchors_.size()) return false;
+  const Anchor& a = anchors_[anchor];
+  if (a.count < kRanges) return false;
+  for (const Judgement& j : a.last) {
+    if (!j.nlos || t_ns - j.t_ns > window_ns_) return false;
+  }
+  return true;
+}
+
+void NlosMemory::reset() noexcept {
+  for (Anchor& a : anchors_) a = Anchor{};
+}
+
+}  // namespace rilo

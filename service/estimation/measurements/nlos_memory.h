@@ -1,0 +1,70 @@
+#pragma once
+// What the mixture said of an anchor's last ranges, as a stand-in NLOS
+// indicator where the receiver reports no first-path power.
+//
+// A blocked path stays blocked for seconds while the wearer walks past the
+// obstacle, but the asymmetric mixture judges each range alone: a range
+// whose excess is below its decision point (2.1 sigma, 0.21 m shipped) is
+// taken as LOS and pulls the estimate with its full weight. Without the
+// receiver's first-path power, half of the office error is such moderate
+// excess (docs/noise-models.md, session 42). So: when the anchor's last two
+// ranges, both within window_s, sat beyond the decision point at the
+// tracked pose after their update (the mixture took them as NLOS), the
+// anchor's next range is taken as flagged NLOS (range_model.h: the NLOS
+// component at its mode, as a flag from the RX level). One long range is
+// the mixture's business; two in a row are a blocked path. A range that
+// fits again clears it: the memory is the last two judgements, not a
+// count. At ~1 Hz ranging an anchor is heard every few seconds, so the
+// window never holds two and nothing changes there.
+//
+// With a receiver that reports the first-path power it is not used: its
+// flag is better evidence, and the memory's extra flags cost 0.016 m on
+// the held-out own sims (measured: docs/noise-models.md, session 42).
+// Fixed storage, allocated at construction; nothing allocates per range.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace rilo {
+
+struct NlosMemoryParams {
+  /// Both judged ranges must be this recent (s; 0: off).
+  double window_s = 0.5;
+
+  /// Throws std::invalid_argument naming the field.
+  void validate() const;
+};
+
+class NlosMemory {
+ public:
+  static constexpr int kRanges = 2;  ///< judged NLOS in a row before the next is flagged
+
+  /// anchors: how many anchors (ids 0..anchors-1); decision_point_m: the
+  /// residual (m) beyond which the mixture takes a range as NLOS (sigma x
+  /// AsymmetricLoss::decisionPoint); NaN or +inf turns the memory off.
+  NlosMemory(std::size_t anchors, double decision_point_m, NlosMemoryParams params);
+
+  /// The residual (measured - predicted, m) of a range of `anchor` taken at
+  /// `t_ns`, judged at the tracked pose after its update.
+  void judged(std::uint32_t anchor, std::int64_t t_ns, double residual_m) noexcept;
+  /// Whether a range of `anchor` at `t_ns` should be taken as NLOS.
+  bool remembersNlos(std::uint32_t anchor, std::int64_t t_ns) const noexcept;
+  bool enabled() const noexcept { return window_ns_ > 0; }
+  /// Tracking (re)started: forget everything.
+  void reset() noexcept;
+
+ private:
+  struct Judgement {
+    std::int64_t t_ns = 0;
+    bool nlos = false;
+  };
+  struct Anchor {
+    std::array<Judgement, kRanges> last{};  ///< ring, newest at (count - 1) % kRanges
+    int count = 0;
+  };
+  std::vector<Anchor> anchors_;
+  double decision_point_m_;
+  std::int64_t window_ns_ = 0;
+};
+
+}  // namespace rilo

@@ -583,6 +583,41 @@ TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
   EXPECT_LT(std::abs(on.mean_height_error_m), std::abs(off.mean_height_error_m));
 }
 
+// Without the receiver's first-path power, an anchor whose last two ranges
+// the mixture took as NLOS has its next flagged (nlos_memory.h); with the
+// power, with the memory off, or with a model that has no NLOS branch to
+// judge by, nothing is.
+TEST(Localizer, RemembersBlockedAnchorsOnlyWhereTheReceiverGivesNoFirstPathPower) {
+  sim::OfficeScenarioParams op;
+  op.seed = 2;
+  op.duration_s = 60.0;
+  const sim::Scenario with_fp = sim::simulateOfficeScenario(op);
+  op.report_first_path = false;
+  const sim::Scenario s = sim::simulateOfficeScenario(op);
+  auto run = [](const sim::Scenario& sc, const std::function<void(LocalizerParams&)>& tweak, std::uint64_t* flagged) {
+    LocalizerParams p = paramsFor(sc);
+    tweak(p);
+    Localizer localizer(sc.p_w_anchors, p);
+    const FeedResult fed = feed(sc, localizer);
+    EXPECT_GT(fed.tracked_updates, 100);
+    *flagged = localizer.rangesFlaggedByMemory();
+    return fed;
+  };
+  std::uint64_t flagged_on = 0, flagged_off = 1, flagged_fp = 1, flagged_huber = 1;
+  const FeedResult on = run(s, [](LocalizerParams&) {}, &flagged_on);
+  const FeedResult off = run(s, [](LocalizerParams& p) { p.nlos_memory.window_s = 0.0; }, &flagged_off);
+  run(with_fp, [](LocalizerParams&) {}, &flagged_fp);
+  run(s, [](LocalizerParams& p) { p.graph.range_loss = "huber"; }, &flagged_huber);
+  std::printf("no first-path power: %llu ranges flagged by their anchor's memory, mean error %.3f m (height %+.3f); "
+              "memory off %.3f m (%+.3f)\n", static_cast<unsigned long long>(flagged_on), on.mean_error_m,
+              on.mean_height_error_m, off.mean_error_m, off.mean_height_error_m);
+  EXPECT_GT(flagged_on, 100u) << "a 60 s office walk has blocked anchors";
+  EXPECT_EQ(flagged_off, 0u);
+  EXPECT_EQ(flagged_fp, 0u) << "the receiver's own indicator is used where it is reported";
+  EXPECT_EQ(flagged_huber, 0u) << "no mixture, no decision point";
+  EXPECT_LT(on.mean_error_m, off.mean_error_m) << "the flags reach the estimate, and help it here";
+}
+
 // A device with two UWB antennas (a recording's tags.csv): each range is
 // predicted from the antenna that measured it. The office sim's ranges with
 // every other one moved to a second antenna 0.6 m from the first by the true

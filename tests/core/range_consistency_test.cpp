@@ -173,8 +173,8 @@ TEST(RangeConsistency, JudgedRangesFeedTheNlosMemoryAndItsFlagsNotTheCalibration
     m.onRange(rangeTo(1, t, p, 0.0));
     EXPECT_TRUE(m.judge(t, at(p)));
   }
-  EXPECT_TRUE(m.nlosMemory().remembersNlos(2, t));
-  EXPECT_FALSE(m.nlosMemory().remembersNlos(1, t));
+  EXPECT_TRUE(m.nlosMemory().remembersNlos(2, 0, t));
+  EXPECT_FALSE(m.nlosMemory().remembersNlos(1, 0, t));
   // 2000 ranges at a LOS gap with a 0.3 m residual: from the receiver they
   // teach the calibration that excess begins there; flagged by the memory
   // they teach nothing.

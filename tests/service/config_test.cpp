@@ -115,7 +115,8 @@ TEST_F(ConfigTest, MinimalReplayConfigGetsDefaults) {
   EXPECT_TRUE(localizerParams(c).rx_level_envelope.enabled);
   EXPECT_FALSE(
       localizerParams(parse(valid("estimator:\n  range: {rx_level_indicator: false}\n"))).rx_level_envelope.enabled);
-  EXPECT_EQ(c.estimator.nlos_memory_s, NlosMemoryParams().window_s);
+  EXPECT_EQ(c.estimator.nlos_memory_s, 0.5);
+  EXPECT_EQ(localizerParams(c).nlos_memory.window_s, 0.5);
   EXPECT_EQ(localizerParams(parse(valid("estimator:\n  range: {nlos_memory_s: 0}\n"))).nlos_memory.window_s, 0.0);
   EXPECT_EQ(localizerParams(parse(valid("estimator:\n  range: {nlos_memory_s: 1.5}\n"))).nlos_memory.window_s, 1.5);
   EXPECT_EQ(c.estimator.max_outside_anchors_m, LocalizerParams().max_outside_anchors_m);
@@ -787,6 +788,8 @@ std::vector<BadCase> badCases() {
        "estimator.range.rx_level_indicator", "expected true or false", 11},
       {"nlos_memory_negative", valid("estimator:\n  range: {nlos_memory_s: -0.5}\n"), "estimator.range.nlos_memory_s",
        "expected a number in [0, 60], got -0.5", 11},
+      {"nlos_memory_over_a_minute", valid("estimator:\n  range: {nlos_memory_s: 61}\n"),
+       "estimator.range.nlos_memory_s", "expected a number in [0, 60], got 61", 11},
       {"lag_zero", valid("estimator:\n  lag_s: 0\n"), "estimator.lag_s", "the service must bound its memory", 11},
       {"lag_negative", valid("estimator:\n  lag_s: -1\n"), "estimator.lag_s", "expected a number in [0, 3600], got -1",
        11},

@@ -8,7 +8,8 @@ namespace rilo {
 
 void NlosMemoryParams::validate() const {
   if (!(window_s >= 0.0 && window_s <= 60.0)) {
-    throw std::invalid_argument("NlosMemoryParams.window_s must be in [0, 60] s (0: off), got " + std::to_string(window_s));
+    throw std::invalid_argument("NlosMemoryParams.window_s must be in [0, 60] s (0 or below 1 ns: off), got " +
+                                std::to_string(window_s));
   }
 }
 
@@ -17,7 +18,7 @@ NlosMemory::NlosMemory(std::size_t anchors, double decision_point_m, NlosMemoryP
   params.validate();
   if (std::isnan(decision_point_m) || decision_point_m <= 0.0) {
     if (!std::isnan(decision_point_m)) {
-      throw std::invalid_argument("NlosMemory: decision_point_m must be > 0 (m) or NaN (off), got " +
+      throw std::invalid_argument("NlosMemory: decision_point_m must be > 0 (m), or NaN or +inf (off), got " +
                                   std::to_string(decision_point_m));
     }
     return;
@@ -25,21 +26,26 @@ NlosMemory::NlosMemory(std::size_t anchors, double decision_point_m, NlosMemoryP
   if (std::isfinite(decision_point_m)) window_ns_ = static_cast<std::int64_t>(std::llround(params.window_s * 1e9));
 }
 
-void NlosMemory::judged(std::uint32_t anchor, std::int64_t t_ns, double residual_m) noexcept {
+void NlosMemory::judged(std::uint32_t anchor, std::uint32_t tag, std::int64_t t_ns, double residual_m) noexcept {
   if (!enabled() || anchor >= anchors_.size()) return;
   Anchor& a = anchors_[anchor];
-  a.last[static_cast<std::size_t>(a.count % kRanges)] = Judgement{t_ns, residual_m > decision_point_m_};
-  ++a.count;
+  a.ring[static_cast<std::size_t>(a.next)] = Judgement{t_ns, tag, residual_m > decision_point_m_};
+  a.next = (a.next + 1) % kKept;
+  if (a.filled < kKept) ++a.filled;
 }
 
-bool NlosMemory::remembersNlos(std::uint32_t anchor, std::int64_t t_ns) const noexcept {
+bool NlosMemory::remembersNlos(std::uint32_t anchor, std::uint32_t tag, std::int64_t t_ns) const noexcept {
   if (!enabled() || anchor >= anchors_.size()) return false;
   const Anchor& a = anchors_[anchor];
-  if (a.count < kRanges) return false;
-  for (const Judgement& j : a.last) {
+  int seen = 0;
+  // Newest first: the antenna's last kRanges judgements must all be NLOS and recent.
+  for (int k = 1; k <= a.filled && seen < kRanges; ++k) {
+    const Judgement& j = a.ring[static_cast<std::size_t>((a.next - k + kKept) % kKept)];
+    if (j.tag != tag) continue;
     if (!j.nlos || t_ns - j.t_ns > window_ns_) return false;
+    ++seen;
   }
-  return true;
+  return seen == kRanges;
 }
 
 void NlosMemory::reset() noexcept {

@@ -15,7 +15,12 @@
 // the mixture's business; two in a row are a blocked path. A range that
 // fits again clears it: the memory is the last two judgements, not a
 // count. At ~1 Hz ranging an anchor is heard every few seconds, so the
-// window never holds two and nothing changes there.
+// window never holds two and nothing changes there. A body with several
+// antennas (tags.csv) keeps a memory per antenna and anchor: the body that
+// blocks one antenna's path may leave the other's clear. The ranges are
+// those the consistency monitor judged (range_consistency.h; with it
+// disabled the memory is off); a flagged range is judged like any other,
+// so a flagged anchor stays flagged only while its ranges stay long.
 //
 // With a receiver that reports the first-path power it is not used: its
 // flag is better evidence, and the memory's extra flags cost 0.016 m on
@@ -44,23 +49,29 @@ class NlosMemory {
   /// AsymmetricLoss::decisionPoint); NaN or +inf turns the memory off.
   NlosMemory(std::size_t anchors, double decision_point_m, NlosMemoryParams params);
 
-  /// The residual (measured - predicted, m) of a range of `anchor` taken at
-  /// `t_ns`, judged at the tracked pose after its update.
-  void judged(std::uint32_t anchor, std::int64_t t_ns, double residual_m) noexcept;
-  /// Whether a range of `anchor` at `t_ns` should be taken as NLOS.
-  bool remembersNlos(std::uint32_t anchor, std::int64_t t_ns) const noexcept;
+  /// The residual (measured - predicted, m) of a range of `anchor` by the
+  /// antenna `tag` (RangeSample::tag_id) taken at `t_ns`, judged at the
+  /// tracked pose after its update.
+  void judged(std::uint32_t anchor, std::uint32_t tag, std::int64_t t_ns, double residual_m) noexcept;
+  /// Whether a range of `anchor` by `tag` at `t_ns` should be taken as NLOS.
+  bool remembersNlos(std::uint32_t anchor, std::uint32_t tag, std::int64_t t_ns) const noexcept;
   bool enabled() const noexcept { return window_ns_ > 0; }
   /// Tracking (re)started: forget everything.
   void reset() noexcept;
 
  private:
+  /// Judgements kept per anchor, of all its antennas: two antennas
+  /// interleaved still leave each its last two.
+  static constexpr int kKept = 8;
   struct Judgement {
     std::int64_t t_ns = 0;
+    std::uint32_t tag = 0;
     bool nlos = false;
   };
   struct Anchor {
-    std::array<Judgement, kRanges> last{};  ///< ring, newest at (count - 1) % kRanges
-    int count = 0;
+    std::array<Judgement, kKept> ring{};
+    int next = 0;    ///< slot the next judgement goes to
+    int filled = 0;  ///< judgements held, at most kKept
   };
   std::vector<Anchor> anchors_;
   double decision_point_m_;

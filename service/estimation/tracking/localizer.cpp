@@ -207,20 +207,22 @@ void Localizer::addRange(const RangeSample& received) {
   if (!screen_.admit(received)) return;
   if (phase_ == Phase::kTracking) {
     const RangeSample sample = withNlosMemory(received, withRxLevelIndicator(received));
+    if (sample.nlos_from_memory) ++ranges_flagged_by_memory_;
     ranging_support_.note(sample.t_ns);
     consistency_.onRange(sample);
     guarded([&] { estimator_->addRange(sample); });
   } else {
-    initializer_.addRange(withRxLevelIndicator(received));
+    RangeSample sample = withRxLevelIndicator(received);
+    sample.nlos_from_memory = false;  // the memory is the tracker's: a start takes the mixture's own verdicts
+    initializer_.addRange(sample);
   }
 }
 
 RangeSample Localizer::withNlosMemory(const RangeSample& received, RangeSample sample) const {
   // The receiver's own first-path power is better evidence than the memory
   // (nlos_memory.h); only ranges without it are marked.
-  if (std::isnan(received.fp_power_dbm) && consistency_.nlosMemory().remembersNlos(sample.anchor_id, sample.t_ns)) {
-    sample.nlos_from_memory = true;
-  }
+  sample.nlos_from_memory = std::isnan(received.fp_power_dbm) &&
+                            consistency_.nlosMemory().remembersNlos(sample.anchor_id, sample.tag_id, sample.t_ns);
   return sample;
 }
 

@@ -242,6 +242,8 @@ class Localizer {
   std::optional<ProvisionalPosition> provisionalPosition() const;
   /// The RX-level indicator's envelope (fitted() false: not in use yet).
   const RxLevelEnvelope& rxLevelEnvelope() const { return rx_level_envelope_; }
+  /// Ranges flagged as NLOS by their anchor's memory so far (nlos_memory.h).
+  std::uint64_t rangesFlaggedByMemory() const { return ranges_flagged_by_memory_; }
   /// The smoothed trajectory so far (see TrackingEstimator::drainSmoothed);
   /// nothing while initializing.
   void drainSmoothed(std::vector<TimedPose>& out, bool all = false) {
@@ -337,6 +339,7 @@ class Localizer {
   InputScreen screen_;
   bool estimate_flagged_excess_ = false;
   double flagged_excess_m_ = 0.0;
+  std::uint64_t ranges_flagged_by_memory_ = 0;
   double gap_db_in_use_ = 0.0;  ///< last threshold handed to the estimator
   double tracking_vertical_speed_sigma_m_s_ = 0.0;
   std::uint64_t standstill_priors_ended_ = 0;  ///< of the tracking runs that ended

@@ -6,12 +6,12 @@
 // obstacle, but the asymmetric mixture judges each range alone: a range
 // whose excess is below its decision point (2.1 sigma, 0.21 m shipped) is
 // taken as LOS and pulls the estimate with its full weight. Without the
-// receiver's first-path power, half of the office error is such moderate
-// excess (docs/noise-models.md, session 42). So: when the anchor's last two
+// receiver's first-path power the own office sims lose a third of their
+// accuracy (docs/noise-models.md, session 42). So: when the anchor's last two
 // ranges, both within window_s, sat beyond the decision point at the
 // tracked pose after their update (the mixture took them as NLOS), the
 // anchor's next range is taken as flagged NLOS (range_model.h: the NLOS
-// component at its mode, as a flag from the RX level). One long range is
+// component at its mode, never a gap bin's or the site's excess). One long range is
 // the mixture's business; two in a row are a blocked path. A range that
 // fits again clears it: the memory is the last two judgements, not a
 // count. At ~1 Hz ranging an anchor is heard every few seconds, so the

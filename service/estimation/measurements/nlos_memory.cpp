@@ -16,12 +16,9 @@ void NlosMemoryParams::validate() const {
 NlosMemory::NlosMemory(std::size_t anchors, double decision_point_m, NlosMemoryParams params)
     : anchors_(anchors), decision_point_m_(decision_point_m) {
   params.validate();
-  if (std::isnan(decision_point_m) || decision_point_m <= 0.0) {
-    if (!std::isnan(decision_point_m)) {
-      throw std::invalid_argument("NlosMemory: decision_point_m must be > 0 (m), or NaN or +inf (off), got " +
-                                  std::to_string(decision_point_m));
-    }
-    return;
+  if (decision_point_m <= 0.0) {  // NaN compares false: off, as +inf
+    throw std::invalid_argument("NlosMemory: decision_point_m must be > 0 (m), or NaN or +inf (off), got " +
+                                std::to_string(decision_point_m));
   }
   if (std::isfinite(decision_point_m)) window_ns_ = static_cast<std::int64_t>(std::llround(params.window_s * 1e9));
 }

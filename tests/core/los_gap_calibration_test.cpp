@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -20,13 +21,15 @@ constexpr double kSigma = 0.15;
 
 // Residuals of a site: LOS (N(0, sigma) + shift) below `los_top_db`, NLOS
 // above it (excess uniform in [0.1, 0.5] m + shift), gaps uniform in [1, 9) dB.
-void feed(LosGapCalibrator& c, double los_top_db, int n, double shift_m = 0.0, unsigned seed = 1) {
+// from_rx_level: the gaps stand in from the RX level (and reach 12 dB).
+void feed(LosGapCalibrator& c, double los_top_db, int n, double shift_m = 0.0, unsigned seed = 1,
+          bool from_rx_level = false) {
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> gap(1.0, 9.0), excess(0.1, 0.5);
+  std::uniform_real_distribution<double> gap(1.0, from_rx_level ? 12.0 : 9.0), excess(0.1, 0.5);
   std::normal_distribution<double> noise(0.0, kSigma);
   for (int i = 0; i < n; ++i) {
     const double g = gap(rng);
-    c.add(g, shift_m + noise(rng) + (g >= los_top_db ? excess(rng) : 0.0));
+    c.add(g, shift_m + noise(rng) + (g >= los_top_db ? excess(rng) : 0.0), from_rx_level);
   }
 }
 
@@ -77,6 +80,60 @@ TEST(LosGapCalibrator, KeepsTheConfiguredThresholdWhereEverythingBelowIsLos) {
   LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
   feed(c, 7.0, 4000);  // the receiver's LOS gaps reach past the configured 6 dB
   EXPECT_EQ(c.threshold(), 6.0);
+}
+
+TEST(LosGapCalibrator, GapsFromTheRxLevelRaiseItUpToTheirOwnBound) {
+  // The RX-level stand-in's scale is the envelope's, not the vendor's: where
+  // its LOS reaches past 6 dB (a LOS-majority hall), the threshold follows.
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  feed(c, 7.5, 6000, 0.0, 1, true);
+  EXPECT_EQ(c.threshold(), 7.5);
+  // The excess table stays below the configured threshold (above it: the mode).
+  EXPECT_TRUE(std::isnan(c.excessTable().at(6.25)));
+  EXPECT_FALSE(std::isnan(c.excessTable().at(5.75)));
+  // Never past rx_level_max_gap_db (9 dB), however far the LOS reaches.
+  LosGapCalibrator far(LosGapParams(), kSigma, 6.0);
+  feed(far, 11.0, 6000, 0.0, 1, true);
+  EXPECT_EQ(far.threshold(), 9.0);
+  // Below the configured threshold they lower it as the receiver's gaps do.
+  LosGapCalibrator low(LosGapParams(), kSigma, 6.0);
+  feed(low, 4.5, 6000, 0.0, 1, true);
+  EXPECT_EQ(low.threshold(), 4.5);
+}
+
+TEST(LosGapCalibrator, OneReceiverGapAmongThemKeepsTheConfiguredBound) {
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  feed(c, 7.5, 6000, 0.0, 1, true);
+  ASSERT_EQ(c.threshold(), 7.5);
+  c.add(2.0, 0.0);  // the receiver's own first-path power, once
+  for (int i = 0; i < LosGapParams().recompute_every; ++i) c.add(2.5, 0.0, true);
+  EXPECT_EQ(c.threshold(), 6.0);
+  // It ages out of its bin's ring (kPerBin later ranges of that bin): the raise returns.
+  for (int i = 0; i < LosGapCalibrator::kPerBin; ++i) c.add(2.0, 0.0, true);
+  feed(c, 7.5, 400, 0.0, 2, true);
+  EXPECT_EQ(c.threshold(), 7.5);
+  // The receiver's gaps above the configured threshold are not binned at all.
+  LosGapCalibrator rx(LosGapParams(), kSigma, 6.0);
+  feed(rx, 7.5, 6000);
+  EXPECT_EQ(rx.threshold(), 6.0);
+}
+
+TEST(LosGapCalibrator, RisesOnlyThroughBinsThatShowedTheyAreLos) {
+  // LOS up to 9 dB, but nothing heard between 7 and 8 dB: no evidence past 7.
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> gap(1.0, 12.0);
+  std::normal_distribution<double> noise(0.0, kSigma);
+  for (int i = 0; i < 6000; ++i) {
+    const double g = gap(rng);
+    if (g > 7.0 && g <= 8.0) continue;
+    c.add(g, noise(rng) + (g > 9.0 ? 0.3 : 0.0), true);
+  }
+  EXPECT_EQ(c.threshold(), 7.0);
+  // Without a reference the configured threshold, whatever the gaps' kind.
+  LosGapCalibrator none(LosGapParams(), kSigma, 6.0);
+  for (int i = 0; i < 1000; ++i) none.add(7.0 + 0.001 * i, 0.0, true);
+  EXPECT_EQ(none.threshold(), 6.0);
 }
 
 TEST(LosGapCalibrator, NeverBelowTheFloorNorAboveTheConfiguredValue) {
@@ -197,6 +254,11 @@ TEST(LosGapCalibrator, RejectsMalformedParameters) {
   p = {};
   p.min_bin_ranges = LosGapCalibrator::kPerBin + 1;
   bad(p, "min_bin_ranges");
+  p = {};
+  p.rx_level_max_gap_db = nan;
+  bad(p, "rx_level_max_gap_db");
+  p.rx_level_max_gap_db = LosGapCalibrator::kBins * p.bin_db + 0.5;
+  bad(p, "rx_level_max_gap_db");
   p = {};
   p.excess_sigmas = -0.1;
   bad(p, "excess_sigmas");

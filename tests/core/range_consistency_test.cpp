@@ -196,6 +196,29 @@ TEST(RangeConsistency, JudgedRangesFeedTheNlosMemoryAndItsFlagsNotTheCalibration
   EXPECT_TRUE(std::isnan(untaught.losGap().excessTable().at(4.0)));
 }
 
+TEST(RangeConsistency, GapsFromTheRxLevelRaiseTheThresholdAndTheReceiversDoNot) {
+  // LOS up to 7.5 dB, a 0.3 m excess above: stood in from the RX level, the
+  // threshold follows the ranges past the configured 6 dB; the receiver's own
+  // gaps stay bounded by it (los_gap_calibration.h).
+  RangeConsistencyMonitor rx(kAnchors, Vec3::Zero(), 0.15, 5'000'000, RangeConsistencyParams(), 6.0);
+  RangeConsistencyMonitor receiver(kAnchors, Vec3::Zero(), 0.15, 5'000'000, RangeConsistencyParams(), 6.0);
+  const Vec3 p(5, 5, 1);
+  std::int64_t t = 0;
+  for (int k = 0; k < 4000; ++k, t += 25'000'000) {
+    const double gap_db = 1.25 + 0.5 * (k % 18);  // 1.25 .. 9.75 dB, mid-bin
+    RangeSample r = rangeTo(static_cast<std::uint32_t>(k % 4), t, p, gap_db > 7.5 ? 0.3 : 0.0);
+    r.rssi_dbm = -80.0;
+    r.fp_power_dbm = -80.0 - gap_db;
+    receiver.onRange(r);
+    r.fp_from_rx_level = true;
+    rx.onRange(r);
+    EXPECT_TRUE(receiver.judge(t, at(p)));
+    EXPECT_TRUE(rx.judge(t, at(p)));
+  }
+  EXPECT_EQ(rx.flagGapDb(), 7.5);
+  EXPECT_EQ(receiver.flagGapDb(), 6.0);
+}
+
 TEST(RangeConsistency, DisabledNeverFlags) {
   RangeConsistencyParams params = smallWindow();
   params.enabled = false;

@@ -83,7 +83,7 @@ bool RangeConsistencyMonitor::judge(std::int64_t t_ns, const Pose3& T_w_b, const
     // mixture weighed them: a range the memory already took out pulled
     // weakly, and its larger residual in a LOS gap bin would lower the
     // threshold, flag more, and feed on itself (docs/noise-models.md, session 42).
-    if (!r.nlos_from_memory) los_gap_.add(gap_db, res);
+    if (!r.nlos_from_memory) los_gap_.add(gap_db, res, r.fp_from_rx_level);
     nlos_memory_.judged(r.anchor_id, r.tag_id, r.t_ns, res);  // flagged ones too: a flag lasts while its ranges stay long
     const std::uint8_t is_short = res < -short_m_ ? 1 : 0;
     auto& slot = window_[static_cast<std::size_t>(next_)];

@@ -136,6 +136,29 @@ TEST(LosGapCalibrator, RisesOnlyThroughBinsThatShowedTheyAreLos) {
   EXPECT_EQ(none.threshold(), 6.0);
 }
 
+TEST(LosGapCalibrator, OneBinAloneIsNoStep) {
+  // One bin's median crossing the step, its neighbours LOS (a tracked-pose
+  // error projected on the anchors that bin happens to hold): no step. Two
+  // bins in a row: the step at the first.
+  auto site = [](double lone_lo_db, double step_lo_db) {
+    LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+    std::mt19937 rng(4);
+    std::uniform_real_distribution<double> gap(1.0, 6.0);
+    std::normal_distribution<double> noise(0.0, kSigma);
+    for (int i = 0; i < 6000; ++i) {
+      const double g = gap(rng);
+      const bool lone = g > lone_lo_db && g <= lone_lo_db + 0.5;
+      c.add(g, noise(rng) + (lone || g > step_lo_db ? 0.3 : 0.0));
+    }
+    return c.threshold();
+  };
+  EXPECT_EQ(site(3.5, 100.0), 6.0);
+  EXPECT_EQ(site(3.5, 4.5), 4.5);
+  EXPECT_EQ(site(100.0, 4.0), 4.0);
+  // The last bin below the bound has none after it: it stands alone.
+  EXPECT_EQ(site(5.5, 100.0), 5.5);
+}
+
 TEST(LosGapCalibrator, NeverBelowTheFloorNorAboveTheConfiguredValue) {
   LosGapParams p;
   p.min_gap_db = 3.0;

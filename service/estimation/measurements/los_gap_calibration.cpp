@@ -86,13 +86,21 @@ void LosGapCalibrator::recompute() noexcept {
   // Below the configured threshold an unfilled bin is passed over; above it
   // (RX-level gaps only, boundDb) the threshold rises only through bins that
   // showed they are LOS: filled, without excess.
+  // A step needs the next filled bin's excess too (the last bin stands
+  // alone): residuals are taken at the tracked pose, whose error projects
+  // differently on the anchors that dominate each bin, and one bin's median
+  // crossed the step by that alone (own halls without the column: the
+  // threshold fell to 3-4 dB, deep in their LOS ranges, a quarter of the
+  // time). Excess that begins grows with the gap, so two bins see it.
   bool stepped = false, raising = true;
+  double pending_db = -1.0;  // lower edge of a bin with excess, waiting for the next filled bin
   for (; b < bins_used_ && b * params_.bin_db < bound_db - 1e-9; ++b) {
     const double lo_db = b * params_.bin_db;
     const bool above_configured = lo_db >= max_gap_db_ - 1e-9;
     if (filled_[b] < params_.min_bin_ranges) {
       if (above_configured && !stepped && raising) {
-        threshold_db_ = std::max(max_gap_db_, lo_db);
+        // No evidence past here: a waiting step stands alone, else the threshold stops at this bin.
+        threshold_db_ = pending_db >= 0.0 ? pending_db : std::max(max_gap_db_, lo_db);
         raising = false;
       }
       continue;
@@ -100,10 +108,21 @@ void LosGapCalibrator::recompute() noexcept {
     std::copy_n(residuals_[b].begin(), filled_[b], scratch_.begin());
     const double excess_m = scratchMedian(filled_[b]) - reference_m_;
     if (!above_configured) table_.excess_m[static_cast<std::size_t>(b)] = std::max(0.0, excess_m);
-    if (!stepped && raising && excess_m > delta_m_) {
-      threshold_db_ = std::min(bound_db, std::max(params_.min_gap_db, lo_db));
-      stepped = true;
+    if (stepped || !raising) continue;
+    if (excess_m > delta_m_) {
+      if (pending_db >= 0.0) {
+        threshold_db_ = std::min(bound_db, std::max(params_.min_gap_db, pending_db));
+        stepped = true;
+      } else {
+        pending_db = lo_db;
+      }
+    } else {
+      pending_db = -1.0;
     }
+  }
+  if (!stepped && raising && pending_db >= 0.0) {  // the last bin searched: nothing after it to confirm
+    threshold_db_ = std::min(bound_db, std::max(params_.min_gap_db, pending_db));
+    stepped = true;
   }
   // Every bin up to the bound was filled and LOS: the bound.
   if (!stepped && raising) threshold_db_ = bound_db;

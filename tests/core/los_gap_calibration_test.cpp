@@ -33,6 +33,20 @@ void feed(LosGapCalibrator& c, double los_top_db, int n, double shift_m = 0.0, u
   }
 }
 
+// n ranges with gaps uniform in [1, gap_hi_db) and LOS noise plus
+// excess_of(gap) (m; NaN: the gap is never heard).
+template <class Excess>
+void feedSite(LosGapCalibrator& c, int n, double gap_hi_db, unsigned seed, bool from_rx_level, Excess excess_of) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> gap(1.0, gap_hi_db);
+  std::normal_distribution<double> noise(0.0, kSigma);
+  for (int i = 0; i < n; ++i) {
+    const double g = gap(rng);
+    const double excess_m = excess_of(g);
+    if (!std::isnan(excess_m)) c.add(g, noise(rng) + excess_m, from_rx_level);
+  }
+}
+
 TEST(LosGapCalibrator, FindsWhereTheLosGapsEnd) {
   LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
   EXPECT_EQ(c.threshold(), 6.0);
@@ -121,14 +135,9 @@ TEST(LosGapCalibrator, OneReceiverGapAmongThemKeepsTheConfiguredBound) {
 TEST(LosGapCalibrator, RisesOnlyThroughBinsThatShowedTheyAreLos) {
   // LOS up to 9 dB, but nothing heard between 7 and 8 dB: no evidence past 7.
   LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> gap(1.0, 12.0);
-  std::normal_distribution<double> noise(0.0, kSigma);
-  for (int i = 0; i < 6000; ++i) {
-    const double g = gap(rng);
-    if (g > 7.0 && g <= 8.0) continue;
-    c.add(g, noise(rng) + (g > 9.0 ? 0.3 : 0.0), true);
-  }
+  feedSite(c, 6000, 12.0, 3, true, [](double g) {
+    return g > 7.0 && g <= 8.0 ? std::numeric_limits<double>::quiet_NaN() : (g > 9.0 ? 0.3 : 0.0);
+  });
   EXPECT_EQ(c.threshold(), 7.0);
   // Without a reference the configured threshold, whatever the gaps' kind.
   LosGapCalibrator none(LosGapParams(), kSigma, 6.0);
@@ -142,14 +151,10 @@ TEST(LosGapCalibrator, OneBinAloneIsNoStep) {
   // bins in a row: the step at the first.
   auto site = [](double lone_lo_db, double step_lo_db) {
     LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
-    std::mt19937 rng(4);
-    std::uniform_real_distribution<double> gap(1.0, 6.0);
-    std::normal_distribution<double> noise(0.0, kSigma);
-    for (int i = 0; i < 6000; ++i) {
-      const double g = gap(rng);
+    feedSite(c, 6000, 6.0, 4, false, [&](double g) {
       const bool lone = g > lone_lo_db && g <= lone_lo_db + 0.5;
-      c.add(g, noise(rng) + (lone || g > step_lo_db ? 0.3 : 0.0));
-    }
+      return lone || g > step_lo_db ? 0.3 : 0.0;
+    });
     return c.threshold();
   };
   EXPECT_EQ(site(3.5, 100.0), 6.0);

@@ -1,7 +1,9 @@
 // LosGapCalibrator: finds where the LOS gaps end from residuals by gap, keeps
 // the configured threshold without evidence, never goes below min_gap_db or
-// above the configured value, cancels a common residual shift, ignores
-// malformed input, and does not allocate.
+// (for the receiver's own gaps) above the configured value, rises for gaps
+// from the RX level only through bins that showed LOS, needs two bins in a
+// row for a step, cancels a common residual shift, ignores malformed input,
+// and does not allocate.
 #include "estimation/measurements/los_gap_calibration.h"
 
 #include <gtest/gtest.h>
@@ -105,31 +107,65 @@ TEST(LosGapCalibrator, GapsFromTheRxLevelRaiseItUpToTheirOwnBound) {
   // The excess table stays below the configured threshold (above it: the mode).
   EXPECT_TRUE(std::isnan(c.excessTable().at(6.25)));
   EXPECT_FALSE(std::isnan(c.excessTable().at(5.75)));
-  // Never past rx_level_max_gap_db (9 dB), however far the LOS reaches.
+  // Never past rx_level_max_gap_db (9 dB), however far the LOS reaches;
+  // beyond the bins (16 dB) it is clamped to them.
   LosGapCalibrator far(LosGapParams(), kSigma, 6.0);
   feed(far, 11.0, 6000, 0.0, 1, true);
   EXPECT_EQ(far.threshold(), 9.0);
+  LosGapParams unbounded;
+  unbounded.rx_level_max_gap_db = std::numeric_limits<double>::infinity();
+  LosGapCalibrator clamped(unbounded, kSigma, 6.0);
+  feedSite(clamped, 20000, 17.0, 8, true, [](double) { return 0.0; });
+  EXPECT_EQ(clamped.threshold(), LosGapCalibrator::kBins * unbounded.bin_db);
   // Below the configured threshold they lower it as the receiver's gaps do.
   LosGapCalibrator low(LosGapParams(), kSigma, 6.0);
   feed(low, 4.5, 6000, 0.0, 1, true);
   EXPECT_EQ(low.threshold(), 4.5);
 }
 
-TEST(LosGapCalibrator, OneReceiverGapAmongThemKeepsTheConfiguredBound) {
+TEST(LosGapCalibrator, AnyReceiverGapKeepsTheConfiguredBound) {
   LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
   feed(c, 7.5, 6000, 0.0, 1, true);
   ASSERT_EQ(c.threshold(), 7.5);
-  c.add(2.0, 0.0);  // the receiver's own first-path power, once
+  // One receiver gap above every bin (not binned): the receiver's flags share
+  // the threshold, so the vendor's bound is back.
+  c.add(14.0, 0.0);
   for (int i = 0; i < LosGapParams().recompute_every; ++i) c.add(2.5, 0.0, true);
   EXPECT_EQ(c.threshold(), 6.0);
-  // It ages out of its bin's ring (kPerBin later ranges of that bin): the raise returns.
-  for (int i = 0; i < LosGapCalibrator::kPerBin; ++i) c.add(2.0, 0.0, true);
-  feed(c, 7.5, 400, 0.0, 2, true);
+  // kBins * kPerBin RX-level ranges later it is forgotten: the raise returns.
+  feed(c, 7.5, LosGapCalibrator::kBins * LosGapCalibrator::kPerBin + 400, 0.0, 2, true);
   EXPECT_EQ(c.threshold(), 7.5);
-  // The receiver's gaps above the configured threshold are not binned at all.
+  // reset() forgets it too.
+  c.add(2.0, 0.0);
+  c.reset();
+  feed(c, 7.5, 6000, 0.0, 3, true);
+  EXPECT_EQ(c.threshold(), 7.5);
+  // The receiver's own gaps never raise it, however far their LOS reaches.
   LosGapCalibrator rx(LosGapParams(), kSigma, 6.0);
   feed(rx, 7.5, 6000);
   EXPECT_EQ(rx.threshold(), 6.0);
+}
+
+TEST(LosGapCalibrator, ABinWithExcessPastTheConfiguredThresholdStopsTheRise) {
+  // (7.0, 7.5] alone long, LOS after it: above the configured value a rise
+  // stops where excess shows, confirmed or not.
+  LosGapCalibrator c(LosGapParams(), kSigma, 6.0);
+  feedSite(c, 6000, 12.0, 5, true, [](double g) { return g > 7.0 && g <= 7.5 ? 0.3 : (g > 10.0 ? 0.3 : 0.0); });
+  EXPECT_EQ(c.threshold(), 7.0);
+  // A configured threshold between bin edges: the bin that reaches past it
+  // needs evidence too (unfilled: the rise stops at the configured value).
+  LosGapCalibrator off_edge(LosGapParams(), kSigma, 6.2);
+  feedSite(off_edge, 6000, 12.0, 6, true, [](double g) {
+    return g > 6.0 && g <= 6.5 ? std::numeric_limits<double>::quiet_NaN() : (g > 9.0 ? 0.3 : 0.0);
+  });
+  EXPECT_EQ(off_edge.threshold(), 6.2);
+  // A step waiting for confirmation when the next bin past the configured
+  // value is unfilled: it stands alone.
+  LosGapCalibrator waiting(LosGapParams(), kSigma, 6.0);
+  feedSite(waiting, 6000, 12.0, 7, true, [](double g) {
+    return g > 6.0 && g <= 6.5 ? std::numeric_limits<double>::quiet_NaN() : (g > 5.5 ? 0.3 : 0.0);
+  });
+  EXPECT_EQ(waiting.threshold(), 5.5);
 }
 
 TEST(LosGapCalibrator, RisesOnlyThroughBinsThatShowedTheyAreLos) {
@@ -285,7 +321,9 @@ TEST(LosGapCalibrator, RejectsMalformedParameters) {
   p = {};
   p.rx_level_max_gap_db = nan;
   bad(p, "rx_level_max_gap_db");
-  p.rx_level_max_gap_db = LosGapCalibrator::kBins * p.bin_db + 0.5;
+  p.rx_level_max_gap_db = 0.0;
+  bad(p, "rx_level_max_gap_db");
+  p.rx_level_max_gap_db = -1.0;
   bad(p, "rx_level_max_gap_db");
   p = {};
   p.excess_sigmas = -0.1;

@@ -18,10 +18,7 @@ void LosGapParams::validate() const {
   if (min_bin_ranges < 1 || min_bin_ranges > LosGapCalibrator::kPerBin) fail("min_bin_ranges", "must be in [1, 128]");
   if (!(excess_sigmas > 0.0 && std::isfinite(excess_sigmas))) fail("excess_sigmas", "must be finite and > 0");
   if (recompute_every < 1) fail("recompute_every", "must be >= 1");
-  if (!(rx_level_max_gap_db > 0.0) || std::isnan(rx_level_max_gap_db) ||
-      rx_level_max_gap_db > LosGapCalibrator::kBins * bin_db) {
-    fail("rx_level_max_gap_db", "must be > 0 and within the bins (kBins * bin_db)");
-  }
+  if (!(rx_level_max_gap_db > 0.0)) fail("rx_level_max_gap_db", "must be > 0 (dB; beyond the bins it is clamped)");
 }
 
 LosGapCalibrator::LosGapCalibrator(LosGapParams params, double sigma_m, double max_gap_db)
@@ -33,29 +30,30 @@ LosGapCalibrator::LosGapCalibrator(LosGapParams params, double sigma_m, double m
   table_.bin_db = params_.bin_db;
   if (params_.enabled && std::isfinite(max_gap_db) && max_gap_db > params_.min_gap_db) {
     receiver_bins_ = std::min(kBins, static_cast<int>(std::ceil(max_gap_db / params_.bin_db)));
-    const double top_db = std::max(max_gap_db, params_.rx_level_max_gap_db);
+    const double top_db = std::min(std::max(max_gap_db, params_.rx_level_max_gap_db), kBins * params_.bin_db);
     bins_used_ = std::min(kBins, static_cast<int>(std::ceil(top_db / params_.bin_db)));
   }
 }
 
 double LosGapCalibrator::boundDb() const noexcept {
-  return receiver_slots_ > 0 ? max_gap_db_ : std::max(max_gap_db_, params_.rx_level_max_gap_db);
+  if (since_receiver_gap_ < kNoReceiverGap) return max_gap_db_;
+  return std::max(max_gap_db_, std::min(params_.rx_level_max_gap_db, bins_used_ * params_.bin_db));
 }
 
 void LosGapCalibrator::add(double gap_db, double residual_m, bool from_rx_level) noexcept {
   // Bins are (lo, hi], as the flag is gap > threshold: a range on a learnt
   // edge is in the bin below it. Checked before the cast (NaN fails too).
-  // The receiver's own gaps are kept up to the configured threshold only.
+  // Any receiver gap, binned or not, keeps the configured bound (boundDb);
+  // the receiver's own gaps are binned up to the configured threshold only.
+  if (gap_db >= 0.0) {  // NaN fails
+    if (!from_rx_level) since_receiver_gap_ = 0;
+    else if (since_receiver_gap_ < kNoReceiverGap) ++since_receiver_gap_;
+  }
   const int bins = from_rx_level ? bins_used_ : receiver_bins_;
   if (bins == 0 || !(gap_db >= 0.0 && gap_db <= bins * params_.bin_db) || !std::isfinite(residual_m)) return;
   const int b = std::max(0, GapExcessTable::binOf(gap_db, params_.bin_db));  // a gap of 0 is in bin 0
   if (b >= bins) return;
-  const auto slot = static_cast<std::size_t>(next_[b]);
-  const auto bin = static_cast<std::size_t>(b);
-  if (filled_[b] == kPerBin && from_receiver_[bin][slot]) --receiver_slots_;  // overwritten
-  residuals_[bin][slot] = residual_m;
-  from_receiver_[bin][slot] = !from_rx_level;
-  if (!from_rx_level) ++receiver_slots_;
+  residuals_[static_cast<std::size_t>(b)][static_cast<std::size_t>(next_[b])] = residual_m;
   next_[b] = (next_[b] + 1) % kPerBin;
   if (filled_[b] < kPerBin) ++filled_[b];
   if (++since_recompute_ >= params_.recompute_every) recompute();
@@ -83,36 +81,31 @@ void LosGapCalibrator::recompute() noexcept {
     return;
   }
   reference_m_ = scratchMedian(n);
-  // Below the configured threshold an unfilled bin is passed over; above it
-  // (RX-level gaps only, boundDb) the threshold rises only through bins that
-  // showed they are LOS: filled, without excess.
-  // A step needs the next filled bin's excess too (the last bin stands
-  // alone): residuals are taken at the tracked pose, whose error projects
-  // differently on the anchors that dominate each bin, and one bin's median
-  // crossed the step by that alone (own halls without the column: the
-  // threshold fell to 3-4 dB, deep in their LOS ranges, a quarter of the
-  // time). Excess that begins grows with the gap, so two bins see it.
-  bool stepped = false, raising = true;
-  double pending_db = -1.0;  // lower edge of a bin with excess, waiting for the next filled bin
+  // A bin that reaches past the configured threshold is "above" it (the
+  // bound's rules); the table keeps the bins that start below it.
+  const auto edge = [&](double lo_db) { return std::min(bound_db, std::max(params_.min_gap_db, lo_db)); };
+  double pending_db = -1.0;  // lower edge of a bin with excess, waiting for the next filled bin (header)
+  bool done = false;
   for (; b < bins_used_ && b * params_.bin_db < bound_db - 1e-9; ++b) {
     const double lo_db = b * params_.bin_db;
-    const bool above_configured = lo_db >= max_gap_db_ - 1e-9;
+    const bool above_configured = (b + 1) * params_.bin_db > max_gap_db_ + 1e-9;
     if (filled_[b] < params_.min_bin_ranges) {
-      if (above_configured && !stepped && raising) {
+      if (above_configured && !done) {
         // No evidence past here: a waiting step stands alone, else the threshold stops at this bin.
-        threshold_db_ = pending_db >= 0.0 ? pending_db : std::max(max_gap_db_, lo_db);
-        raising = false;
+        threshold_db_ = pending_db >= 0.0 ? edge(pending_db) : std::max(max_gap_db_, lo_db);
+        done = true;
       }
       continue;
     }
     std::copy_n(residuals_[b].begin(), filled_[b], scratch_.begin());
     const double excess_m = scratchMedian(filled_[b]) - reference_m_;
-    if (!above_configured) table_.excess_m[static_cast<std::size_t>(b)] = std::max(0.0, excess_m);
-    if (stepped || !raising) continue;
+    if (lo_db < max_gap_db_ - 1e-9) table_.excess_m[static_cast<std::size_t>(b)] = std::max(0.0, excess_m);
+    if (done) continue;
     if (excess_m > delta_m_) {
-      if (pending_db >= 0.0) {
-        threshold_db_ = std::min(bound_db, std::max(params_.min_gap_db, pending_db));
-        stepped = true;
+      // Confirmed, or above the configured threshold: where excess shows, a rise stops.
+      if (pending_db >= 0.0 || above_configured) {
+        threshold_db_ = edge(pending_db >= 0.0 ? pending_db : lo_db);
+        done = true;
       } else {
         pending_db = lo_db;
       }
@@ -120,18 +113,16 @@ void LosGapCalibrator::recompute() noexcept {
       pending_db = -1.0;
     }
   }
-  if (!stepped && raising && pending_db >= 0.0) {  // the last bin searched: nothing after it to confirm
-    threshold_db_ = std::min(bound_db, std::max(params_.min_gap_db, pending_db));
-    stepped = true;
-  }
-  // Every bin up to the bound was filled and LOS: the bound.
-  if (!stepped && raising) threshold_db_ = bound_db;
+  if (done) return;
+  // The last bin searched had excess: nothing after it to confirm it. Else
+  // every bin up to the bound was LOS (or, below the configured threshold, unfilled): the bound.
+  threshold_db_ = pending_db >= 0.0 ? edge(pending_db) : bound_db;
 }
 
 void LosGapCalibrator::reset() noexcept {
   next_.fill(0);
   filled_.fill(0);
-  receiver_slots_ = 0;
+  since_receiver_gap_ = kNoReceiverGap;
   since_recompute_ = 0;
   threshold_db_ = max_gap_db_;
   reference_m_ = std::numeric_limits<double>::quiet_NaN();

@@ -1,7 +1,9 @@
 #pragma once
 // Learns, from the ranges themselves, where the receiver's NLOS indicator
 // (RX level minus first-path power, range_model.h) stops meaning LOS at this
-// site and on this hardware, and lowers the flag threshold to there.
+// site and on this hardware, and moves the flag threshold there: lower than
+// the configured one for the receiver's own gap, and for a gap that stands in
+// from the RX level also higher (below).
 //
 // Why: the vendor's 6 dB (Decawave APS006) is a rule of thumb. Paths through
 // one light wall keep a gap of 4-6 dB and a small excess (0.1-0.3 m) that the
@@ -12,21 +14,27 @@
 // measured rather than fixed.
 //
 // Rule. Ranges judged at the tracked newest pose (range_consistency.h) are
-// binned by gap (bin_db wide, up to the configured threshold); each bin keeps
-// the residuals (measured - predicted) of its last kPerBin ranges. The
+// binned by gap (bin_db wide, up to the threshold's bound, below); each bin
+// keeps the residuals (measured - predicted) of its last kPerBin ranges. The
 // reference is the median residual of the bins wholly below min_gap_db
 // (pooled; at least reference_ranges of them): ranges there are LOS on any
-// DW1000/DW3000 front end. The threshold is the lower edge of the first bin
-// at or above min_gap_db, with at least min_bin_ranges ranges, whose median
-// residual exceeds the reference by excess_sigmas LOS sigmas: most of its
-// ranges carry an excess. No such bin, or too little reference: the
-// configured threshold. The comparison is against the reference rather than
-// zero so that a pose bias common to all ranges cancels; residuals at the
-// biased pose show the same step as the true excess. Measured:
-// docs/noise-models.md, "A flag threshold learnt from the ranges (session
-// 22)" and Figures behind the defaults. excess_sigmas 0.5 is 4.5 standard
-// errors of a full bin's median (2.2 at min_bin_ranges), so a LOS bin is
-// rarely taken for NLOS by chance. Bins are (lo, hi], matching the flag gap > threshold.
+// DW1000/DW3000 front end. A bin at or above min_gap_db with at least
+// min_bin_ranges ranges whose median residual exceeds the reference by
+// excess_sigmas LOS sigmas shows excess: most of its ranges carry one. The
+// threshold is the lower edge of the first such bin that the next filled
+// bin confirms (the last bin searched stands alone): residuals are taken at
+// the tracked pose, whose error projects differently on the anchors that
+// dominate each bin, and one bin's median crossed the step by that alone
+// (own halls without the first-path column: the threshold sat at 3-4 dB,
+// deep in their LOS ranges, a quarter of the time), while excess that
+// really begins grows with the gap and shows in both. No such bin, or too
+// little reference: the configured threshold. The comparison is against
+// the reference rather than zero so that a pose bias common to all ranges
+// cancels. Measured: docs/noise-models.md, "A flag threshold learnt from
+// the ranges (session 22)", Figures behind the defaults, and "Where the
+// RX-level flag ends (session 43)". excess_sigmas 0.5 is 4.5 standard
+// errors of a full bin's median (2.2 at min_bin_ranges). Bins are (lo, hi],
+// matching the flag gap > threshold.
 // The same pass keeps, per bin from min_gap_db up to the configured
 // threshold, the median excess over the reference (GapExcessTable): the
 // shift a flagged range of that bin takes (range_model.h) in place of the
@@ -36,19 +44,20 @@
 // (a per-bin one was worse there: the component's heavy tail already carries
 // the excess). Measured:
 // docs/noise-models.md, "Per-bin shifts for the newly flagged ranges (session 23)".
-// Gaps that stand in from the RX level (Localizer::withRxLevelIndicator: the
-// deficit below the learnt LOS envelope, read from min_gap_db up) are not on
-// the vendor's scale, so the vendor's 6 dB does not bound where their LOS
-// ends: the envelope's LOS level is a median, and where LOS ranges are the
-// majority (the own halls, 72-76 % LOS) it sits above their centre, and a
-// quarter of the LOS ranges lay more than 3 dB below it, flagged, shifted by
-// the component's mode. While every range the bins hold stands in from the RX
-// level, the threshold is searched up to rx_level_max_gap_db instead, and
-// rises past the configured one only through bins that showed they are LOS
-// (filled, no excess); one receiver gap among them and the configured
-// threshold bounds it again. The excess table stays below the configured
-// threshold (above it the component's mode, as before). Measured: docs/noise-models.md, "Where the
-// RX-level flag ends (session 43)".
+//
+// The bound. The configured threshold bounds the receiver's own gap. A gap
+// that stands in from the RX level (Localizer::withRxLevelIndicator: the
+// deficit below the learnt LOS envelope, read from min_gap_db up) is not on
+// the vendor's scale: the envelope's LOS level is a median, and where LOS
+// ranges are the majority (the own halls, 72-76 % LOS) it sits above their
+// centre and a quarter of the LOS ranges lay more than the configured 3 dB
+// of deficit below it, flagged and shifted by the component's mode. So
+// while no receiver gap has come for kBins * kPerBin ranges (any receiver
+// gap, binned or not: a mixed site keeps the vendor's bound for the
+// receiver's flags, which share the one threshold), the threshold may rise
+// up to rx_level_max_gap_db, but only through bins that showed they are LOS
+// (filled, no excess): an unfilled bin or a bin with excess stops it there.
+// The excess table stays below the configured threshold.
 // Fed by RangeConsistencyMonitor::judge: off with range_consistency.enabled.
 // Fixed storage; add() and threshold() never allocate.
 #include <array>
@@ -86,11 +95,11 @@ struct LosGapParams {
   int min_bin_ranges = 30;         ///< a bin with fewer ranges gives no evidence
   double excess_sigmas = 0.5;      ///< median excess over the reference that marks a bin NLOS (LOS sigmas)
   int recompute_every = 40;        ///< ranges between two recomputations of the threshold
-  /// Upper bound of the threshold while all the binned gaps stand in from
-  /// the RX level (dB on the same scale: min_gap_db + the deficit; 9 dB is a
-  /// deficit of 6 dB, two spreads of the LOS RX level about its path-loss
-  /// line, 2.5-3 dB on the own and the independent simulator's offices).
-  /// At most the configured threshold: that bounds it (no raise).
+  /// Upper bound of the threshold while the gaps stand in from the RX level
+  /// (dB on the same scale: min_gap_db + the deficit; 9 dB is a deficit of
+  /// 6 dB, two spreads of the LOS RX level about its path-loss line, 2.5-3 dB
+  /// on the own and the independent simulator's offices). Below the
+  /// configured threshold it raises nothing; beyond the bins it is clamped.
   double rx_level_max_gap_db = 9.0;
 
   /// Throws std::invalid_argument naming the first bad field.
@@ -103,13 +112,15 @@ class LosGapCalibrator {
   static constexpr int kPerBin = 128;
 
   /// sigma_m: LOS range std-dev (m); max_gap_db: the configured threshold,
-  /// also the largest this returns (+inf: the indicator is off, nothing is learnt).
+  /// the largest this returns for the receiver's own gaps (+inf: the
+  /// indicator is off, nothing is learnt).
   LosGapCalibrator(LosGapParams params, double sigma_m, double max_gap_db);
 
   /// One judged range: its gap (dB; NaN or outside the bins: ignored),
   /// residual (m), and whether the gap stands in from the RX level.
   void add(double gap_db, double residual_m, bool from_rx_level = false) noexcept;
-  /// The flag threshold in use (dB): the configured one until the data say lower.
+  /// The flag threshold in use (dB): the configured one until the data say
+  /// otherwise (lower; higher only for RX-level gaps).
   double threshold() const noexcept { return threshold_db_; }
   /// The reference level (m; NaN until there is one), for reports and tests.
   double reference() const noexcept { return reference_m_; }
@@ -122,19 +133,20 @@ class LosGapCalibrator {
   /// Median of the first `n` values of scratch_ (reorders them).
   double scratchMedian(int n) const noexcept;
 
-  LosGapParams params_;
-  /// The bound of the threshold and of the table now: max_gap_db_, or
-  /// rx_level_max_gap_db while the bins hold no receiver gap.
+  /// The threshold's bound now: max_gap_db_, or rx_level_max_gap_db while
+  /// no receiver gap came for kBins * kPerBin ranges.
   double boundDb() const noexcept;
+
+  LosGapParams params_;
 
   double delta_m_;
   double max_gap_db_;
   int bins_used_ = 0;      ///< bins below the larger bound (at most kBins): RX-level gaps
   int receiver_bins_ = 0;  ///< bins below max_gap_db: the receiver's own gaps
   std::array<std::array<double, kPerBin>, kBins> residuals_{};
-  /// Per slot: the gap came from the receiver (not the RX level); receiver_slots_ counts them.
-  std::array<std::array<bool, kPerBin>, kBins> from_receiver_{};
-  int receiver_slots_ = 0;
+  /// RX-level gaps added (binned or not) since the last receiver gap (capped; kNoReceiverGap: none since construction or reset).
+  static constexpr int kNoReceiverGap = kBins * kPerBin;
+  int since_receiver_gap_ = kNoReceiverGap;
   std::array<int, kBins> next_{}, filled_{};
   mutable std::array<double, kBins * kPerBin> scratch_{};
   int since_recompute_ = 0;

@@ -29,7 +29,9 @@
 // upper half. A range's deficit is that level minus its residual (dB, >= 0):
 // it stands where the receiver's RX-minus-first-path gap stands, so the flag
 // threshold (nlos_power_gap_db), the learnt threshold and the per-bin shifts
-// (los_gap_calibration.h) apply to it unchanged.
+// (los_gap_calibration.h) apply to it, except that the learnt threshold may
+// rise past the configured one for it (its scale is this envelope's, not
+// the vendor's).
 // Fixed storage; add() never allocates; the fit runs every refit_every ranges.
 #include <array>
 #include <cstdint>

@@ -238,8 +238,9 @@ RangeSample Localizer::withRxLevelIndicator(const RangeSample& sample) {
   // los_gap.min_gap_db), while a LOS RX level sits at or above the envelope
   // (deficit 0). So a deficit d reads as the gap min_gap_db + d: ranges at
   // the envelope are the calibration's LOS reference, and it learns from
-  // the residuals how many dB below it the excess begins (the configured
-  // 6 dB bounds that at 3 dB). Read as a gap of d, the flag began at the
+  // the residuals how many dB below it the excess begins (up to
+  // los_gap.rx_level_max_gap_db, a 6 dB deficit: not the vendor's 6 dB gap,
+  // los_gap_calibration.h). Read as a gap of d, the flag began at the
   // calibration's 3-3.5 dB floor, well inside the NLOS cluster: on the
   // independent office sims LOS ranges sit about 5 dB above an all-range
   // path-loss fit and NLOS ones 2 dB below it, so half the NLOS ranges went

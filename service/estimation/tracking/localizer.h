@@ -138,7 +138,8 @@ struct LocalizerParams {
   /// their residuals at the tracked pose and taken off them (range_model.h).
   FlaggedExcessParams flagged_excess;
   /// The flag threshold of two-way ranges learnt from their residuals by gap
-  /// (los_gap_calibration.h); never above range_noise.nlos_power_gap_db.
+  /// (los_gap_calibration.h); never above range_noise.nlos_power_gap_db for
+  /// the receiver's own gaps, up to los_gap.rx_level_max_gap_db for RX-level ones.
   LosGapParams los_gap;
   /// Where a two-way range carries the RX level but no first-path power, the
   /// NLOS indicator is its deficit below the learnt LOS path-loss envelope

@@ -20,9 +20,10 @@
 // (pooled; at least reference_ranges of them): ranges there are LOS on any
 // DW1000/DW3000 front end. A bin at or above min_gap_db with at least
 // min_bin_ranges ranges whose median residual exceeds the reference by
-// excess_sigmas LOS sigmas shows excess: most of its ranges carry one. The
-// threshold is the lower edge of the first such bin that the next filled
-// bin confirms (the last bin searched stands alone): residuals are taken at
+// excess_sigmas LOS sigmas shows excess: most of its ranges carry one. Below
+// the configured threshold, the threshold is the lower edge of the first
+// such bin that the next filled bin confirms (the last bin searched stands
+// alone; above the configured threshold, see the bound): residuals are taken at
 // the tracked pose, whose error projects differently on the anchors that
 // dominate each bin, and one bin's median crossed the step by that alone
 // (own halls without the first-path column: the threshold sat at 3-4 dB,

@@ -23,6 +23,20 @@ namespace {
 
 LocalizerParams paramsFor(const sim::Scenario& s) { return testing::localizerParamsFor(s); }
 
+/// A 60 s office walk as recorded and with the receiver's first-path power removed.
+struct WithAndWithoutFirstPath {
+  sim::Scenario with_fp, without_fp;
+};
+WithAndWithoutFirstPath officeWithAndWithoutFirstPath(std::uint64_t seed) {
+  sim::OfficeScenarioParams op;
+  op.seed = seed;
+  op.duration_s = 60.0;
+  WithAndWithoutFirstPath out{sim::simulateOfficeScenario(op), {}};
+  op.report_first_path = false;
+  out.without_fp = sim::simulateOfficeScenario(op);
+  return out;
+}
+
 struct FeedResult {
   double mean_error_m = 0.0;
   double mean_height_error_m = 0.0;      ///< signed, estimate - truth
@@ -543,12 +557,7 @@ TEST(Localizer, EstimatesTheExcessOfFlaggedRangesAndTakesItOff) {
 // column the error and the height bias are lower with it than without, and
 // where the receiver reports the first-path power the envelope is not used.
 TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
-  sim::OfficeScenarioParams op;
-  op.seed = 1;
-  op.duration_s = 60.0;
-  const sim::Scenario with_fp = sim::simulateOfficeScenario(op);
-  op.report_first_path = false;
-  const sim::Scenario s = sim::simulateOfficeScenario(op);
+  const auto [with_fp, s] = officeWithAndWithoutFirstPath(1);
   double gap_on_db = 0.0, configured_gap_db = 0.0;
   auto run = [&](const sim::Scenario& sc, bool indicator, bool* fitted) {
     LocalizerParams p = paramsFor(sc);
@@ -589,12 +598,7 @@ TEST(Localizer, RxLevelStandsInForAMissingFirstPathPower) {
 // power, with the memory off, or with a model that has no NLOS branch to
 // judge by, nothing is.
 TEST(Localizer, RemembersBlockedAnchorsOnlyWhereTheReceiverGivesNoFirstPathPower) {
-  sim::OfficeScenarioParams op;
-  op.seed = 2;
-  op.duration_s = 60.0;
-  const sim::Scenario with_fp = sim::simulateOfficeScenario(op);
-  op.report_first_path = false;
-  const sim::Scenario s = sim::simulateOfficeScenario(op);
+  const auto [with_fp, s] = officeWithAndWithoutFirstPath(2);
   auto run = [](const sim::Scenario& sc, const std::function<void(LocalizerParams&)>& tweak, std::uint64_t* flagged) {
     LocalizerParams p = paramsFor(sc);
     tweak(p);

@@ -21,6 +21,11 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 const std::vector<std::string> kCsvHeader = {
     "set",           "recording",    "started",        "online_mean_m",      "online_max_m",
     "smoothed_mean_m", "height_offset_m", "first_position_s", "first_full_state_s", "tracked_share",
+    "update_mean_ms", "update_max_ms", "covariance_horizontal_in_95", "covariance_vertical_in_95", "error"};
+/// Before session 44: no covariance columns.
+const std::vector<std::string> kCsvHeaderWithoutCovariance = {
+    "set",           "recording",    "started",        "online_mean_m",      "online_max_m",
+    "smoothed_mean_m", "height_offset_m", "first_position_s", "first_full_state_s", "tracked_share",
     "update_mean_ms", "update_max_ms", "error"};
 
 std::string rateLabel(double rate_hz, const AccuracyOptions& o) {
@@ -39,6 +44,10 @@ AccuracyRow rowOf(const ReplayResult& run) {
   row.first_position_s = run.first_position_s;
   row.first_full_state_s = run.first_full_state_s;
   row.tracked_share = run.online_tracked_share;
+  if (run.covariance_online && run.covariance_online->poses > 0) {
+    row.covariance_horizontal_in_95 = run.covariance_online->horizontal_in_95;
+    row.covariance_vertical_in_95 = run.covariance_online->vertical_in_95;
+  }
   if (run.updates.empty()) return row;
   double sum = 0.0, max = 0.0;
   for (const ReplayUpdate& u : run.updates) {
@@ -90,6 +99,12 @@ std::string fixed(double v, int decimals) { return std::isfinite(v) ? strf("%.*f
 
 std::string signedFixed(double v) { return std::isfinite(v) ? strf("%+.2f", v) : std::string("-"); }
 
+/// "67 / 100 %" (shares in [0, 1]); "-" without the figures.
+std::string shares(double horizontal, double vertical) {
+  if (!std::isfinite(horizontal) || !std::isfinite(vertical)) return "-";
+  return fixed(100.0 * horizontal, 0) + " / " + fixed(100.0 * vertical, 0) + " %";
+}
+
 std::string seconds(const std::optional<double>& v) { return v ? fixed(*v, 1) + " s" : std::string("-"); }
 
 /// "before -> after" when a before figure exists and differs in print, else the figure.
@@ -99,8 +114,10 @@ std::string change(const std::string& before, const std::string& after) {
 }
 
 struct SetSummary {
-  std::size_t recordings = 0, started = 0, with_online = 0, with_smoothed = 0;
-  double online_sum = 0.0, smoothed_sum = 0.0, offset_sum = 0.0;
+  std::size_t recordings = 0, started = 0, with_online = 0, with_smoothed = 0, with_covariance = 0;
+  double online_sum = 0.0, smoothed_sum = 0.0, offset_sum = 0.0, covariance_h_sum = 0.0, covariance_v_sum = 0.0;
+  double covarianceHorizontal() const { return with_covariance ? covariance_h_sum / static_cast<double>(with_covariance) : kNaN; }
+  double covarianceVertical() const { return with_covariance ? covariance_v_sum / static_cast<double>(with_covariance) : kNaN; }
   double onlineMean() const { return with_online ? online_sum / static_cast<double>(with_online) : kNaN; }
   double smoothedMean() const { return with_smoothed ? smoothed_sum / static_cast<double>(with_smoothed) : kNaN; }
   double offsetMean() const { return with_online ? offset_sum / static_cast<double>(with_online) : kNaN; }
@@ -123,6 +140,11 @@ std::vector<std::pair<std::string, SetSummary>> summarize(const std::vector<Accu
     if (std::isfinite(r.smoothed_mean_m)) {
       ++s.with_smoothed;
       s.smoothed_sum += r.smoothed_mean_m;
+    }
+    if (std::isfinite(r.covariance_horizontal_in_95) && std::isfinite(r.covariance_vertical_in_95)) {
+      ++s.with_covariance;
+      s.covariance_h_sum += r.covariance_horizontal_in_95;
+      s.covariance_v_sum += r.covariance_vertical_in_95;
     }
   }
   return sets;
@@ -218,7 +240,8 @@ void writeAccuracyCsv(const std::filesystem::path& file, const std::vector<Accur
         << csvNumber(r.online_mean_m) << ',' << csvNumber(r.online_max_m) << ',' << csvNumber(r.smoothed_mean_m) << ','
         << csvNumber(r.height_offset_m) << ',' << csvNumber(r.first_position_s) << ','
         << csvNumber(r.first_full_state_s) << ',' << csvNumber(r.tracked_share) << ',' << csvNumber(r.update_mean_ms)
-        << ',' << csvNumber(r.update_max_ms) << ',' << csvField(r.error) << '\n';
+        << ',' << csvNumber(r.update_max_ms) << ',' << csvNumber(r.covariance_horizontal_in_95) << ','
+        << csvNumber(r.covariance_vertical_in_95) << ',' << csvField(r.error) << '\n';
   }
   out.flush();
   if (!out) throw std::runtime_error("cannot write " + file.string());
@@ -236,16 +259,20 @@ std::vector<AccuracyRow> readAccuracyCsv(const std::filesystem::path& file) {
     if (!text.empty() && text.back() == '\r') text.pop_back();  // a file saved with CRLF
     return true;
   };
-  if (!getLine(line) || splitCsv(line) != kCsvHeader) {
+  std::optional<std::vector<std::string>> header;
+  if (getLine(line)) header = splitCsv(line);
+  if (!header || (*header != kCsvHeader && *header != kCsvHeaderWithoutCovariance)) {
     throw fail(1, "not an accuracy.csv (expected the header " + kCsvHeader.front() + ",...," + kCsvHeader.back() + ")");
   }
+  const bool with_covariance = *header == kCsvHeader;
+  const std::vector<std::string>& columns = *header;
   std::vector<AccuracyRow> rows;
   for (std::size_t n = 2; getLine(line); ++n) {
     if (line.empty()) continue;
     const std::optional<std::vector<std::string>> f = splitCsv(line);
     if (!f) throw fail(n, "unterminated quote");
-    if (f->size() != kCsvHeader.size()) {
-      throw fail(n, std::to_string(f->size()) + " fields, expected " + std::to_string(kCsvHeader.size()));
+    if (f->size() != columns.size()) {
+      throw fail(n, std::to_string(f->size()) + " fields, expected " + std::to_string(columns.size()));
     }
     const auto number = [&](std::size_t i) -> std::optional<double> {
       const std::string& s = (*f)[i];
@@ -257,7 +284,7 @@ std::vector<AccuracyRow> readAccuracyCsv(const std::filesystem::path& file) {
       } catch (const std::exception&) {
         used = 0;
       }
-      if (used != s.size() || !std::isfinite(v)) throw fail(n, "field " + kCsvHeader[i] + ": not a number: '" + s + "'");
+      if (used != s.size() || !std::isfinite(v)) throw fail(n, "field " + columns[i] + ": not a number: '" + s + "'");
       return v;
     };
     AccuracyRow r;
@@ -274,7 +301,11 @@ std::vector<AccuracyRow> readAccuracyCsv(const std::filesystem::path& file) {
     r.tracked_share = number(9).value_or(0.0);
     r.update_mean_ms = number(10).value_or(kNaN);
     r.update_max_ms = number(11).value_or(kNaN);
-    r.error = (*f)[12];
+    if (with_covariance) {
+      r.covariance_horizontal_in_95 = number(12).value_or(kNaN);
+      r.covariance_vertical_in_95 = number(13).value_or(kNaN);
+    }
+    r.error = f->back();
     rows.push_back(std::move(r));
   }
   return rows;
@@ -298,6 +329,9 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
       a.online_mean_m = b.online_mean_m = a.height_offset_m = b.height_offset_m = kNaN;
     }
     if (!std::isfinite(a.smoothed_mean_m) || !std::isfinite(b.smoothed_mean_m)) a.smoothed_mean_m = b.smoothed_mean_m = kNaN;
+    if (!std::isfinite(a.covariance_horizontal_in_95) || !std::isfinite(b.covariance_horizontal_in_95)) {
+      a.covariance_horizontal_in_95 = b.covariance_horizontal_in_95 = kNaN;
+    }
     matched_after.push_back(std::move(a));
     matched_before.push_back(std::move(b));
   }
@@ -315,8 +349,8 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
   }
   md << ".\n\n";
   md << "| set | recordings | " << (before ? "compared | " : "")
-     << "started | online mean (m) | smoothed mean (m) | height offset (m) |\n";
-  md << "|---|---|" << (before ? "---|" : "") << "---|---|---|---|\n";
+     << "started | online mean (m) | smoothed mean (m) | height offset (m) | in the covariance's 95 % (h / v) |\n";
+  md << "|---|---|" << (before ? "---|" : "") << "---|---|---|---|---|\n";
   const std::vector<std::pair<std::string, SetSummary>> sets = summarize(rows);
   for (const auto& [name, all] : sets) {
     // Compared: both sides over the matched recordings; else this run's set alone.
@@ -328,7 +362,12 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
     md << change(b ? std::to_string(b->started) : "", std::to_string(a.started)) << " | "
        << change(b ? fixed(b->onlineMean(), 4) : "", fixed(a.onlineMean(), 4)) << " | "
        << change(b ? fixed(b->smoothedMean(), 4) : "", fixed(a.smoothedMean(), 4)) << " | "
-       << change(b ? signedFixed(b->offsetMean()) : "", signedFixed(a.offsetMean())) << " |\n";
+       << change(b ? signedFixed(b->offsetMean()) : "", signedFixed(a.offsetMean())) << " | "
+       << (b && b->with_covariance > 0
+               ? change(shares(b->covarianceHorizontal(), b->covarianceVertical()),
+                        shares(a.covarianceHorizontal(), a.covarianceVertical()))
+               : shares(all.covarianceHorizontal(), all.covarianceVertical()))  // an earlier run without the figure
+       << " |\n";
   }
   std::string only_before;
   if (before) {
@@ -341,18 +380,18 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
   if (!only_before.empty()) md << "\nOnly in the earlier run: " << only_before << ".\n";
   md << "\nPer run:\n\n";
   md << "| set | recording | online mean (m) | smoothed mean (m) | online max (m) | height offset (m) | "
-        "first position / full state | tracked |\n";
-  md << "|---|---|---|---|---|---|---|---|\n";
+        "first position / full state | tracked | in the covariance's 95 % (h / v) |\n";
+  md << "|---|---|---|---|---|---|---|---|---|\n";
   for (const AccuracyRow& r : rows) {
     const auto it = old_rows.find({r.set, r.recording});
     const AccuracyRow* o = it == old_rows.end() ? nullptr : it->second;
     md << "| " << cellText(r.set) << " | " << cellText(r.recording) << " | ";
     if (!r.error.empty()) {
-      md << "failed: " << cellText(r.error) << " | | | | | |\n";
+      md << "failed: " << cellText(r.error) << " | | | | | | |\n";
       continue;
     }
     if (!r.started) {
-      md << change(o && o->started ? fixed(o->online_mean_m, 3) : "", "never started") << " | | | | | 0 % |\n";
+      md << change(o && o->started ? fixed(o->online_mean_m, 3) : "", "never started") << " | | | | | 0 % | |\n";
       continue;
     }
     const auto starts = [](const AccuracyRow& x) { return seconds(x.first_position_s) + " / " + seconds(x.first_full_state_s); };
@@ -362,6 +401,11 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
        << change(o ? signedFixed(o->height_offset_m) : "", signedFixed(r.height_offset_m)) << " | "
        << change(o ? starts(*o) : "", starts(r)) << " | "
        << change(o ? fixed(100.0 * o->tracked_share, 0) + " %" : "", fixed(100.0 * r.tracked_share, 0) + " %")
+       << " | "
+       << change(o && std::isfinite(o->covariance_horizontal_in_95)
+                     ? shares(o->covariance_horizontal_in_95, o->covariance_vertical_in_95)
+                     : "",
+                 shares(r.covariance_horizontal_in_95, r.covariance_vertical_in_95))
        << " |\n";
   }
   return md.str();

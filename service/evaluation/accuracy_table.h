@@ -63,6 +63,9 @@ struct AccuracyRow {
   std::optional<double> first_position_s, first_full_state_s;
   double tracked_share = 0.0;
   double update_mean_ms = kNone, update_max_ms = kNone;
+  /// Shares of the published poses inside their covariance's 95 % region,
+  /// horizontally and vertically (covariance_consistency.h; 0.95 when honest).
+  double covariance_horizontal_in_95 = kNone, covariance_vertical_in_95 = kNone;
   std::string error;  ///< what() when the run threw (then started is false)
 };
 
@@ -74,8 +77,9 @@ std::vector<AccuracyRow> runAccuracyTable(const std::vector<AccuracyRecording>& 
 
 /// accuracy.csv: a header line and one line per row. Throws std::runtime_error when it cannot be written.
 void writeAccuracyCsv(const std::filesystem::path& file, const std::vector<AccuracyRow>& rows);
-/// Reads what writeAccuracyCsv wrote. Throws std::runtime_error naming the
-/// file, line and field of the first thing it cannot read.
+/// Reads what writeAccuracyCsv wrote, and the files of before session 44
+/// (without the covariance columns: NaN there). Throws std::runtime_error
+/// naming the file, line and field of the first thing it cannot read.
 std::vector<AccuracyRow> readAccuracyCsv(const std::filesystem::path& file);
 
 /// The Markdown tables: per set (means over the recordings with an error

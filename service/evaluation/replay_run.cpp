@@ -295,6 +295,7 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
       if (const auto fix = localizer.provisionalPosition(); fix && fix->sequence != provisional_written) {
         provisional_written = fix->sequence;
         out.position_only.push_back({fix->t_ns, Pose3(Mat3::Identity(), fix->p_w_b)});
+        out.published_covariance.push_back({fix->t_ns, fix->p_w_b, fix->cov_p_w, true});
         if (!out.first_position_s) out.first_position_s = static_cast<double>(fix->t_ns - t0_ns) * 1e-9;
       }
       continue;
@@ -304,6 +305,11 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
     if (!out.first_full_state_s) out.first_full_state_s = static_cast<double>(s.t_ns - t0_ns) * 1e-9;
     if (!out.first_position_s) out.first_position_s = out.first_full_state_s;
     out.online.push_back({s.t_ns, s.T_w_b});
+    if (const auto cov = localizer.latestPoseCovariance()) {
+      // Tangent [rot; trans], translation in the body frame (Service::navigationState).
+      const Mat3 cov_p_w = s.T_w_b.R * Mat6(*cov).bottomRightCorner<3, 3>() * s.T_w_b.R.transpose();
+      out.published_covariance.push_back({s.t_ns, s.T_w_b.p, cov_p_w, false});
+    }
     for (const UpdateStats& u : stats) out.updates.push_back({s.t_ns, u});
     localizer.drainSmoothed(out.smoothed);
   }
@@ -342,9 +348,12 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
   classification.tag_lever_arms = params.graph.tag_lever_arms;
   out.nlos = classifyRanges(ranges, out.smoothed, uwbAnchorsById(rec.anchors), params.graph.p_b_tag, range_model,
                             params.graph.range_noise.sigma_m, classification);
+  std::stable_sort(out.published_covariance.begin(), out.published_covariance.end(),
+                   [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
   if (!rec.groundtruth.empty()) {
     out.ape_online = positionErrorAgainst(published, rec.groundtruth);
     out.ape_smoothed = positionErrorAgainst(out.smoothed, rec.groundtruth);
+    out.covariance_online = covarianceConsistency(out.published_covariance, rec.groundtruth, kDefaultAssociationMaxDtNs);
   }
   return out;
 }

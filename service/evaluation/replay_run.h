@@ -14,6 +14,7 @@
 #include "evaluation/nlos_classification.h"
 #include "evaluation/range_thinning.h"
 #include "evaluation/trajectory_error.h"
+#include "evaluation/covariance_consistency.h"
 #include "evaluation/trajectory_metrics.h"  // positionErrorAgainst
 #include "hal/recording/recording.h"
 
@@ -160,6 +161,11 @@ struct ReplayResult {
   /// share count both, as the service publishes both.
   std::vector<RangeImuEstimator::TimedPose> position_only;
   std::vector<RangeImuEstimator::TimedPose> smoothed;  ///< final estimate of every state, time order
+  /// What the service publishes with each online pose and position-only fix
+  /// above, in time order: the position and its covariance (world; the
+  /// smoother's marginal of the newest state, the fix's own covariance).
+  /// Poses whose covariance was not available are left out.
+  std::vector<TimedPositionCovariance> published_covariance;
   std::vector<ReplayUpdate> updates;
   /// Data time from the first sample to the first published position, and
   /// to the first full state (s; nullopt: none).
@@ -186,6 +192,8 @@ struct ReplayResult {
   double wall_s = 0.0;                ///< time the run took (s)
   /// Present when the recording has ground truth.
   std::optional<PositionErrorStats> ape_online, ape_smoothed;
+  /// Whether published_covariance covers the error (covariance_consistency.h); with ground truth.
+  std::optional<CovarianceConsistency> covariance_online;
   /// Ranges the smoothed trajectory down-weights as NLOS (with the run's loss;
   /// scored against the recording's los column when it has one).
   NlosClassification nlos;

@@ -39,6 +39,8 @@ AccuracyRow row(const std::string& set, const std::string& recording, double onl
   r.tracked_share = r.started ? 0.98 : 0.0;
   r.update_mean_ms = 0.3;
   r.update_max_ms = 4.0;
+  r.covariance_horizontal_in_95 = r.started ? 0.9 : kNaN;
+  r.covariance_vertical_in_95 = r.started ? 0.97 : kNaN;
   return r;
 }
 
@@ -108,6 +110,11 @@ TEST(AccuracyTable, RunsEveryRateAsRecordedAndWithoutTheFirstPath) {
     EXPECT_GT(r->update_mean_ms, 0.0) << r->set;
     EXPECT_GE(r->update_max_ms, r->update_mean_ms) << r->set;
     EXPECT_LT(std::abs(r->height_offset_m), r->online_mean_m + 1e-12) << r->set;
+    // Shares of the published poses inside their covariance's 95 % region.
+    EXPECT_GT(r->covariance_horizontal_in_95, 0.0) << r->set;
+    EXPECT_LE(r->covariance_horizontal_in_95, 1.0) << r->set;
+    EXPECT_GT(r->covariance_vertical_in_95, 0.0) << r->set;
+    EXPECT_LE(r->covariance_vertical_in_95, 1.0) << r->set;
   }
   // The copy is the demo without its column: the same run as the stripped
   // variant (a replay is deterministic, bit for bit, on any thread).
@@ -183,7 +190,8 @@ TEST(AccuracyTable, CsvRoundTrip) {
       EXPECT_DOUBLE_EQ(*back[i].first_position_s, *rows[i].first_position_s);
     }
     for (auto field : {&AccuracyRow::online_mean_m, &AccuracyRow::online_max_m, &AccuracyRow::smoothed_mean_m,
-                       &AccuracyRow::height_offset_m, &AccuracyRow::update_mean_ms, &AccuracyRow::update_max_ms}) {
+                       &AccuracyRow::height_offset_m, &AccuracyRow::update_mean_ms, &AccuracyRow::update_max_ms,
+                       &AccuracyRow::covariance_horizontal_in_95, &AccuracyRow::covariance_vertical_in_95}) {
       if (std::isnan(rows[i].*field)) {
         EXPECT_TRUE(std::isnan(back[i].*field));
       } else {
@@ -212,29 +220,55 @@ TEST(AccuracyTable, MalformedCsvNamesTheFileLineAndField) {
 
   write(header + "\"own, all ranges\",office1,1,0.2\n");
   msg = expectThrowMessage(file);
-  EXPECT_NE(msg.find(":2: 4 fields, expected 13"), std::string::npos) << msg;
+  EXPECT_NE(msg.find(":2: 4 fields, expected 15"), std::string::npos) << msg;
 
-  write(header + "\"own, all ranges\",office1,1,0.2x,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,\n");
+  write(header + "\"own, all ranges\",office1,1,0.2x,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,0.9,0.97,\n");
   msg = expectThrowMessage(file);
   EXPECT_NE(msg.find(":2: field online_mean_m: not a number: '0.2x'"), std::string::npos) << msg;
 
-  write(header + "\n\"own, all ranges\",office1,yes,0.2,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,\n");
+  write(header + "\n\"own, all ranges\",office1,yes,0.2,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,0.9,0.97,\n");
   msg = expectThrowMessage(file);
   EXPECT_NE(msg.find(":3: field started"), std::string::npos) << msg;
 
-  write(header + "\"own, all ranges,office1,1,0.2,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,\n");
+  write(header + "\"own, all ranges,office1,1,0.2,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,0.9,0.97,\n");
   msg = expectThrowMessage(file);
   EXPECT_NE(msg.find(":2: unterminated quote"), std::string::npos) << msg;
 
-  write(header + "\"own, all ranges\",office1,1,nan,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,\n");
+  write(header + "\"own, all ranges\",office1,1,nan,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,0.9,0.97,\n");
   msg = expectThrowMessage(file);
   EXPECT_NE(msg.find("field online_mean_m"), std::string::npos) << msg;
 
   // A file saved with CRLF line ends reads.
-  write(header.substr(0, header.size() - 1) + "\r\n\"own, all ranges\",office1,1,0.2,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,\r\n");
+  write(header.substr(0, header.size() - 1) + "\r\n\"own, all ranges\",office1,1,0.2,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,0.9,0.97,\r\n");
   EXPECT_EQ(readAccuracyCsv(file).size(), 1u);
 
   EXPECT_THROW(readAccuracyCsv(dir / "missing.csv"), std::runtime_error);
+}
+
+// A file written before session 44 has no covariance columns: it still reads
+// (for --compare), the figures it lacks NaN; its own field count is asked for.
+TEST(AccuracyTable, ReadsTheFilesWrittenBeforeTheCovarianceColumns) {
+  testing::TempDir dir("rilo-accuracy-old");
+  const std::filesystem::path file = dir / "accuracy.csv";
+  const std::string old_header =
+      "set,recording,started,online_mean_m,online_max_m,smoothed_mean_m,height_offset_m,first_position_s,"
+      "first_full_state_s,tracked_share,update_mean_ms,update_max_ms,error\n";
+  std::ofstream(file) << old_header << "\"own, all ranges\",office1,1,0.2,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,\n";
+  const std::vector<AccuracyRow> back = readAccuracyCsv(file);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_DOUBLE_EQ(back[0].online_mean_m, 0.2);
+  EXPECT_DOUBLE_EQ(back[0].update_max_ms, 4.0);
+  EXPECT_TRUE(back[0].error.empty());
+  EXPECT_TRUE(std::isnan(back[0].covariance_horizontal_in_95));
+  EXPECT_TRUE(std::isnan(back[0].covariance_vertical_in_95));
+  // Compared with it, the new figures show on their own.
+  const std::string md = accuracyMarkdown({row("own, all ranges", "office1", 0.2, 0.1)}, &back, "# h");
+  EXPECT_NE(md.find("-0.13 | 90 / 97 % |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| 98 % | 90 / 97 % |"), std::string::npos) << md;
+
+  std::ofstream(file, std::ios::trunc) << old_header << "\"own, all ranges\",office1,1,0.2,0.6,0.1,-0.1,0.5,6.75,0.98,0.3,4,0.9,0.97,\n";
+  const std::string msg = expectThrowMessage(file);
+  EXPECT_NE(msg.find(":2: 15 fields, expected 13"), std::string::npos) << msg;
 }
 
 TEST(AccuracyTable, MarkdownShowsBeforeAndAfterOverTheRecordingsBothRunsHold) {
@@ -256,6 +290,11 @@ TEST(AccuracyTable, MarkdownShowsBeforeAndAfterOverTheRecordingsBothRunsHold) {
   EXPECT_NE(md.find("| own, all ranges | office2 | 0.300 | 0.200 | 0.90 | -0.13 |"), std::string::npos) << md;
   EXPECT_NE(md.find("| own, all ranges | office9 | 0.500 |"), std::string::npos) << md;
   EXPECT_NE(md.find("| foreign, all ranges | f15 | never started -> 0.550 |"), std::string::npos) << md;
+  // The covariance's share: once where unchanged, and per set over the recordings both runs hold.
+  EXPECT_NE(md.find("| own, all ranges | office2 | 0.300 | 0.200 | 0.90 | -0.13 | 0.5 s / 6.8 s | 98 % | 90 / 97 % |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| 0.2500 -> 0.2400 | 0.1700 | -0.13 | 90 / 97 % |"), std::string::npos) << md;
 
   const std::string plain = accuracyMarkdown(after, nullptr, "# h");
   EXPECT_EQ(plain.find("->"), std::string::npos) << plain;

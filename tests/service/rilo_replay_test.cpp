@@ -232,6 +232,36 @@ TEST(RiloReplay, WritesTrajectoriesTimingAndSummary) {
   std::getline(timing, header);
   EXPECT_EQ(header, "t_s,update_ms,cliques_reeliminated,variables_relinearized,tries,accepted,lambda,"
             "cliques_back_substituted,factors_linearized,variables_marginalized,cliques_total");
+  // What was published with each pose: its position covariance, one row per
+  // fix and per online pose, in time order, symmetric positive diagonal;
+  // the summary says how much of the error it covers.
+  std::ifstream cov(out / "covariance.csv");
+  std::getline(cov, header);
+  EXPECT_EQ(header, "t_s,x_m,y_m,z_m,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz,position_only");
+  std::size_t rows = 0, fixes = 0;
+  double last_t = -1.0;
+  for (std::string line; std::getline(cov, line); ++rows) {
+    std::vector<double> f;
+    std::stringstream fields(line);
+    for (std::string x; std::getline(fields, x, ',');) f.push_back(std::stod(x));
+    ASSERT_EQ(f.size(), 11u) << line;
+    ASSERT_GE(f[0], last_t) << line;
+    last_t = f[0];
+    EXPECT_GT(f[4], 0.0) << line;
+    EXPECT_GT(f[7], 0.0) << line;
+    EXPECT_GT(f[9], 0.0) << line;
+    fixes += f[10] == 1.0 ? 1 : 0;
+  }
+  EXPECT_EQ(rows, online.size() + position_only.size());
+  EXPECT_EQ(fixes, position_only.size());
+  const nlohmann::json& c = text["covariance_online"];
+  EXPECT_EQ(c["poses"], rows) << c;
+  EXPECT_EQ(c["not_positive_definite"], 0) << c;
+  for (const char* share : {"horizontal_in_95", "vertical_in_95"}) {
+    EXPECT_GT(c[share].get<double>(), 0.0) << c;
+    EXPECT_LE(c[share].get<double>(), 1.0) << c;
+  }
+  EXPECT_GT(c["nees_mean"].get<double>(), 0.0) << c;
 }
 
 

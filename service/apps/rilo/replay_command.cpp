@@ -127,6 +127,19 @@ int runReplay(const ReplayOptions& o) {
   writeTum(dir / "online.tum", run.online);
   if (!run.position_only.empty()) writeTum(dir / "position_only.tum", run.position_only);
   writeTum(dir / "smoothed.tum", run.smoothed);
+  {
+    // The published positions' covariance (world, m^2), which TUM cannot hold.
+    std::ofstream cov(dir / "covariance.csv");
+    cov << "t_s,x_m,y_m,z_m,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz,position_only\n";
+    cov.precision(10);
+    for (const TimedPositionCovariance& c : run.published_covariance) {
+      const Mat3& P = c.cov_p_w;
+      cov << static_cast<double>(c.t_ns) * 1e-9 << ',' << c.p_w.x() << ',' << c.p_w.y() << ',' << c.p_w.z() << ','
+          << P(0, 0) << ',' << P(0, 1) << ',' << P(0, 2) << ',' << P(1, 1) << ',' << P(1, 2) << ',' << P(2, 2) << ','
+          << (c.position_only ? 1 : 0) << '\n';
+    }
+    if (!cov) throw std::runtime_error("cannot write " + (dir / "covariance.csv").string());
+  }
   // The truth beside the estimates, for evo (`evo_ape tum groundtruth.tum online.tum`).
   if (!rec.groundtruth.empty()) {
     TumTrajectory truth;
@@ -194,6 +207,18 @@ int runReplay(const ReplayOptions& o) {
     j["ape_online"] = statsJson(*run.ape_online);
     j["ape_smoothed"] = statsJson(*run.ape_smoothed);
   }
+  if (run.covariance_online) {
+    const CovarianceConsistency& c = *run.covariance_online;
+    j["covariance_online"] = Json{{"poses", c.poses},
+                                  {"not_positive_definite", c.not_positive_definite},
+                                  {"horizontal_in_95", c.horizontal_in_95},
+                                  {"vertical_in_95", c.vertical_in_95},
+                                  {"nees_mean", c.nees_mean},
+                                  {"sigma_horizontal_m", c.sigma_horizontal_m},
+                                  {"error_horizontal_m", c.error_horizontal_m},
+                                  {"sigma_vertical_m", c.sigma_vertical_m},
+                                  {"error_vertical_m", c.error_vertical_m}};
+  }
   std::ofstream summary(dir / "summary.json");
   // Paths are the user's bytes, not necessarily UTF-8: bad bytes become U+FFFD.
   summary << j.dump(2, ' ', false, Json::error_handler_t::replace) << '\n';
@@ -259,7 +284,14 @@ int runReplay(const ReplayOptions& o) {
                   e.ape_vertical.mean, e.vertical_bias_m);
     }
   }
-  std::printf("  wrote %s/{online.tum,%ssmoothed.tum,%stiming.csv,summary.json}\n", o.out.c_str(),
+  if (run.covariance_online && run.covariance_online->poses > 0) {
+    const CovarianceConsistency& c = *run.covariance_online;
+    std::printf("  covariance online: %.0f%% horizontal / %.0f%% vertical inside its 95%% region (honest: 95%%), "
+                "NEES %.1f (3); sigma %.3f / %.3f m against error %.3f / %.3f m (rms per axis)\n",
+                100.0 * c.horizontal_in_95, 100.0 * c.vertical_in_95, c.nees_mean, c.sigma_horizontal_m,
+                c.sigma_vertical_m, c.error_horizontal_m, c.error_vertical_m);
+  }
+  std::printf("  wrote %s/{online.tum,%ssmoothed.tum,%scovariance.csv,timing.csv,summary.json}\n", o.out.c_str(),
               run.position_only.empty() ? "" : "position_only.tum,", rec.groundtruth.empty() ? "" : "groundtruth.tum,");
   return 0;
 }

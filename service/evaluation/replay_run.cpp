@@ -1,6 +1,7 @@
 #include "evaluation/replay_run.h"
 
 #include <algorithm>
+#include <iterator>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -354,6 +355,10 @@ ReplayResult replayRecording(const Recording& rec, const ReplaySettings& setting
     out.ape_online = positionErrorAgainst(published, rec.groundtruth);
     out.ape_smoothed = positionErrorAgainst(out.smoothed, rec.groundtruth);
     out.covariance_online = covarianceConsistency(out.published_covariance, rec.groundtruth, kDefaultAssociationMaxDtNs);
+    std::vector<TimedPositionCovariance> fixes;
+    std::copy_if(out.published_covariance.begin(), out.published_covariance.end(), std::back_inserter(fixes),
+                 [](const TimedPositionCovariance& c) { return c.position_only; });
+    out.covariance_position_only = covarianceConsistency(fixes, rec.groundtruth, kDefaultAssociationMaxDtNs);
   }
   return out;
 }

@@ -194,6 +194,8 @@ struct ReplayResult {
   std::optional<PositionErrorStats> ape_online, ape_smoothed;
   /// Whether published_covariance covers the error (covariance_consistency.h); with ground truth.
   std::optional<CovarianceConsistency> covariance_online;
+  /// The same over the position-only fixes alone (the start's published positions).
+  std::optional<CovarianceConsistency> covariance_position_only;
   /// Ranges the smoothed trajectory down-weights as NLOS (with the run's loss;
   /// scored against the recording's los column when it has one).
   NlosClassification nlos;

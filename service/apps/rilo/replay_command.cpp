@@ -68,6 +68,20 @@ std::string inputDroppedText(const InputDropCounts& d) {
   return out;
 }
 
+Json consistencyJson(const CovarianceConsistency& c) {
+  // No poses: nulls, as statsJson.
+  const auto fig = [&](double v) { return c.poses > 0 ? Json(v) : Json(nullptr); };
+  return Json{{"poses", c.poses},
+              {"not_positive_definite", c.not_positive_definite},
+              {"horizontal_in_95", fig(c.horizontal_in_95)},
+              {"vertical_in_95", fig(c.vertical_in_95)},
+              {"nees_mean", fig(c.nees_mean)},
+              {"sigma_horizontal_m", fig(c.sigma_horizontal_m)},
+              {"error_horizontal_m", fig(c.error_horizontal_m)},
+              {"sigma_vertical_m", fig(c.sigma_vertical_m)},
+              {"error_vertical_m", fig(c.error_vertical_m)}};
+}
+
 Json countJson(const MeasurementCount& c, bool with_flags = false) {
   Json out{{"recorded", c.recorded}, {"used", c.used}, {"dropped", c.dropped}, {"selected", c.selected}};
   if (with_flags) {
@@ -207,18 +221,8 @@ int runReplay(const ReplayOptions& o) {
     j["ape_online"] = statsJson(*run.ape_online);
     j["ape_smoothed"] = statsJson(*run.ape_smoothed);
   }
-  if (run.covariance_online) {
-    const CovarianceConsistency& c = *run.covariance_online;
-    j["covariance_online"] = Json{{"poses", c.poses},
-                                  {"not_positive_definite", c.not_positive_definite},
-                                  {"horizontal_in_95", c.horizontal_in_95},
-                                  {"vertical_in_95", c.vertical_in_95},
-                                  {"nees_mean", c.nees_mean},
-                                  {"sigma_horizontal_m", c.sigma_horizontal_m},
-                                  {"error_horizontal_m", c.error_horizontal_m},
-                                  {"sigma_vertical_m", c.sigma_vertical_m},
-                                  {"error_vertical_m", c.error_vertical_m}};
-  }
+  if (run.covariance_online) j["covariance_online"] = consistencyJson(*run.covariance_online);
+  if (run.covariance_position_only) j["covariance_position_only"] = consistencyJson(*run.covariance_position_only);
   std::ofstream summary(dir / "summary.json");
   // Paths are the user's bytes, not necessarily UTF-8: bad bytes become U+FFFD.
   summary << j.dump(2, ' ', false, Json::error_handler_t::replace) << '\n';
@@ -284,12 +288,13 @@ int runReplay(const ReplayOptions& o) {
                   e.ape_vertical.mean, e.vertical_bias_m);
     }
   }
-  if (run.covariance_online && run.covariance_online->poses > 0) {
-    const CovarianceConsistency& c = *run.covariance_online;
-    std::printf("  covariance online: %.0f%% horizontal / %.0f%% vertical inside its 95%% region (honest: 95%%), "
+  for (const auto& [label, c] : {std::pair{"online       ", run.covariance_online},
+                                  std::pair{"position-only", run.covariance_position_only}}) {
+    if (!c || c->poses == 0) continue;
+    std::printf("  covariance %s: %.0f%% horizontal / %.0f%% vertical inside its 95%% region (honest: 95%%), "
                 "NEES %.1f (3); sigma %.3f / %.3f m against error %.3f / %.3f m (rms per axis)\n",
-                100.0 * c.horizontal_in_95, 100.0 * c.vertical_in_95, c.nees_mean, c.sigma_horizontal_m,
-                c.sigma_vertical_m, c.error_horizontal_m, c.error_vertical_m);
+                label, 100.0 * c->horizontal_in_95, 100.0 * c->vertical_in_95, c->nees_mean, c->sigma_horizontal_m,
+                c->sigma_vertical_m, c->error_horizontal_m, c->error_vertical_m);
   }
   std::printf("  wrote %s/{online.tum,%ssmoothed.tum,%scovariance.csv,timing.csv,summary.json}\n", o.out.c_str(),
               run.position_only.empty() ? "" : "position_only.tum,", rec.groundtruth.empty() ? "" : "groundtruth.tum,");

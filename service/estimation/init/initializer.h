@@ -305,7 +305,7 @@ struct InitStatus {
 struct ProvisionalFix {
   std::int64_t t_ns = 0;        ///< the newest measurement the fix holds
   Vec3 p_w_tag = Vec3::Zero();  ///< UWB antenna position (m, world)
-  Mat3 cov_p_w = Mat3::Identity();  ///< its covariance (m^2), TagFix::cov_p_w
+  Mat3 cov_p_w = Mat3::Identity();  ///< its covariance (m^2): TagFix::cov_p_w, each anchor's ranges counted as one (provisional_fix.cpp)
   std::uint64_t sequence = 0;   ///< counts the fixes since construction (not reset): a new one has a new number
 };
 

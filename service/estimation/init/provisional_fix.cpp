@@ -44,7 +44,17 @@ void Initializer::updateProvisionalFix() {
   }
   // The newest fix stands for the time of its newest measurement; a failed
   // one keeps the previous (which a caller ages by its own t_ns).
-  provisional_ = ProvisionalFix{t_end, fix.p_w_tag, fix.cov_p_w, ++provisional_sequence_};
+  // The multilateration weighs every range as an independent one, but an
+  // anchor's ranges within the window share most of their error: an NLOS
+  // excess persists for seconds as the wearer walks (docs/noise-models.md,
+  // "Why the foreign height stays 0.6 m low"), and so do the anchor's survey
+  // and antenna-delay errors. Each anchor's ranges count as one: the
+  // covariance grows by the inlier ranges per anchor (10 at 40 Hz over 8
+  // anchors and 2 s). Without this the fixes claimed 0.03-0.08 m while off
+  // by 0.1-0.4 m (docs/accuracy.md, session 44).
+  const double ranges_per_anchor = static_cast<double>(fix.inliers) / static_cast<double>(fix.anchors_used);
+  provisional_ = ProvisionalFix{t_end, fix.p_w_tag, fix.cov_p_w * std::max(1.0, ranges_per_anchor),
+                                ++provisional_sequence_};
   const HeightBand& band = P.height_band;
   if (band.enabled) {
     // A second of ranges from anchors a few metres up leaves the height to

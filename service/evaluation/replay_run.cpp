@@ -122,6 +122,7 @@ LocalizerParams localizerParamsFor(const Recording& rec, const ReplaySettings& s
   if (s.los_gap_calibration) lp.los_gap.enabled = *s.los_gap_calibration;
   if (s.rx_level_indicator) lp.rx_level_envelope.enabled = *s.rx_level_indicator;
   if (s.nlos_memory_s) lp.nlos_memory.window_s = *s.nlos_memory_s;
+  if (s.range_error_correlation_s) lp.range_repeats.error_correlation_s = *s.range_error_correlation_s;
   if (s.max_outside_anchors_m) lp.max_outside_anchors_m = *s.max_outside_anchors_m;
   if (s.init_max_outside_anchors_m) lp.init.max_outside_anchors_m = *s.init_max_outside_anchors_m;
   if (s.init_heavy_nlos_after_s) lp.init.heavy_nlos_after_s = *s.init_heavy_nlos_after_s;

@@ -73,6 +73,7 @@ struct ReplaySettings {
   std::optional<bool> los_gap_calibration;        ///< LosGapParams::enabled
   std::optional<bool> rx_level_indicator;         ///< RxLevelEnvelopeParams::enabled
   std::optional<double> nlos_memory_s;            ///< NlosMemoryParams::window_s
+  std::optional<double> range_error_correlation_s;  ///< RangeRepeatsParams::error_correlation_s (0: off)
   std::optional<double> max_outside_anchors_m;    ///< LocalizerParams::max_outside_anchors_m (+inf: off)
   std::optional<double> init_max_outside_anchors_m;  ///< InitializerParams::max_outside_anchors_m (+inf: off)
   std::optional<double> init_heavy_nlos_after_s;     ///< InitializerParams::heavy_nlos_after_s (+inf: off)
@@ -163,7 +164,7 @@ struct ReplayResult {
   std::vector<RangeImuEstimator::TimedPose> smoothed;  ///< final estimate of every state, time order
   /// What the service publishes with each online pose and position-only fix
   /// above, in time order: the position and its covariance (world; the
-  /// smoother's marginal of the newest state, the fix's own covariance).
+  /// tracker's marginal of the newest state, the fix's own covariance).
   /// Poses whose covariance was not available are left out.
   std::vector<TimedPositionCovariance> published_covariance;
   std::vector<ReplayUpdate> updates;
@@ -192,7 +193,9 @@ struct ReplayResult {
   double wall_s = 0.0;                ///< time the run took (s)
   /// Present when the recording has ground truth.
   std::optional<PositionErrorStats> ape_online, ape_smoothed;
-  /// Whether published_covariance covers the error (covariance_consistency.h); with ground truth.
+  /// Whether published_covariance covers the error (covariance_consistency.h;
+  /// over every published pose, the position-only fixes included, as the
+  /// online APE); with ground truth.
   std::optional<CovarianceConsistency> covariance_online;
   /// The same over the position-only fixes alone (the start's published positions).
   std::optional<CovarianceConsistency> covariance_position_only;

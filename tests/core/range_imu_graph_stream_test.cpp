@@ -10,6 +10,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -22,6 +23,8 @@
 #include "estimation/factors/range_factor.h"
 #include "estimation/factors/tdoa_factor.h"
 #include "estimation/factors/ultrasonic_factor.h"
+#include "estimation/noise/noise_model_factory.h"
+#include "estimation/noise/weighted_loss.h"
 #include "estimation/solver/batch_lm.h"
 #include "sim/range_imu_scenario.h"
 #include "support/resting_imu.h"
@@ -1132,6 +1135,67 @@ TEST(HeightBand, PlausibleOnlyWhenTheAnchorsSitAboveItsFloor) {
   const std::vector<Vec3> below_floor = {Vec3(0, 0, 2.5), Vec3(10, 0, 2.1), Vec3(0, 8, -1.0)};
   EXPECT_FALSE(HeightBand().plausibleFor(below_floor));
   EXPECT_FALSE(HeightBand().plausibleFor(std::vector<Vec3>{}));
+}
+
+}  // namespace
+}  // namespace rilo
+
+namespace rilo {
+namespace {
+
+// RangeImuStreamOptions::range_repeats (range_repeats.h): with a correlation
+// time of 1 s, a two-way range counts one over its anchor's ranges in a
+// second, through a WeightedLoss around the configured loss; at 1 Hz an
+// anchor is heard every few seconds and no range is weighed down; off (the
+// default) the graph is the legacy one.
+TEST(RangeImuGraphStream, AnAnchorsRangesWithinTheCorrelationTimeCountAsOne) {
+  for (double rate_hz : {1.0, 40.0}) {
+    SCOPED_TRACE(rate_hz);
+    const sim::Scenario s = makeScenario(30.0, rate_hz, 5);
+    const RangeImuGraphParams gp = graphParams(s);
+    RangeImuStreamOptions options;
+    EXPECT_EQ(options.range_repeats.error_correlation_s, 0.0) << "off unless the tracker asks";
+    const auto weighed = [](const FactorPtr& f) { return dynamic_cast<const WeightedLoss*>(f->loss()) != nullptr; };
+    const Collected off = feedStream(s, s.ranges, gp, options, Feed());
+    EXPECT_TRUE(std::none_of(off.factors.begin(), off.factors.end(), weighed)) << "off: the legacy graph";
+    options.range_repeats.error_correlation_s = 1.0;
+    const Collected c = feedStream(s, s.ranges, gp, options, Feed());
+    std::vector<double> weights;
+    std::size_t ranges = 0;
+    for (const FactorPtr& f : c.factors) {
+      if (dynamic_cast<const RangeFactor*>(f.get()) == nullptr) continue;
+      ++ranges;
+      if (const auto* w = dynamic_cast<const WeightedLoss*>(f->loss())) {
+        EXPECT_EQ(w->inner()->name(), makeRangeLoss(gp.range_loss, gp.range_noise)->name());
+        weights.push_back(w->w());
+      }
+    }
+    ASSERT_GT(ranges, 20u);
+    if (rate_hz == 1.0) {
+      EXPECT_TRUE(weights.empty());
+      continue;
+    }
+    // An anchor's ranges are weighed from its second on (one right after a
+    // pause as long as the window may count alone), each by one over the
+    // ranges its anchor gets a second while it is heard: the mean interval,
+    // a pause counted as one second (per range, the median over all ranges).
+    std::map<std::uint32_t, std::vector<std::int64_t>> times;
+    for (const RangeSample& r : s.ranges) times[r.anchor_id].push_back(r.t_ns);
+    EXPECT_GE(weights.size() + 2 * times.size(), ranges);
+    std::vector<double> per_anchor_w;
+    for (const auto& [id, t] : times) {
+      if (t.size() < 10) continue;
+      double sum_s = 0.0;
+      for (std::size_t k = 1; k < t.size(); ++k) sum_s += std::min(1.0, 1e-9 * static_cast<double>(t[k] - t[k - 1]));
+      per_anchor_w.insert(per_anchor_w.end(), t.size(), sum_s / static_cast<double>(t.size() - 1));
+    }
+    std::nth_element(weights.begin(), weights.begin() + static_cast<std::ptrdiff_t>(weights.size() / 2), weights.end());
+    std::nth_element(per_anchor_w.begin(), per_anchor_w.begin() + static_cast<std::ptrdiff_t>(per_anchor_w.size() / 2),
+                     per_anchor_w.end());
+    const double expected_w = per_anchor_w[per_anchor_w.size() / 2];
+    EXPECT_NEAR(weights[weights.size() / 2], expected_w, 0.25 * expected_w);
+    EXPECT_LT(expected_w, 0.5) << "the test must weigh ranges down";
+  }
 }
 
 }  // namespace

@@ -145,12 +145,13 @@ int runReplay(const ReplayOptions& o) {
     // The published positions' covariance (world, m^2), which TUM cannot hold.
     std::ofstream cov(dir / "covariance.csv");
     cov << "t_s,x_m,y_m,z_m,cov_xx,cov_xy,cov_xz,cov_yy,cov_yz,cov_zz,position_only\n";
-    cov.precision(10);
     for (const TimedPositionCovariance& c : run.published_covariance) {
       const Mat3& P = c.cov_p_w;
-      cov << static_cast<double>(c.t_ns) * 1e-9 << ',' << c.p_w.x() << ',' << c.p_w.y() << ',' << c.p_w.z() << ','
-          << P(0, 0) << ',' << P(0, 1) << ',' << P(0, 2) << ',' << P(1, 1) << ',' << P(1, 2) << ',' << P(2, 2) << ','
-          << (c.position_only ? 1 : 0) << '\n';
+      // Times as in the TUM files (ns exact at epoch seconds), the rest to 10 digits.
+      char row[320];
+      std::snprintf(row, sizeof row, ",%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%d\n", c.p_w.x(),
+                    c.p_w.y(), c.p_w.z(), P(0, 0), P(0, 1), P(0, 2), P(1, 1), P(1, 2), P(2, 2), c.position_only ? 1 : 0);
+      cov << secondsText(c.t_ns) << row;
     }
     if (!cov) throw std::runtime_error("cannot write " + (dir / "covariance.csv").string());
   }
@@ -377,6 +378,10 @@ void addReplayCommand(CLI::App& app) {
   cmd->add_option("--nlos-memory", options->settings.nlos_memory_s,
                   "Where ranges carry no first-path power, flag as NLOS the next range of an anchor whose last two "
                   "the mixture took as NLOS within this (s; default 0.5; 0: off)")
+      ->check(CLI::Range(0.0, 60.0));
+  cmd->add_option("--range-error-correlation", options->settings.range_error_correlation_s,
+                  "Tracking weighs each two-way range by one over its anchor's ranges within this time, over which "
+                  "they share one error (s; default 0: off, every range counts alone; docs/noise-models.md, session 44)")
       ->check(CLI::Range(0.0, 60.0));
   cmd->add_option("--max-outside-anchors", options->settings.max_outside_anchors_m,
                   "Re-initialize when the tag is estimated farther than this beyond the anchors' horizontal box while "

@@ -53,6 +53,7 @@ RangeImuGraphStream::RangeImuGraphStream(std::vector<Vec3> p_w_anchors, RangeImu
       pim_(params_.imu, ImuBias(), PreintegratedImu::CovarianceMode::kCombined),
       noise_(p_w_anchors_, params_, options_.dynamic_covariance),
       carry_height_(params_.height_band, options_.learn_carry_height),
+      range_repeats_(p_w_anchors_.size(), options_.range_repeats),
       anchor_in_graph_(p_w_anchors_.size(), false),
       standstill_(params_.standstill, options.initial_imu_capacity),
       imu_(options.initial_imu_capacity),
@@ -214,6 +215,7 @@ void RangeImuGraphStream::addMeasurement(const Measurement& r) {
   }
   have_range_ = true;
   newest_range_t_ns_ = r.t_ns;
+  if (r.kind == Measurement::Kind::kRange) range_repeats_.add(r.anchor, r.tag, r.t_ns);
   if (started_) {
     planRange(r);
   } else {

@@ -58,6 +58,7 @@
 #include "estimation/measurements/growing_ring.h"
 #include "estimation/measurements/measurement.h"
 #include "estimation/measurements/range_model.h"
+#include "estimation/measurements/range_repeats.h"
 #include "sensors/samples.h"
 
 namespace rilo {
@@ -114,6 +115,11 @@ struct RangeImuStreamOptions {
   /// (false: the initializer's batch, whose states are dead-reckoned while it
   /// is built).
   bool learn_carry_height = false;
+  /// Each two-way range weighed by one over its anchor's ranges within the
+  /// error's correlation time (range_repeats.h). Off here (the initializer's
+  /// batch: its gates are costs per range); the Localizer's tracking takes
+  /// LocalizerParams::range_repeats.
+  RangeRepeatsParams range_repeats;
 };
 
 class RangeImuGraphStream {
@@ -229,6 +235,7 @@ class RangeImuGraphStream {
   PreintegratedImu pim_;  ///< scratch, reset per state
   MeasurementNoise noise_;
   CarryHeight carry_height_;  ///< where each state's height is held (HeightBand::hold_sigma_m)
+  RangeRepeats range_repeats_;  ///< how many of an anchor's ranges share one error (options_.range_repeats)
 
   bool started_ = false;
   bool finished_ = false;

@@ -15,6 +15,7 @@
 #include "estimation/factors/range_factor.h"
 #include "estimation/factors/tdoa_factor.h"
 #include "estimation/factors/ultrasonic_factor.h"
+#include "estimation/noise/weighted_loss.h"
 
 namespace rilo {
 namespace {
@@ -107,9 +108,12 @@ void RangeImuGraphStream::addRangeFactors(std::size_t first, std::size_t n, std:
       case Measurement::Kind::kRange: {
         const RangeTerm t = range_model_.term(m, sigma_m);
         const Vec3& p_b_tag = params_.leverArm(m.tag);
+        // The anchor's ranges that share this one's error count as one (range_repeats.h).
+        const double repeats = range_repeats_.repeats(m.anchor, m.tag);
+        const RobustLossPtr loss = repeats > 1.0 ? std::make_shared<WeightedLoss>(t.loss, 1.0 / repeats) : t.loss;
         auto f = vars ? std::make_shared<RangeFactor>(x, uwbAnchorKey(m.anchor, inc), t.range_m, t.sigma_m, p_b_tag,
-                                                      t.loss, offset)
-                      : std::make_shared<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, p_b_tag, t.loss,
+                                                      loss, offset)
+                      : std::make_shared<RangeFactor>(x, p_w_anchors_[m.anchor], t.range_m, t.sigma_m, p_b_tag, loss,
                                                       offset);
         double sine = 0.0;
         const double w = verticalWeightOf(m, &sine);

@@ -5,6 +5,8 @@
 // - rho(0) = 0 and rho(r) = r^2 / 2 + O(r^3) near 0 (the Gaussian core);
 // - rho is continuous and non-decreasing in |r| on each side of 0;
 // - weight(r) = rho'(r) / r (IRLS weight), its limit 1 at r = 0, always >= 0.
+// One exception by design: WeightedLoss (weighted_loss.h) is w times a loss
+// that follows them (rho ~ w r^2 / 2, weight w at 0).
 // Scalar factors pass the *signed* residual; the sign convention of range-like
 // factors is r > 0 <=> measured longer than predicted (the NLOS side), so
 // asymmetric losses see the sign both when weighting and when the smoother

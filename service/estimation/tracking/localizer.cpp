@@ -30,6 +30,7 @@ void LocalizerParams::validate() const {
   los_gap.validate();
   rx_level_envelope.validate();
   nlos_memory.validate();
+  range_repeats.validate();
   if (rejection_window < 0 || rejection_window > 1'000'000) fail("rejection_window", "must be in [0, 1e6] (0: off)");
   if (!(max_rejection_share >= 0.0 && max_rejection_share < 1.0)) fail("max_rejection_share", "must be in [0, 1)");
   if (!(init_attempt_budget_s >= 0.0)) fail("init_attempt_budget_s", "must be >= 0 (+inf: no bound)");
@@ -364,6 +365,7 @@ void Localizer::startTracking() {
   RangeImuGraphParams graph = params_.graph;
   RangeImuStreamOptions stream = params_.stream;
   stream.learn_carry_height = graph.height_band.learn_carry_height;
+  stream.range_repeats = params_.range_repeats;
   // The data the tracker starts on say which ranging is in use.
   const std::vector<Measurement>& buffered = initializer_.measurementBuffer();
   const bool tdoa = std::any_of(buffered.begin(), buffered.end(),

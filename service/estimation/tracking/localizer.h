@@ -20,6 +20,7 @@
 #include "estimation/measurements/anchor_box.h"
 #include "estimation/measurements/input_screen.h"
 #include "estimation/measurements/range_consistency.h"
+#include "estimation/measurements/range_repeats.h"
 #include "estimation/measurements/rx_level_envelope.h"
 #include "estimation/measurements/tdoa_model.h"
 #include "estimation/smoother/sliding_window_params.h"
@@ -152,6 +153,11 @@ struct LocalizerParams {
   /// two ranges the mixture took as NLOS has its next one flagged
   /// (nlos_memory.h; the asymmetric model with a finite flag threshold only).
   NlosMemoryParams nlos_memory;
+  /// Tracking weighs each two-way range by one over its anchor's ranges
+  /// within the error's correlation time (range_repeats.h; 0, the default:
+  /// off). The smoothers' tracking only: the initializer's batch and the EKF
+  /// baseline take every range alone.
+  RangeRepeatsParams range_repeats;
   /// Windowed rejection share (RejectionWindow, see its notes for the
   /// measurements behind the defaults): fail when more than
   /// max_rejection_share of the last rejection_window updates were rejected.

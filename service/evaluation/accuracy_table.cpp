@@ -329,8 +329,10 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
       a.online_mean_m = b.online_mean_m = a.height_offset_m = b.height_offset_m = kNaN;
     }
     if (!std::isfinite(a.smoothed_mean_m) || !std::isfinite(b.smoothed_mean_m)) a.smoothed_mean_m = b.smoothed_mean_m = kNaN;
-    if (!std::isfinite(a.covariance_horizontal_in_95) || !std::isfinite(b.covariance_horizontal_in_95)) {
+    if (!std::isfinite(a.covariance_horizontal_in_95) || !std::isfinite(b.covariance_horizontal_in_95) ||
+        !std::isfinite(a.covariance_vertical_in_95) || !std::isfinite(b.covariance_vertical_in_95)) {
       a.covariance_horizontal_in_95 = b.covariance_horizontal_in_95 = kNaN;
+      a.covariance_vertical_in_95 = b.covariance_vertical_in_95 = kNaN;
     }
     matched_after.push_back(std::move(a));
     matched_before.push_back(std::move(b));
@@ -345,7 +347,7 @@ std::string accuracyMarkdown(const std::vector<AccuracyRow>& rows, const std::ve
         "fixes included; smoothed: the final estimate of every state)";
   if (before) {
     md << "; \"before -> after\" where the figures differ, over the recordings both runs hold (compared) and, "
-          "for each mean, those with the figure in both";
+          "for each mean, those with the figure in both (a figure the earlier run lacks: this run's, over all)";
   }
   md << ".\n\n";
   md << "| set | recordings | " << (before ? "compared | " : "")

@@ -66,6 +66,9 @@ bool timeNsFromText(std::string_view text, double seconds, std::int64_t& t_ns) {
   return true;
 }
 
+
+}  // namespace
+
 std::string secondsText(std::int64_t t_ns) {
   // Exact "%.9f" of t_ns * 1e-9, without going through double.
   const bool negative = t_ns < 0;
@@ -76,7 +79,6 @@ std::string secondsText(std::int64_t t_ns) {
   return buf;
 }
 
-}  // namespace
 
 TumError::TumError(std::string file, std::size_t line, std::size_t field, const std::string& detail)
     : std::runtime_error(tumMessage(file, line, field, detail)), file_(std::move(file)), line_(line), field_(field) {}

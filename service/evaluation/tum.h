@@ -71,6 +71,8 @@ TumTrajectory readTum(const std::filesystem::path& file);
 
 /// The file content writeTum writes.
 std::string formatTum(const TumTrajectory& poses);
+/// t_ns as "%.9f" seconds, exactly (not through a double): the TUM files' time field.
+std::string secondsText(std::int64_t t_ns);
 /// Writes `poses` to `file` (replacing it); std::runtime_error naming the file
 /// when it cannot be written.
 void writeTum(const std::filesystem::path& file, const TumTrajectory& poses);

@@ -677,7 +677,7 @@ TEST(Localizer, PredictsEachRangeFromTheAntennaThatMeasuredIt) {
 // ranges (Initializer::provisionalFix): on the office sim at 40 Hz the first
 // comes within a second of data (0.5 s), each is near the truth for what its
 // covariance says (the height from the band: its middle, its spread; nine in
-// ten within three sigmas), none is
+// ten inside the 3D 99.7 % region), none is
 // offered while tracking, and the first full state lands within three sigmas
 // of the last fix. At 1 Hz none is offered: seconds of ranges hold too few
 // for a walker's fix.
@@ -727,7 +727,7 @@ TEST(Localizer, PublishesAPositionWhileTheFullStateWaits) {
   EXPECT_GE(fixes, 5);
   // Each anchor's ranges in a fix's window count as one (provisional_fix.cpp):
   // counted as independent, the fixes claimed a third of their error.
-  EXPECT_GE(within_3_sigma, (fixes * 9) / 10) << "covariances as wide as the errors";
+  EXPECT_GE(10 * within_3_sigma, 9 * fixes) << "covariances as wide as the errors";
   // The fix ages as the wearer walks on (up to 2 m/s), and the full state
   // starts at the newest data.
   const double age_s = static_cast<double>(first_tracked_ns - last_fix->t_ns) * 1e-9;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -54,8 +55,8 @@ TEST(CovarianceConsistency, ErrorsDrawnFromTheCovarianceKeepNinetyFivePercentIns
   const CovarianceConsistency c = covarianceConsistency(publish(truth, P, P, 7), truth, 1'000'000);
   EXPECT_EQ(c.poses, truth.size());
   EXPECT_EQ(c.not_positive_definite, 0u);
-  EXPECT_NEAR(c.horizontal_in_95, 0.95, 0.005);
-  EXPECT_NEAR(c.vertical_in_95, 0.95, 0.005);
+  EXPECT_NEAR(c.horizontal_in_95, 0.95, 0.01);
+  EXPECT_NEAR(c.vertical_in_95, 0.95, 0.01);
   EXPECT_NEAR(c.nees_mean, 3.0, 0.08);
   EXPECT_NEAR(c.sigma_horizontal_m, std::sqrt(0.025), 1e-12);
   EXPECT_NEAR(c.sigma_vertical_m, 0.3, 1e-12);

@@ -452,7 +452,7 @@ TagFix Initializer::fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns,
     // point lies somewhere among them (a review's office case, antennas 0.6 m
     // apart: 0.50 m off, claiming 0.16-0.23 m). Their spread joins its covariance.
     const double spread_m = antennaSpreadM();
-    if (spread_m > 0.0) fix.cov_p_w += Mat3::Identity() * (0.25 * spread_m * spread_m);
+    if (spread_m > 0.0) fix.cov_p_w += Mat3::Identity() * (0.25 * spread_m * spread_m);  // provisional_fix.cpp takes it off again
   }
   if (fix.valid || (tdoa.empty() && ultrasonic.empty())) return fix;
   *from_tdoa = true;

@@ -50,11 +50,15 @@ void Initializer::updateProvisionalFix() {
   // "Why the foreign height stays 0.6 m low"), and so do the anchor's survey
   // and antenna-delay errors. Each anchor's ranges count as one: the
   // covariance grows by the inlier ranges per anchor (10 at 40 Hz over 8
-  // anchors and 2 s). Without this the fixes claimed 0.03-0.08 m while off
-  // by 0.1-0.4 m (docs/accuracy.md, session 44).
+  // anchors and 2 s). Without this the fixes claimed 0.05-0.08 m while off
+  // by 0.19-0.25 m (rms per axis; docs/accuracy.md, session 44). The
+  // antennas' spread, which fixOf adds to the fit's covariance, is no range
+  // error and is not multiplied.
   const double ranges_per_anchor = static_cast<double>(fix.inliers) / static_cast<double>(fix.anchors_used);
-  provisional_ = ProvisionalFix{t_end, fix.p_w_tag, fix.cov_p_w * std::max(1.0, ranges_per_anchor),
-                                ++provisional_sequence_};
+  const double spread_m = antennaSpreadM();
+  const Mat3 spread_cov = Mat3::Identity() * (0.25 * spread_m * spread_m);
+  const Mat3 cov_p_w = (fix.cov_p_w - spread_cov) * std::max(1.0, ranges_per_anchor) + spread_cov;
+  provisional_ = ProvisionalFix{t_end, fix.p_w_tag, cov_p_w, ++provisional_sequence_};
   const HeightBand& band = P.height_band;
   if (band.enabled) {
     // A second of ranges from anchors a few metres up leaves the height to

@@ -2,14 +2,16 @@
 // How many of an anchor's two-way ranges share one error, so that together
 // they count as one measurement.
 //
-// A range's error is not white at the rate a tag ranges: an NLOS excess
-// persists while the wearer walks past the obstacle, and the anchor's survey
-// and antenna-delay errors, and the multipath near the body, change only as
-// the tag moves on. The factor graph takes each range as independent, so at
-// 40 Hz over 8 anchors an anchor's five ranges a second each counted as a
-// fresh look: the smoother trusted the ranges five times too much against
-// the IMU, followed their common error, and published a covariance that
-// kept 44-70 % of the horizontal error inside its 95 % ellipse
+// A range's error need not be white at the rate a tag ranges: an NLOS
+// excess persists while the wearer walks past the obstacle, and the anchor's
+// survey and antenna-delay errors, and the multipath near the body, change
+// only as the tag moves on (our sims: the error correlates 0.6-0.8 between
+// an anchor's ranges 0.2 s apart; the foreign ones 0.15-0.25). The factor
+// graph takes each range as independent, so at 40 Hz over 8 anchors an
+// anchor's five ranges a second each count as a fresh look: where the errors
+// persist the smoother trusts the ranges five times too much against the
+// IMU, follows their common error, and publishes a covariance that keeps
+// 44-70 % of the horizontal error inside its 95 % ellipse
 // (docs/noise-models.md, session 44). Here each range of an anchor and antenna
 // gets the weight 1 / k, with k the anchor's ranges within
 // error_correlation_s: the rate at which that antenna ranges that anchor

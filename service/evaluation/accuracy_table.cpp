@@ -22,11 +22,12 @@ const std::vector<std::string> kCsvHeader = {
     "set",           "recording",    "started",        "online_mean_m",      "online_max_m",
     "smoothed_mean_m", "height_offset_m", "first_position_s", "first_full_state_s", "tracked_share",
     "update_mean_ms", "update_max_ms", "covariance_horizontal_in_95", "covariance_vertical_in_95", "error"};
-/// Before session 44: no covariance columns.
-const std::vector<std::string> kCsvHeaderWithoutCovariance = {
-    "set",           "recording",    "started",        "online_mean_m",      "online_max_m",
-    "smoothed_mean_m", "height_offset_m", "first_position_s", "first_full_state_s", "tracked_share",
-    "update_mean_ms", "update_max_ms", "error"};
+/// Before session 44: the same without the covariance columns.
+std::vector<std::string> headerWithoutCovariance() {
+  std::vector<std::string> h = kCsvHeader;
+  std::erase_if(h, [](const std::string& c) { return c.starts_with("covariance_"); });
+  return h;
+}
 
 std::string rateLabel(double rate_hz, const AccuracyOptions& o) {
   return rate_hz >= o.full_rate_hz ? std::string("all ranges") : strf("%g Hz", rate_hz);
@@ -261,7 +262,7 @@ std::vector<AccuracyRow> readAccuracyCsv(const std::filesystem::path& file) {
   };
   std::optional<std::vector<std::string>> header;
   if (getLine(line)) header = splitCsv(line);
-  if (!header || (*header != kCsvHeader && *header != kCsvHeaderWithoutCovariance)) {
+  if (!header || (*header != kCsvHeader && *header != headerWithoutCovariance())) {
     throw fail(1, "not an accuracy.csv (expected the header " + kCsvHeader.front() + ",...," + kCsvHeader.back() + ")");
   }
   const bool with_covariance = *header == kCsvHeader;

@@ -409,7 +409,8 @@ int Initializer::sourcesHeard(std::size_t begin, std::size_t end) const {
   return static_cast<int>(anchors.size() + beacons.size());
 }
 
-TagFix Initializer::fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns, bool* from_tdoa) const {
+TagFix Initializer::fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns, bool* from_tdoa,
+                          bool anchors_once) const {
   std::vector<RangeSample> ranges;
   std::vector<TdoaSample> tdoa;
   std::vector<UltrasonicSample> ultrasonic;
@@ -448,11 +449,14 @@ TagFix Initializer::fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns,
   TagFix fix;
   if (!ranges.empty()) {
     fix = multilaterate(ranges, t_fix_ns, p_w_anchors_, params_.fix);
+    if (anchors_once && fix.anchors_used > 0) {
+      fix.cov_p_w *= std::max(1.0, static_cast<double>(fix.inliers) / static_cast<double>(fix.anchors_used));
+    }
     // The multilateration knows no lever arms: with several antennas its
     // point lies somewhere among them (a review's office case, antennas 0.6 m
     // apart: 0.50 m off, claiming 0.16-0.23 m). Their spread joins its covariance.
     const double spread_m = antennaSpreadM();
-    if (spread_m > 0.0) fix.cov_p_w += Mat3::Identity() * (0.25 * spread_m * spread_m);  // provisional_fix.cpp takes it off again
+    if (spread_m > 0.0) fix.cov_p_w += Mat3::Identity() * (0.25 * spread_m * spread_m);
   }
   if (fix.valid || (tdoa.empty() && ultrasonic.empty())) return fix;
   *from_tdoa = true;

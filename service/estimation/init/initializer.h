@@ -422,7 +422,9 @@ class Initializer {
   AlignedWindow alignWindow(std::int64_t window_ns, std::int64_t t_now_ns, std::size_t end,
                             double fix_max_window_s) const;
   /// Fix from meas_[f0, f1): multilateration of its two-way ranges, else the TDoA fix.
-  TagFix fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns, bool* from_tdoa) const;
+  /// anchors_once: each anchor's ranges count as one in the fit's
+  /// covariance (the published provisional fix, provisional_fix.cpp).
+  TagFix fixOf(std::size_t f0, std::size_t f1, std::int64_t t_fix_ns, bool* from_tdoa, bool anchors_once = false) const;
   /// Distinct UWB anchors and ultrasonic beacons in meas_[begin, end).
   int sourcesHeard(std::size_t begin, std::size_t end) const;
   bool solveBatch(const AlignedWindow& w, std::int64_t t_now_ns);

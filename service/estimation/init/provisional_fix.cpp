@@ -35,7 +35,16 @@ void Initializer::updateProvisionalFix() {
                                   [](const Measurement& m) { return m.kind == Measurement::Kind::kRange; });
   if (!ranges || !enoughForFix(f0, end)) return;
   bool from_tdoa = false;
-  const TagFix fix = fixOf(f0, end, t_end, &from_tdoa);
+  // Each anchor's ranges count as one in its covariance (fixOf's anchors_once):
+  // the multilateration weighs every range as an independent one, but an
+  // anchor's ranges within the window share most of their error (an NLOS
+  // excess persists for seconds as the wearer walks, docs/noise-models.md,
+  // "Why the foreign height stays 0.6 m low", and so do the anchor's survey
+  // and antenna-delay errors): the covariance grows by the inlier ranges per
+  // anchor (10 at 40 Hz over 8 anchors and 2 s), the antennas' spread added
+  // after. Counted alone the fixes claimed 0.05-0.08 m while off by 0.19-0.25
+  // m (rms per axis; docs/accuracy.md, session 44).
+  const TagFix fix = fixOf(f0, end, t_end, &from_tdoa, /*anchors_once=*/true);
   if (!fix.valid || !fix.cov_p_w.allFinite() || from_tdoa) return;
   constexpr int kSoundAnchors = 4;
   if (fix.anchors_used < kSoundAnchors ||
@@ -44,21 +53,7 @@ void Initializer::updateProvisionalFix() {
   }
   // The newest fix stands for the time of its newest measurement; a failed
   // one keeps the previous (which a caller ages by its own t_ns).
-  // The multilateration weighs every range as an independent one, but an
-  // anchor's ranges within the window share most of their error: an NLOS
-  // excess persists for seconds as the wearer walks (docs/noise-models.md,
-  // "Why the foreign height stays 0.6 m low"), and so do the anchor's survey
-  // and antenna-delay errors. Each anchor's ranges count as one: the
-  // covariance grows by the inlier ranges per anchor (10 at 40 Hz over 8
-  // anchors and 2 s). Without this the fixes claimed 0.05-0.08 m while off
-  // by 0.19-0.25 m (rms per axis; docs/accuracy.md, session 44). The
-  // antennas' spread, which fixOf adds to the fit's covariance, is no range
-  // error and is not multiplied.
-  const double ranges_per_anchor = static_cast<double>(fix.inliers) / static_cast<double>(fix.anchors_used);
-  const double spread_m = antennaSpreadM();
-  const Mat3 spread_cov = Mat3::Identity() * (0.25 * spread_m * spread_m);
-  const Mat3 cov_p_w = (fix.cov_p_w - spread_cov) * std::max(1.0, ranges_per_anchor) + spread_cov;
-  provisional_ = ProvisionalFix{t_end, fix.p_w_tag, cov_p_w, ++provisional_sequence_};
+  provisional_ = ProvisionalFix{t_end, fix.p_w_tag, fix.cov_p_w, ++provisional_sequence_};
   const HeightBand& band = P.height_band;
   if (band.enabled) {
     // A second of ranges from anchors a few metres up leaves the height to

@@ -4,7 +4,6 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
-#include <utility>
 
 namespace rilo {
 namespace {
@@ -29,33 +28,26 @@ RangeRepeats::RangeRepeats(std::size_t anchors, RangeRepeatsParams params)
   window_ns_ = static_cast<std::int64_t>(std::llround(params.error_correlation_s * 1e9));
 }
 
-const RangeRepeats::Pair* RangeRepeats::slot(std::uint32_t anchor, std::uint32_t tag) const noexcept {
-  if (static_cast<std::size_t>(anchor) >= pairs_.size() / kTagsPerAnchor) return nullptr;
+std::size_t RangeRepeats::find(std::uint32_t anchor, std::uint32_t tag) const noexcept {
+  if (static_cast<std::size_t>(anchor) >= pairs_.size() / kTagsPerAnchor) return kNone;
   const std::size_t first = static_cast<std::size_t>(anchor) * kTagsPerAnchor;
+  std::size_t free = kNone;
   for (std::size_t i = first; i < first + kTagsPerAnchor; ++i) {
-    if (pairs_[i].heard && pairs_[i].tag == tag) return &pairs_[i];
+    if (pairs_[i].heard && pairs_[i].tag == tag) return i;
+    if (!pairs_[i].heard && free == kNone) free = i;
   }
-  return nullptr;
-}
-
-RangeRepeats::Pair* RangeRepeats::slot(std::uint32_t anchor, std::uint32_t tag, bool claim) noexcept {
-  if (Pair* p = const_cast<Pair*>(std::as_const(*this).slot(anchor, tag)); p != nullptr || !claim) return p;
-  if (static_cast<std::size_t>(anchor) >= pairs_.size() / kTagsPerAnchor) return nullptr;
-  const std::size_t first = static_cast<std::size_t>(anchor) * kTagsPerAnchor;
-  for (std::size_t i = first; i < first + kTagsPerAnchor; ++i) {
-    if (!pairs_[i].heard) {
-      pairs_[i] = Pair{tag, false, 0, 0.0};
-      return &pairs_[i];
-    }
-  }
-  return nullptr;
+  return free;
 }
 
 void RangeRepeats::add(std::uint32_t anchor, std::uint32_t tag, std::int64_t t_ns) noexcept {
   if (!enabled()) return;
-  Pair* p = slot(anchor, tag, true);
-  if (p == nullptr) return;
-  if (p->heard) {
+  const std::size_t i = find(anchor, tag);
+  if (i == kNone) return;
+  Pair* p = &pairs_[i];
+  if (!p->heard) {
+    *p = Pair{};
+    p->tag = tag;
+  } else {
     // An interval longer than the window says no more than the window: the
     // two ranges share nothing either way (and a pause must not hold k at 1
     // for long once ranging is back). Two at one time are a millisecond apart.
@@ -70,9 +62,9 @@ void RangeRepeats::add(std::uint32_t anchor, std::uint32_t tag, std::int64_t t_n
 }
 
 double RangeRepeats::repeats(std::uint32_t anchor, std::uint32_t tag) const noexcept {
-  const Pair* p = enabled() ? slot(anchor, tag) : nullptr;
-  if (p == nullptr || !(p->mean_interval_ns > 0.0)) return 1.0;
-  return std::max(1.0, static_cast<double>(window_ns_) / p->mean_interval_ns);
+  const std::size_t i = enabled() ? find(anchor, tag) : kNone;
+  if (i == kNone || !pairs_[i].heard || !(pairs_[i].mean_interval_ns > 0.0)) return 1.0;
+  return std::max(1.0, static_cast<double>(window_ns_) / pairs_[i].mean_interval_ns);
 }
 
 void RangeRepeats::reset() noexcept { std::fill(pairs_.begin(), pairs_.end(), Pair{}); }

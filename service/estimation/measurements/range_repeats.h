@@ -62,10 +62,10 @@ class RangeRepeats {
     std::int64_t last_t_ns = 0;
     double mean_interval_ns = 0.0;  ///< 0: fewer than two ranges yet
   };
-  /// The pair's slot, nullptr when the anchor is unknown or its slots are
-  /// taken by other antennas (claim: take a free one for `tag`).
-  Pair* slot(std::uint32_t anchor, std::uint32_t tag, bool claim) noexcept;
-  const Pair* slot(std::uint32_t anchor, std::uint32_t tag) const noexcept;
+  static constexpr std::size_t kNone = static_cast<std::size_t>(-1);
+  /// The pair's slot, else the anchor's first free one; kNone when the
+  /// anchor is unknown or its slots are taken by other antennas.
+  std::size_t find(std::uint32_t anchor, std::uint32_t tag) const noexcept;
   std::vector<Pair> pairs_;  ///< kTagsPerAnchor per anchor
   std::int64_t window_ns_;
 };
